@@ -1,0 +1,63 @@
+// Triangle–triangle contact geometry (DESIGN.md §4.6–4.7): the narrow phase for one facing pair
+// and the broad phase over a packed mesh. Pure functions of positions; no cell state.
+#pragma once
+
+#include <array>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "activefoam/mesh.h"
+#include "activefoam/spec.h"
+
+namespace activefoam {
+
+// Linear contact pressure P(g) = k g for gap g < h0, 0 beyond (attractive for 0 < g < h0,
+// repulsive for g < 0).
+struct ContactLaw {
+  double k = 71.1;   // nN/µm³
+  double h0 = 0.06;  // µm
+};
+
+struct TriangleContact {
+  bool active = false;  // facing, projections overlap, and some part has g < h0
+  Vec3 normal = Vec3::Zero();  // n̂_AB = normalize(n̂_A − n̂_B), from A towards B
+  double area = 0;             // S_AB: area of the projected overlap polygon where g < h0
+  Vec3 force = Vec3::Zero();   // ∫ P n̂_AB dS, acting on A; B receives −force
+  // Nodal split of `force` (S18): nodal force on A's vertex i is  force_weight_a[i] · n̂_AB,
+  // on B's vertex k it is  −force_weight_b[k] · n̂_AB; weights are ∫ P λ_i dS (the unique
+  // collinear solution reproducing force and moment; sum of each triple = ∫ P dS).
+  std::array<double, 3> force_weight_a{0, 0, 0};
+  std::array<double, 3> force_weight_b{0, 0, 0};
+  Vec3 center_of_pressure = Vec3::Zero();  // ∫ x P dS / ∫ P dS on the mid plane (centroid if ∫P≈0)
+  Vec3 centroid = Vec3::Zero();            // centroid of the contact polygon (mid plane)
+  // Barycentric coordinates of `centroid` in projected A and B (friction/stiffness weights
+  // w_ik = bary_a[i]·bary_b[k]); non-negative, each sums to 1.
+  std::array<double, 3> bary_a{0, 0, 0};
+  std::array<double, 3> bary_b{0, 0, 0};
+  double energy = 0;  // ∫ ½ k g² dS over the contact polygon (for consistency tests)
+  double mean_gap = 0;  // ∫ g dS / S_AB
+};
+
+// a, b: the three vertices of triangles A and B (counter-clockwise seen from outside their
+// cells). Returns an inactive contact when the triangles do not face each other
+// (n̂_A·n̂_B ≥ 0), are degenerate, or their projections do not overlap within g < h0.
+TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::array<Vec3, 3>& b,
+                                       const ContactLaw& law, ContactQuadrature quadrature);
+
+// Broad phase: all pairs (tA, tB), tA < tB, of triangles of different cells whose axis-aligned
+// bounding boxes, inflated by `margin`, overlap and whose normals face (n̂_A·n̂_B < 0).
+// Sorted ascending. `tri_cell[t]` is the cell of triangle t.
+std::vector<std::pair<int, int>> findContactCandidates(const Eigen::Matrix3Xd& x,
+                                                       const std::vector<Tri>& tri,
+                                                       const std::vector<int>& tri_cell,
+                                                       double margin);
+
+// The O(T²) oracle with the same contract.
+std::vector<std::pair<int, int>> findContactCandidatesBruteForce(const Eigen::Matrix3Xd& x,
+                                                                 const std::vector<Tri>& tri,
+                                                                 const std::vector<int>& tri_cell,
+                                                                 double margin);
+
+}  // namespace activefoam

@@ -1,0 +1,67 @@
+// Running a scene to its end: the engine's batch interface (used by foam-run and foamd).
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "activefoam/mesh.h"
+#include "activefoam/spec.h"
+
+namespace activefoam {
+
+// One row of samples.csv. `values` is aligned with sampleColumns(scene).
+struct Sample {
+  std::vector<double> values;
+};
+
+// Column names of a scene's samples, in order. The first five are common to every scene:
+// t_s, steps, wall_s, cg_iters_mean, volume_error_max; then the scene's observables.
+std::vector<std::string> sampleColumns(SceneKind scene);
+
+// Every cell's surface at one time, packed (global vertex indices).
+struct Snapshot {
+  double t_s = 0;
+  std::int64_t step = 0;
+  Eigen::Matrix3Xd x;
+  std::vector<Tri> tri;
+  std::vector<int> vertex_cell;       // cell id of each vertex
+  std::vector<double> cell_pressure;  // P_l, kPa
+  std::vector<int> cell_label;        // spheroid label (0/1), 0 for single-spheroid scenes
+};
+
+enum class FailureKind { None, NonFinite, CgNotConverged, InvertedTriangle, VolumeDrift, Cancelled };
+std::string_view toString(FailureKind);
+
+struct RunSummary {
+  FailureKind failure = FailureKind::None;  // None: ran to duration_s
+  std::string reason;                       // one line, empty on success
+  double t_s = 0;                           // simulated time reached
+  std::int64_t steps = 0;
+  double wall_s = 0;
+  double cg_iters_mean = 0;
+  std::int64_t remesh_ops = 0;  // splits + collapses + flips over the run
+  // Scene observables at the end, as (name, value) in a stable order, e.g. aspect_ratio.
+  std::vector<std::pair<std::string, double>> final_values;
+  // Wall time split by phase over the run, seconds: geometry, forces, matrix, solve, remesh.
+  std::vector<std::pair<std::string, double>> phase_wall_s;
+  bool ok() const { return failure == FailureKind::None; }
+};
+
+struct RunObserver {
+  std::function<void(const Sample&)> on_sample;
+  std::function<void(const Snapshot&)> on_snapshot;
+  std::function<void(double t_s, std::int64_t step)> on_progress;  // at most every ~1% / 1 s
+  const std::atomic<bool>* cancel = nullptr;                         // polled every step
+};
+
+// Runs a resolved, valid spec (see resolve/validate in spec.h) to duration_s or to its first
+// failure. Samples are emitted at t = 0 and every sample_every_s; snapshots likewise.
+RunSummary runScene(const SceneSpec& spec, const RunObserver& observer);
+
+}  // namespace activefoam

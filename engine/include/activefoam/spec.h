@@ -1,0 +1,131 @@
+// The scene spec: every parameter of a run, in the units of DESIGN.md §3 (µm, s, nN).
+//
+// A value type with the supplement's Table 1/2 defaults. One table (specFields) describes every
+// key: its dotted name, type, allowed range, unit and help. Parsers (TOML/JSON in foam-run,
+// proto in the server, `--set key=value` in the CLI) go through setField/getField by key, and
+// validate() checks ranges and cross-field rules, so there is exactly one place that knows them.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <variant>
+#include <vector>
+
+namespace activefoam {
+
+enum class SceneKind { Cell, Doublet, Spheroid, Fusion };
+enum class IntegratorKind { SemiImplicit, ContactImplicit };
+enum class PreconditionerKind { Jacobi, BlockJacobi };
+enum class ContactQuadrature { Exact, Dunavant7, Centroid };
+
+struct CellParams {
+  double radius_mean_um = 8.88;  // mean cell radius r
+  double radius_gamma_k = 37;    // Gamma shape k (θ = r/k); 0 = every cell has radius r exactly
+  double gamma = 0.5;            // cortex tension γ, nN/µm
+  double eta = 5.0;              // cortex 2D viscosity η, nN·s/µm
+  double eta_m = 0.4;            // medium viscosity η_m, kPa·s
+  double bulk_modulus = 0.5;     // K, kPa
+  std::optional<double> tau_k_s;  // PI integration time τ_K; default 2 τ_shell
+  double alpha = 0.4375;          // relative cell–cell tension α = 1 − w/γ
+  double p_a = 0.0372;            // protrusion pressure, kPa
+  double tau_p_s = 600;           // persistence time τ_p, s
+  double xi = 0.25;               // contact friction ξ, kPa·s/µm
+  std::optional<double> xi_normal;      // ξ⊥, default ξ
+  std::optional<double> xi_tangential;  // ξ∥, default ξ
+  double k_contact = 71.1;              // contact stiffness k_AB, nN/µm³
+  double eps_n = 0.1;                   // out-of-plane factor of cortex viscosity (S13)
+  // Reduced forms of Table 2. When given they win over the absolute values above.
+  std::optional<double> tau_gamma_s;    // τ_γ = η/γ → η
+  std::optional<double> pa_reduced;     // p_a r/2γ → p_a
+  std::optional<double> l_eta_reduced;  // L_η/r = √(η/ξ)/r → ξ
+};
+
+struct NumericsParams {
+  double dt_s = 0.1;
+  IntegratorKind integrator = IntegratorKind::ContactImplicit;
+  double cg_tol = 1e-3;
+  std::int64_t cg_max_iter = 1000;
+  PreconditionerKind preconditioner = PreconditionerKind::Jacobi;
+  std::int64_t triangles_per_cell = 320;       // 80 | 320 | 1280
+  std::optional<double> remesh_every_s;        // τ_r, default 5 τ_shell; 0 disables remeshing
+  double remesh_min_area_factor = 1.0 / 3.0;   // A_m = factor · A_Δ
+  double remesh_max_area_factor = 3.0;         // A_M = factor · A_Δ
+  ContactQuadrature contact_quadrature = ContactQuadrature::Exact;
+  double max_volume_error = 0.05;  // |V − V*|/V* beyond this stops the run as failed
+};
+
+struct SceneParams {
+  double axes_ratio = 1.3;  // cell: start as ellipsoid (q r, r, r/q) at equal volume; 1 = sphere
+  double gap_um = 0.05;     // doublet: initial gap between the two cells
+  std::int64_t n_cells = 100;    // spheroid: N; fusion: N per spheroid unless a/b are given
+  std::int64_t n_cells_a = 0;    // fusion: cells in spheroid A (0 = n_cells)
+  std::int64_t n_cells_b = 0;    // fusion: cells in spheroid B (0 = n_cells)
+};
+
+struct SceneSpec {
+  SceneKind scene = SceneKind::Fusion;
+  std::uint64_t seed = 1;
+  double duration_s = 86400;
+  double sample_every_s = 60;
+  double snapshot_every_s = 600;  // 0 = no snapshots
+  CellParams cells;
+  NumericsParams numerics;
+  SceneParams scene_params;  // the [scene] table
+};
+
+// ---- the key table -------------------------------------------------------------------------
+
+using SpecValue = std::variant<double, std::int64_t, std::string, bool>;
+
+enum class FieldType { Real, Integer, Choice };
+
+struct SpecField {
+  std::string key;   // dotted path as in the TOML: "seed", "cells.gamma", "numerics.dt_s", ...
+  FieldType type;
+  double lo, hi;     // allowed closed range [lo, hi] for Real/Integer
+  bool lo_open;      // true: (lo, hi]
+  bool optional;     // may be left unset (a derived default applies)
+  std::string unit;
+  std::string help;
+  std::vector<std::string> choices;  // for Choice
+  std::string range() const;         // "(0, 10]" or "one of cell|doublet|..." for messages
+};
+
+// Every key, in a stable order (the order of DESIGN.md §10).
+const std::vector<SpecField>& specFields();
+const SpecField* findField(std::string_view key);
+
+struct SpecError {
+  std::string field;    // dotted key, e.g. "numerics.dt_s"
+  std::string message;  // one line: what is wrong and the allowed range
+  std::string str() const { return field + ": " + message; }
+};
+
+// Sets one key. Integers are accepted for Real keys; reals with no fractional part for Integer
+// keys; strings for Choice keys. Fails (with the key named) on an unknown key, a wrong type,
+// a non-finite number or a value outside the key's range.
+std::optional<SpecError> setField(SceneSpec& spec, std::string_view key, const SpecValue& value);
+
+// The key's value; std::nullopt for an optional key that is unset.
+std::optional<SpecValue> getField(const SceneSpec& spec, std::string_view key);
+
+// Every range and cross-field rule. Empty when the spec can run.
+std::vector<SpecError> validate(const SceneSpec& spec);
+
+// Fills derived defaults (τ_K, τ_r, ξ⊥/ξ∥) and applies reduced parameters, so the result states
+// exactly what runs. Idempotent. Call validate() first.
+SceneSpec resolve(const SceneSpec& spec);
+
+std::string_view toString(SceneKind);
+std::string_view toString(IntegratorKind);
+std::string_view toString(PreconditionerKind);
+std::string_view toString(ContactQuadrature);
+
+// Derived quantities of a (resolved) spec.
+double tauShell(const CellParams& c);          // η / (2√3 γ)
+double adhesionW(const CellParams& c);         // w = (1 − α) γ
+double contactRangeH0(const CellParams& c);    // h0 = √(w / k_AB)
+
+}  // namespace activefoam
