@@ -21,7 +21,7 @@ struct ContactLaw {
 };
 
 struct TriangleContact {
-  bool active = false;  // facing, projections overlap, and some part has g < h0
+  bool active = false;         // facing, projections overlap, and some part has g < h0
   Vec3 normal = Vec3::Zero();  // n̂_AB = normalize(n̂_A − n̂_B), from A towards B
   double area = 0;             // S_AB: area of the projected overlap polygon where g < h0
   Vec3 force = Vec3::Zero();   // ∫ P n̂_AB dS, acting on A; B receives −force
@@ -36,7 +36,7 @@ struct TriangleContact {
   // w_ik = bary_a[i]·bary_b[k]); non-negative, each sums to 1.
   std::array<double, 3> bary_a{0, 0, 0};
   std::array<double, 3> bary_b{0, 0, 0};
-  double energy = 0;  // ∫ ½ k g² dS over the contact polygon (for consistency tests)
+  double energy = 0;    // ∫ ½ k g² dS over the contact polygon (for consistency tests)
   double mean_gap = 0;  // ∫ g dS / S_AB
 };
 

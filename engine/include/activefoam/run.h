@@ -35,7 +35,14 @@ struct Snapshot {
   std::vector<int> cell_label;        // spheroid label (0/1), 0 for single-spheroid scenes
 };
 
-enum class FailureKind { None, NonFinite, CgNotConverged, InvertedTriangle, VolumeDrift, Cancelled };
+enum class FailureKind {
+  None,
+  NonFinite,
+  CgNotConverged,
+  InvertedTriangle,
+  VolumeDrift,
+  Cancelled
+};
 std::string_view toString(FailureKind);
 
 struct RunSummary {
@@ -57,7 +64,7 @@ struct RunObserver {
   std::function<void(const Sample&)> on_sample;
   std::function<void(const Snapshot&)> on_snapshot;
   std::function<void(double t_s, std::int64_t step)> on_progress;  // at most every ~1% / 1 s
-  const std::atomic<bool>* cancel = nullptr;                         // polled every step
+  const std::atomic<bool>* cancel = nullptr;                       // polled every step
 };
 
 // Runs a resolved, valid spec (see resolve/validate in spec.h) to duration_s or to its first

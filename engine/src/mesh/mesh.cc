@@ -51,10 +51,14 @@ TriMesh icosphere(int levels) {
 
 int icosphereLevelForTriangles(int triangles) {
   switch (triangles) {
-    case 80: return 1;
-    case 320: return 2;
-    case 1280: return 3;
-    default: return -1;
+    case 80:
+      return 1;
+    case 320:
+      return 2;
+    case 1280:
+      return 3;
+    default:
+      return -1;
   }
 }
 

@@ -1,0 +1,37 @@
+// Symmetric 3×3-block sparse matrix with a fixed pattern, stored as an Eigen row-major sparse
+// matrix whose values are overwritten each step (the pattern is rebuilt only when the topology
+// or the contact set changes: setFromTriplets every step would cost more than the CG solve).
+#pragma once
+
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+namespace activefoam {
+
+using SpMat = Eigen::SparseMatrix<double, Eigen::RowMajor>;
+
+class BlockMatrix {
+ public:
+  // Pattern: every diagonal block plus the given off-diagonal block pairs (i, j), i != j, stored
+  // symmetrically. Duplicates are fine.
+  void setPattern(int num_blocks, std::vector<std::pair<int, int>> couplings);
+  void setZero();
+  void addDiagonal(int i, const Eigen::Matrix3d& m);
+  // Dissipative coupling between nodes i and j: +m on (i,i), (j,j); −m on (i,j), (j,i).
+  // m symmetric positive semi-definite keeps the whole matrix SPD.
+  void addCoupling(int i, int j, const Eigen::Matrix3d& m);
+  const SpMat& matrix() const { return a_; }
+  int numBlocks() const { return n_; }
+
+ private:
+  void addBlock(int i, int j, const Eigen::Matrix3d& m);
+  int n_ = 0;
+  std::vector<int> row_begin_;  // block CSR: blocks of block-row i are cols_[row_begin_[i]..]
+  std::vector<int> cols_;
+  SpMat a_;
+};
+
+}  // namespace activefoam

@@ -1,0 +1,38 @@
+// One interface for every physical contribution (DESIGN.md §2, §4): a term adds forces (and
+// returns its energy where it has one), adds SPD friction blocks to Γ, and may update its state
+// after the position update. Terms are listed explicitly in Simulation, not registered by macros.
+#pragma once
+
+#include <string_view>
+
+#include <Eigen/Core>
+
+#include "activefoam/block_matrix.h"
+#include "activefoam/cellset.h"
+#include "activefoam/geometry.h"
+#include "activefoam/spec.h"
+
+namespace activefoam {
+
+struct StepContext {
+  const CellSet& cells;
+  const Geometry& geo;
+  const Topology& topo;
+  double dt;  // s
+  double t;   // s, time at the start of the step
+};
+
+class ForceTerm {
+ public:
+  virtual ~ForceTerm() = default;
+  virtual std::string_view name() const = 0;
+  // Adds this term's nodal forces (nN) to f (3 × numVertices). Returns the term's energy (nN·µm)
+  // for conservative terms, 0 otherwise.
+  virtual double addForces(const StepContext& /*ctx*/, Eigen::Matrix3Xd& /*f*/) const { return 0; }
+  // Adds this term's friction blocks (nN·s/µm) to Γ.
+  virtual void addFriction(const StepContext& /*ctx*/, BlockMatrix& /*gamma*/) const {}
+  // Updates per-cell state once the step is taken (positions already advanced).
+  virtual void endStep(const StepContext& /*ctx*/, CellSet& /*cells*/) const {}
+};
+
+}  // namespace activefoam

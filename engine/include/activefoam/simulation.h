@@ -1,0 +1,90 @@
+// One running scene: the packed cell state, the force terms, and the time step (the order of a
+// step is in ARCHITECTURE.md).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "activefoam/block_matrix.h"
+#include "activefoam/cellset.h"
+#include "activefoam/force_term.h"
+#include "activefoam/geometry.h"
+#include "activefoam/run.h"
+#include "activefoam/solver.h"
+#include "activefoam/spec.h"
+#include "activefoam/terms.h"
+
+namespace activefoam {
+
+struct StepReport {
+  FailureKind failure = FailureKind::None;
+  std::string reason;
+  SolveStats cg;
+  int remesh_ops = 0;             // operations of a remesh done at the end of this step
+  double remesh_volume_jump = 0;  // max over cells of |ΔV|/V across that remesh
+  bool ok() const { return failure == FailureKind::None; }
+};
+
+// Accumulated wall time per phase, seconds.
+struct PhaseTimes {
+  double geometry = 0, forces = 0, matrix = 0, solve = 0, remesh = 0;
+};
+
+// Builds the cells of a scene (radii from the Gamma law with the spec's seed).
+CellSet buildScene(const SceneSpec& spec);
+// The cell scene's starting shape: an icosphere with the mesh volume exactly V* = 4/3 π r³,
+// stretched to semi-axes (q, 1, 1/q)·r_eff (volume-preserving), centred at `centre`.
+TriMesh ellipsoidCell(double radius, double axes_ratio, int triangles, const Vec3& centre);
+
+class Simulation {
+ public:
+  // `spec` must be validated and resolved.
+  explicit Simulation(const SceneSpec& spec);
+  Simulation(const SceneSpec& spec, CellSet cells);
+
+  // One time step of length dt. After a failure the state is left as it was found failing.
+  StepReport step();
+  // Remeshes every cell now (also done automatically every remesh_every_s).
+  StepReport remeshAll();
+
+  const SceneSpec& spec() const { return spec_; }
+  const CellSet& cells() const { return cells_; }
+  const Geometry& geometry() const { return geo_; }
+  double time() const { return t_; }
+  std::int64_t steps() const { return steps_; }
+  double pressure(int c) const { return pressure_->pressure(cells_, geo_, c); }
+  const PhaseTimes& phaseTimes() const { return times_; }
+  std::int64_t remeshOps() const { return remesh_ops_; }
+
+  // Pieces of a step, exposed for tests and benchmarks. Geometry must be current.
+  double computeForces(Eigen::Matrix3Xd& f);  // returns the sum of term energies
+  const SpMat& assembleFriction();
+  // Replaces positions (tests: finite differences, perturbations) and refreshes geometry.
+  void setPositions(const Eigen::Matrix3Xd& x);
+
+ private:
+  void init();
+  StepContext context() const { return {cells_, geo_, topo_, spec_.numerics.dt_s, t_}; }
+
+  SceneSpec spec_;
+  CellSet cells_;
+  Geometry geo_, geo_prev_;
+  Topology topo_;
+  BlockMatrix gamma_;
+  std::uint64_t pattern_version_ = ~std::uint64_t{0};
+  LinearSolver solver_;
+  std::vector<std::unique_ptr<ForceTerm>> terms_;
+  const CytoplasmPressure* pressure_ = nullptr;
+  Eigen::Matrix3Xd f_;
+  double t_ = 0;
+  std::int64_t steps_ = 0;
+  std::int64_t remesh_interval_steps_ = 0;  // 0: never
+  std::int64_t remesh_ops_ = 0;
+  PhaseTimes times_;
+};
+
+}  // namespace activefoam

@@ -1,0 +1,57 @@
+// The force terms of DESIGN.md §4 that act within one cell.
+#pragma once
+
+#include "activefoam/force_term.h"
+
+namespace activefoam {
+
+// S2–S4: F_i += (γ_s/2)(x_k − x_j) × n̂_A = −γ_s ∂S_A/∂x_i. Energy Σ γ_s S_A.
+// γ_s = γ on free surface; the contact reduction (γ − w f_A) joins with the contact term.
+class SurfaceTension : public ForceTerm {
+ public:
+  explicit SurfaceTension(const CellParams& p) : gamma_(p.gamma) {}
+  std::string_view name() const override { return "surface_tension"; }
+  double addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) const override;
+
+ private:
+  double gamma_;
+};
+
+// S5–S7: P_l = 2γ/r_l − K ε_l − (K/τ_K) I_l, F_i += P_l S_A n̂_A / 3. The integral I_l is
+// advanced in endStep. Energy (with I_l frozen): −(2γ/r − K I/τ_K) V + K (V − V*)² / (2 V*).
+class CytoplasmPressure : public ForceTerm {
+ public:
+  explicit CytoplasmPressure(const CellParams& p)
+      : gamma_(p.gamma), k_(p.bulk_modulus), tau_k_(p.tau_k_s.value_or(2 * tauShell(p))) {}
+  std::string_view name() const override { return "cytoplasm_pressure"; }
+  double addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) const override;
+  void endStep(const StepContext& ctx, CellSet& cells) const override;
+  double pressure(const CellSet& cells, const Geometry& geo, int c) const;
+
+ private:
+  double gamma_, k_, tau_k_;
+};
+
+// S12: Γ_ii += (3 η_m / (2 r_l)) S_i I.
+class MediumDrag : public ForceTerm {
+ public:
+  explicit MediumDrag(const CellParams& p) : eta_m_(p.eta_m) {}
+  std::string_view name() const override { return "medium_drag"; }
+  void addFriction(const StepContext& ctx, BlockMatrix& gamma) const override;
+
+ private:
+  double eta_m_;
+};
+
+// S13: per edge ij, G = (η/√3)(n̂n̂ᵀ + t̂t̂ᵀ + ε_n b̂b̂ᵀ) as a coupling between i and j.
+class CortexViscosity : public ForceTerm {
+ public:
+  explicit CortexViscosity(const CellParams& p) : eta_(p.eta), eps_n_(p.eps_n) {}
+  std::string_view name() const override { return "cortex_viscosity"; }
+  void addFriction(const StepContext& ctx, BlockMatrix& gamma) const override;
+
+ private:
+  double eta_, eps_n_;
+};
+
+}  // namespace activefoam

@@ -1,0 +1,50 @@
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "activefoam/rng.h"
+#include "activefoam/simulation.h"
+
+namespace activefoam {
+namespace {
+
+// Radii ~ Gamma(k, θ = r/k) (mean r); k = 0 means every cell has radius r. Stream 0 of the
+// seed is reserved for scene construction.
+double drawRadius(const CellParams& p, Rng& rng) {
+  if (p.radius_gamma_k <= 0) return p.radius_mean_um;
+  return rng.gamma(p.radius_gamma_k) * p.radius_mean_um / p.radius_gamma_k;
+}
+
+}  // namespace
+
+TriMesh ellipsoidCell(double radius, double axes_ratio, int triangles, const Vec3& centre) {
+  const int level = icosphereLevelForTriangles(triangles);
+  if (level < 0) throw std::invalid_argument("triangles_per_cell must be 80, 320 or 1280");
+  TriMesh m = icosphere(level);
+  // Scale so the polyhedron (not the circumscribed sphere) holds V* = 4/3 π r³: the cell then
+  // starts with zero volume error and P = 2γ/r.
+  const double vstar = 4.0 / 3.0 * M_PI * radius * radius * radius;
+  m.x *= std::cbrt(vstar / meshVolume(m));
+  const Eigen::Vector3d axes(axes_ratio, 1.0, 1.0 / axes_ratio);  // det = 1: volume kept
+  m.x = axes.asDiagonal() * m.x;
+  m.x.colwise() += centre;
+  return m;
+}
+
+CellSet buildScene(const SceneSpec& spec) {
+  CellSet cells;
+  Rng rng(spec.seed, 0);
+  const int tris = static_cast<int>(spec.numerics.triangles_per_cell);
+  switch (spec.scene) {
+    case SceneKind::Cell: {
+      const double r = drawRadius(spec.cells, rng);
+      cells.addCell(ellipsoidCell(r, spec.scene_params.axes_ratio, tris, Vec3::Zero()), r);
+      return cells;
+    }
+    default:
+      throw std::invalid_argument("scene '" + std::string(toString(spec.scene)) +
+                                  "' is not available in this engine version (available: cell)");
+  }
+}
+
+}  // namespace activefoam

@@ -1,0 +1,80 @@
+#include <cmath>
+
+#include "activefoam/terms.h"
+
+namespace activefoam {
+
+double SurfaceTension::addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) const {
+  const auto& x = ctx.cells.x;
+  double energy = 0;
+  for (int t = 0; t < ctx.cells.numTriangles(); ++t) {
+    const Tri& tr = ctx.cells.tri[t];
+    const Vec3& n = ctx.geo.tri_normal[t];
+    const double g = gamma_;
+    energy += g * ctx.geo.tri_area[t];
+    for (int k = 0; k < 3; ++k) {
+      const int i = tr[k], j = tr[(k + 1) % 3], l = tr[(k + 2) % 3];
+      f.col(i) += 0.5 * g * (x.col(l) - x.col(j)).cross(n);
+    }
+  }
+  return energy;
+}
+
+double CytoplasmPressure::pressure(const CellSet& cells, const Geometry& geo, int c) const {
+  const double vstar = cells.target_volume[c];
+  const double eps = (geo.cell_volume[c] - vstar) / vstar;
+  return 2 * gamma_ / cells.radius[c] - k_ * eps - k_ / tau_k_ * cells.pi_integral[c];
+}
+
+double CytoplasmPressure::addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) const {
+  const CellSet& cells = ctx.cells;
+  double energy = 0;
+  for (int c = 0; c < cells.numCells(); ++c) {
+    const double p = pressure(cells, ctx.geo, c);
+    const double v = ctx.geo.cell_volume[c], vstar = cells.target_volume[c];
+    energy += -(2 * gamma_ / cells.radius[c] - k_ / tau_k_ * cells.pi_integral[c]) * v +
+              k_ * (v - vstar) * (v - vstar) / (2 * vstar);
+    for (int t = cells.cell_tri_begin[c]; t < cells.cell_tri_begin[c + 1]; ++t) {
+      const Vec3 ft = p * ctx.geo.tri_area[t] / 3.0 * ctx.geo.tri_normal[t];
+      for (int k = 0; k < 3; ++k) f.col(cells.tri[t][k]) += ft;
+    }
+  }
+  return energy;
+}
+
+void CytoplasmPressure::endStep(const StepContext& ctx, CellSet& cells) const {
+  // Explicit (forward) integration of ε over the step, with ε at the start of the step.
+  for (int c = 0; c < cells.numCells(); ++c) {
+    const double vstar = cells.target_volume[c];
+    cells.pi_integral[c] += (ctx.geo.cell_volume[c] - vstar) / vstar * ctx.dt;
+  }
+}
+
+void MediumDrag::addFriction(const StepContext& ctx, BlockMatrix& gamma) const {
+  for (int i = 0; i < ctx.cells.numVertices(); ++i) {
+    const double r = ctx.cells.radius[ctx.cells.vertex_cell[i]];
+    gamma.addDiagonal(i, (1.5 * eta_m_ / r * ctx.geo.vertex_area[i]) * Eigen::Matrix3d::Identity());
+  }
+}
+
+void CortexViscosity::addFriction(const StepContext& ctx, BlockMatrix& gamma) const {
+  const double g = eta_ / std::sqrt(3.0);
+  for (const Edge& e : ctx.topo.edges) {
+    const Vec3 n = (ctx.cells.x.col(e.j) - ctx.cells.x.col(e.i)).normalized();
+    Vec3 b = ctx.geo.tri_normal[e.ta] + ctx.geo.tri_normal[e.tb];
+    const double bn = b.norm();
+    // A fully folded edge has no defined bisector: fall back to isotropic coupling, still SPD.
+    if (bn < 1e-12) {
+      gamma.addCoupling(e.i, e.j, g * Eigen::Matrix3d::Identity());
+      continue;
+    }
+    b /= bn;
+    b = (b - b.dot(n) * n).normalized();  // exactly orthogonal to the edge
+    const Vec3 t = b.cross(n);
+    const Eigen::Matrix3d m =
+        g * (n * n.transpose() + t * t.transpose() + eps_n_ * b * b.transpose());
+    gamma.addCoupling(e.i, e.j, m);
+  }
+}
+
+}  // namespace activefoam

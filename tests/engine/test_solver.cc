@@ -1,0 +1,100 @@
+// The assembled friction matrix and the CG solve.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <Eigen/SparseCholesky>
+
+#include "test_support.h"
+
+using namespace activefoam;
+using activefoam::testing::cellSpec;
+using activefoam::testing::jiggle;
+
+TEST(BlockMatrix, MatchesDenseAssembly) {
+  BlockMatrix b;
+  b.setPattern(4, {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {1, 0}});
+  Eigen::MatrixXd dense = Eigen::MatrixXd::Zero(12, 12);
+  Rng rng(3, 1);
+  auto randm = [&] {
+    Eigen::Matrix3d m;
+    for (int i = 0; i < 9; ++i) m(i) = rng.uniform();
+    return Eigen::Matrix3d(m * m.transpose());
+  };
+  for (auto [i, j] : std::vector<std::pair<int, int>>{{0, 1}, {1, 2}, {3, 0}}) {
+    const Eigen::Matrix3d m = randm();
+    b.addCoupling(i, j, m);
+    dense.block<3, 3>(3 * i, 3 * i) += m;
+    dense.block<3, 3>(3 * j, 3 * j) += m;
+    dense.block<3, 3>(3 * i, 3 * j) -= m;
+    dense.block<3, 3>(3 * j, 3 * i) -= m;
+  }
+  const Eigen::Matrix3d d = randm();
+  b.addDiagonal(2, d);
+  dense.block<3, 3>(6, 6) += d;
+  EXPECT_LT((Eigen::MatrixXd(b.matrix()) - dense).norm(), 1e-14);
+  EXPECT_THROW(b.addCoupling(0, 2, d), std::logic_error);  // outside the pattern
+  b.setZero();
+  EXPECT_EQ(Eigen::MatrixXd(b.matrix()).norm(), 0.0);
+}
+
+TEST(FrictionMatrix, IsSymmetricPositiveDefinite) {
+  for (int tris : {80, 320}) {
+    SceneSpec s = cellSpec(1.3, tris);
+    CellSet cells = buildScene(s);
+    jiggle(cells, 0.3, 11);
+    Simulation sim(s, cells);
+    const Eigen::MatrixXd a = Eigen::MatrixXd(sim.assembleFriction());
+    EXPECT_LT((a - a.transpose()).norm(), 1e-12 * a.norm());
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(a, Eigen::EigenvaluesOnly);
+    EXPECT_GT(es.eigenvalues().minCoeff(), 0.0) << tris << " triangles";
+    // The smallest eigenvalue comes from the medium drag on rigid motions: a genuine lower bound.
+    const double drag = 1.5 * s.cells.eta_m / s.cells.radius_mean_um;
+    const double smin_area =
+        *std::min_element(sim.geometry().vertex_area.begin(), sim.geometry().vertex_area.end());
+    EXPECT_GE(es.eigenvalues().minCoeff(), 0.99 * drag * smin_area);
+  }
+}
+
+TEST(Solver, ConjugateGradientMatchesDirectSolve) {
+  SceneSpec s = cellSpec(1.3, 80);
+  CellSet cells = buildScene(s);
+  jiggle(cells, 0.3, 12);
+  for (auto pre : {PreconditionerKind::Jacobi, PreconditionerKind::BlockJacobi}) {
+    s.numerics.preconditioner = pre;
+    Simulation sim(s, cells);
+    Eigen::Matrix3Xd f;
+    sim.computeForces(f);
+    const SpMat a = sim.assembleFriction();
+    const Eigen::VectorXd b = Eigen::Map<const Eigen::VectorXd>(f.data(), f.size());
+    Eigen::SimplicialLDLT<SpMat> ldlt(a);
+    ASSERT_EQ(ldlt.info(), Eigen::Success);
+    const Eigen::VectorXd direct = ldlt.solve(b);
+    for (double tol : {1e-3, 1e-10}) {
+      LinearSolver cg(pre, tol, 10000);
+      Eigen::VectorXd v = Eigen::VectorXd::Zero(b.size());
+      const SolveStats st = cg.solve(a, b, v);
+      EXPECT_TRUE(st.converged);
+      // CG's contract: the relative residual is within the tolerance ...
+      EXPECT_LE((a * v - b).norm() / b.norm(), tol * 1.0001);
+      // ... and the error in the energy norm is bounded by it (cond(Γ) times the residual).
+      if (tol < 1e-6) {
+        EXPECT_LT((v - direct).norm() / direct.norm(), 1e-7);
+      }
+    }
+  }
+}
+
+TEST(Solver, WarmStartFromTheSolutionNeedsNoIterations) {
+  SceneSpec s = cellSpec(1.3, 80);
+  Simulation sim(s);
+  Eigen::Matrix3Xd f;
+  sim.computeForces(f);
+  const SpMat a = sim.assembleFriction();
+  const Eigen::VectorXd b = Eigen::Map<const Eigen::VectorXd>(f.data(), f.size());
+  LinearSolver cg(PreconditionerKind::Jacobi, 1e-6, 1000);
+  Eigen::VectorXd v = Eigen::VectorXd::Zero(b.size());
+  const SolveStats cold = cg.solve(a, b, v);
+  const SolveStats warm = cg.solve(a, b, v);
+  EXPECT_GT(cold.iterations, 3);
+  EXPECT_EQ(warm.iterations, 0);
+}

@@ -1,0 +1,29 @@
+// Shared helpers for engine tests.
+#pragma once
+
+#include "activefoam/rng.h"
+#include "activefoam/simulation.h"
+
+namespace activefoam::testing {
+
+// A resolved `cell` spec with a fixed radius r (no Gamma spread) and the Table 1 defaults.
+inline SceneSpec cellSpec(double axes_ratio = 1.0, int triangles = 320) {
+  SceneSpec s;
+  s.scene = SceneKind::Cell;
+  s.cells.radius_gamma_k = 0;
+  s.scene_params.axes_ratio = axes_ratio;
+  s.numerics.triangles_per_cell = triangles;
+  s.cells.tau_k_s = 2 * tauShell(s.cells);
+  s.numerics.remesh_every_s = 5 * tauShell(s.cells);
+  return s;
+}
+
+// Moves every vertex by a random vector of the given size (seeded): a generic, non-symmetric
+// configuration for force tests.
+inline void jiggle(CellSet& cells, double size, std::uint64_t seed) {
+  Rng rng(seed, 99);
+  for (int i = 0; i < cells.numVertices(); ++i)
+    for (int k = 0; k < 3; ++k) cells.x(k, i) += size * (2 * rng.uniform() - 1);
+}
+
+}  // namespace activefoam::testing

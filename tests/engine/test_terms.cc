@@ -1,0 +1,135 @@
+// Force terms against finite-difference gradients of their energies, and conservation laws.
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "activefoam/terms.h"
+#include "test_support.h"
+
+using namespace activefoam;
+using activefoam::testing::cellSpec;
+using activefoam::testing::jiggle;
+
+namespace {
+
+struct Fixture {
+  CellSet cells;
+  Geometry geo;
+  Topology topo;
+  explicit Fixture(CellSet c) : cells(std::move(c)) { refresh(); }
+  void refresh() {
+    updateTopology(cells, topo);
+    computeGeometry(cells, geo);
+  }
+  StepContext ctx() const { return {cells, geo, topo, 0.1, 0.0}; }
+  double energy(const ForceTerm& term) {
+    computeGeometry(cells, geo);
+    Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, cells.numVertices());
+    return term.addForces(ctx(), f);
+  }
+  Eigen::Matrix3Xd forces(const ForceTerm& term) {
+    computeGeometry(cells, geo);
+    Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, cells.numVertices());
+    term.addForces(ctx(), f);
+    return f;
+  }
+};
+
+CellSet deformedCell(std::uint64_t seed, int triangles = 320) {
+  const SceneSpec s = cellSpec(1.3, triangles);
+  CellSet cells = buildScene(s);
+  jiggle(cells, 0.4, seed);
+  cells.x.colwise() += Vec3(5.0, -3.0, 2.0);  // away from the origin: no accidental symmetry
+  return cells;
+}
+
+// Central finite differences of the term's energy over every coordinate; returns
+// |F + ∇E| / |F| over the whole force vector.
+double gradientError(Fixture& fx, const ForceTerm& term) {
+  const Eigen::Matrix3Xd f = fx.forces(term);
+  Eigen::Matrix3Xd grad(3, fx.cells.numVertices());
+  const double h = 1e-5;  // µm; truncation O(h²) far below roundoff here
+  for (int i = 0; i < fx.cells.numVertices(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      const double x0 = fx.cells.x(k, i);
+      fx.cells.x(k, i) = x0 + h;
+      const double ep = fx.energy(term);
+      fx.cells.x(k, i) = x0 - h;
+      const double em = fx.energy(term);
+      fx.cells.x(k, i) = x0;
+      grad(k, i) = (ep - em) / (2 * h);
+    }
+  }
+  computeGeometry(fx.cells, fx.geo);
+  return (f + grad).norm() / f.norm();
+}
+
+}  // namespace
+
+TEST(SurfaceTension, ForceIsMinusGradientOfTensionTimesArea) {
+  for (std::uint64_t seed : {1, 2, 3}) {
+    Fixture fx(deformedCell(seed));
+    SurfaceTension term(cellSpec().cells);
+    const double err = gradientError(fx, term);
+    EXPECT_LT(err, 1e-6) << "seed " << seed;
+    // The energy is γ·area.
+    EXPECT_NEAR(fx.energy(term), cellSpec().cells.gamma * fx.geo.cell_area[0], 1e-9);
+  }
+}
+
+TEST(CytoplasmPressure, ForceIsMinusGradientOfPressureWork) {
+  for (std::uint64_t seed : {4, 5}) {
+    Fixture fx(deformedCell(seed));
+    fx.cells.pi_integral[0] = 0.37;  // the frozen integral part acts as a constant pressure
+    CytoplasmPressure term(cellSpec().cells);
+    EXPECT_LT(gradientError(fx, term), 1e-6) << "seed " << seed;
+  }
+}
+
+TEST(CytoplasmPressure, PressureLawMatchesS5S6) {
+  Fixture fx(deformedCell(6));
+  const CellParams p = cellSpec().cells;
+  CytoplasmPressure term(p);
+  fx.cells.pi_integral[0] = 0.2;
+  const double vstar = fx.cells.target_volume[0];
+  const double eps = (fx.geo.cell_volume[0] - vstar) / vstar;
+  const double expected =
+      2 * p.gamma / fx.cells.radius[0] - p.bulk_modulus * eps - p.bulk_modulus / *p.tau_k_s * 0.2;
+  EXPECT_NEAR(term.pressure(fx.cells, fx.geo, 0), expected, 1e-14);
+}
+
+TEST(InternalForces, SumToZeroAndExertNoTorque) {
+  Fixture fx(deformedCell(7));
+  fx.cells.pi_integral[0] = -0.1;
+  const CellParams p = cellSpec().cells;
+  SurfaceTension tension(p);
+  CytoplasmPressure pressure(p);
+  for (const ForceTerm* term :
+       {static_cast<const ForceTerm*>(&tension), static_cast<const ForceTerm*>(&pressure)}) {
+    const Eigen::Matrix3Xd f = fx.forces(*term);
+    Vec3 sum = Vec3::Zero(), torque = Vec3::Zero();
+    double scale = 0;
+    for (int i = 0; i < fx.cells.numVertices(); ++i) {
+      sum += f.col(i);
+      torque += Vec3(fx.cells.x.col(i)).cross(Vec3(f.col(i)));
+      scale += f.col(i).norm() * (1 + fx.cells.x.col(i).norm());
+    }
+    EXPECT_LT(sum.norm(), 1e-12 * scale) << term->name();
+    EXPECT_LT(torque.norm(), 1e-12 * scale) << term->name();
+  }
+}
+
+TEST(FrictionMatrix, DissipativeTermsAreTranslationInvariant) {
+  // Viscosity couples velocity differences only: Γ_visc · (uniform v) = 0, so its rows sum to 0.
+  Fixture fx(deformedCell(8));
+  const CellParams p = cellSpec().cells;
+  CortexViscosity visc(p);
+  std::vector<std::pair<int, int>> pairs;
+  for (const Edge& e : fx.topo.edges) pairs.emplace_back(e.i, e.j);
+  BlockMatrix g;
+  g.setPattern(fx.cells.numVertices(), pairs);
+  visc.addFriction(fx.ctx(), g);
+  Eigen::VectorXd u(3 * fx.cells.numVertices());
+  for (int i = 0; i < fx.cells.numVertices(); ++i) u.segment<3>(3 * i) = Vec3(0.3, -1.0, 2.0);
+  EXPECT_LT((g.matrix() * u).norm(), 1e-12 * g.matrix().norm());
+}
