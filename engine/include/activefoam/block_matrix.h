@@ -21,16 +21,22 @@ class BlockMatrix {
   void setZero();
   void addDiagonal(int i, const Eigen::Matrix3d& m);
   // Dissipative coupling between nodes i and j: +m on (i,i), (j,j); −m on (i,j), (j,i).
-  // m symmetric positive semi-definite keeps the whole matrix SPD.
+  // m must be symmetric; positive semi-definite m keeps the whole matrix SPD.
   void addCoupling(int i, int j, const Eigen::Matrix3d& m);
   const SpMat& matrix() const { return a_; }
   int numBlocks() const { return n_; }
 
  private:
-  void addBlock(int i, int j, const Eigen::Matrix3d& m);
+  // Offset of block k's first value in the scalar value array.
+  double* blockValues(int k) { return a_.valuePtr() + offset_[k]; }
+  int findBlock(int i, int j) const;
   int n_ = 0;
   std::vector<int> row_begin_;  // block CSR: blocks of block-row i are cols_[row_begin_[i]..]
   std::vector<int> cols_;
+  std::vector<int> diag_;       // block index of (i, i)
+  std::vector<int> transpose_;  // block index of (j, i) for block k = (i, j)
+  std::vector<Eigen::Index> offset_;
+  std::vector<int> width_;  // scalar row stride of block k's rows (3 × blocks in its row)
   SpMat a_;
 };
 

@@ -27,8 +27,17 @@ void BlockMatrix::setPattern(int num_blocks, std::vector<std::pair<int, int>> co
   a_.resizeNonZeros(nnz);
   auto* outer = a_.outerIndexPtr();
   auto* inner = a_.innerIndexPtr();
+  offset_.resize(cols_.size());
+  width_.resize(cols_.size());
+  diag_.resize(n_);
   Eigen::Index pos = 0;
   for (int i = 0; i < n_; ++i) {
+    const int nb = row_begin_[i + 1] - row_begin_[i];
+    for (int k = row_begin_[i]; k < row_begin_[i + 1]; ++k) {
+      offset_[k] = pos + 3 * (k - row_begin_[i]);
+      width_[k] = 3 * nb;
+      if (cols_[k] == i) diag_[i] = k;
+    }
     for (int r = 0; r < 3; ++r) {
       outer[3 * i + r] = static_cast<SpMat::StorageIndex>(pos);
       for (int k = row_begin_[i]; k < row_begin_[i + 1]; ++k)
@@ -36,6 +45,9 @@ void BlockMatrix::setPattern(int num_blocks, std::vector<std::pair<int, int>> co
     }
   }
   outer[3 * n_] = static_cast<SpMat::StorageIndex>(pos);
+  transpose_.resize(cols_.size());
+  for (int i = 0; i < n_; ++i)
+    for (int k = row_begin_[i]; k < row_begin_[i + 1]; ++k) transpose_[k] = findBlock(cols_[k], i);
   setZero();
 }
 
@@ -43,26 +55,33 @@ void BlockMatrix::setZero() {
   std::fill_n(a_.valuePtr(), a_.nonZeros(), 0.0);
 }
 
-void BlockMatrix::addBlock(int i, int j, const Eigen::Matrix3d& m) {
+int BlockMatrix::findBlock(int i, int j) const {
   const auto first = cols_.begin() + row_begin_[i], last = cols_.begin() + row_begin_[i + 1];
   const auto it = std::lower_bound(first, last, j);
   if (it == last || *it != j) throw std::logic_error("BlockMatrix: block outside the pattern");
-  const int k = static_cast<int>(it - first);
-  const int width = 3 * (row_begin_[i + 1] - row_begin_[i]);
-  double* row0 = a_.valuePtr() + a_.outerIndexPtr()[3 * i] + 3 * k;
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) row0[r * width + c] += m(r, c);
+  return static_cast<int>(it - cols_.begin());
 }
 
+namespace {
+template <int Sign>
+inline void addTo(double* row0, int width, const Eigen::Matrix3d& m) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) row0[r * width + c] += Sign * m(r, c);
+}
+}  // namespace
+
 void BlockMatrix::addDiagonal(int i, const Eigen::Matrix3d& m) {
-  addBlock(i, i, m);
+  const int k = diag_[i];
+  addTo<1>(blockValues(k), width_[k], m);
 }
 
 void BlockMatrix::addCoupling(int i, int j, const Eigen::Matrix3d& m) {
-  addBlock(i, i, m);
-  addBlock(j, j, m);
-  addBlock(i, j, -m);
-  addBlock(j, i, -m.transpose());
+  // m is symmetric for every dissipative term, so the (j, i) block is −m as well.
+  const int kij = findBlock(i, j), kji = transpose_[kij], kii = diag_[i], kjj = diag_[j];
+  addTo<1>(blockValues(kii), width_[kii], m);
+  addTo<1>(blockValues(kjj), width_[kjj], m);
+  addTo<-1>(blockValues(kij), width_[kij], m);
+  addTo<-1>(blockValues(kji), width_[kji], m);
 }
 
 }  // namespace activefoam
