@@ -1,14 +1,34 @@
 // Brakke-style remeshing of one closed cell surface (DESIGN.md §5).
 #pragma once
 
+#include <vector>
+
 #include "activefoam/mesh.h"
 
 namespace activefoam {
 
 struct RemeshParams {
-  double min_area = 0;  // A_m: collapse the shortest edge of triangles smaller than this
-  double max_area = 0;  // A_M: split the longest edge of triangles larger than this
-  int max_passes = 8;   // bound on split/collapse/flip sweeps per call
+  double min_area = 0;  // A_m: collapse the shortest edge of triangles smaller than this (0: off)
+  double max_area = 0;  // A_M: split the longest edge of triangles larger than this (≤ 0: off)
+  int max_passes = 8;   // bound on split/collapse/flip sweeps per call (see remesh())
+
+  // Added to the original API:
+  // A flip changes the enclosed volume by the tetrahedron spanned by its two triangles (on a
+  // curved cell typically 1e-5…1e-4 of the volume per flip: with a 1e-5 cap most Delaunay flips
+  // would be refused). With flip_volume_correction the four quad vertices are then moved along
+  // their volume gradients so that the volume is restored exactly; each move is at most 5% of
+  // the shortest quad edge, else the flip is refused (measured: tens of nm on a 320-triangle
+  // cell of radius 8.9 µm). flip_max_volume (fraction of the cell volume, per flip) then only
+  // guards against flipping across creases. Without the correction set it small (e.g. 1e-5):
+  // every flip then changes the volume by up to that much.
+  bool flip_volume_correction = true;
+  double flip_max_volume = 1e-3;
+  // Refuse a collapse whose volume change exceeds this fraction of the cell volume (reachable
+  // only when the volume-preserving placement is ill-conditioned and skipped).
+  double collapse_max_volume = 1e-4;
+  int min_vertices = 12;       // never collapse below this many vertices
+  int max_vertices = 1 << 16;  // never split beyond this many (bounds a tiny max_area)
+  bool flips = true;           // Delaunay flips on/off
 };
 
 struct RemeshStats {
@@ -16,6 +36,7 @@ struct RemeshStats {
   int collapses = 0;
   int flips = 0;
   int refused_collapses = 0;  // candidates rejected by the manifold/orientation/valence guards
+  int refused_flips = 0;      // Delaunay-violating edges kept by the flip guards
   double volume_before = 0;
   double volume_after = 0;
   int operations() const { return splits + collapses + flips; }
@@ -24,6 +45,25 @@ struct RemeshStats {
 // Splits, collapses and Delaunay flips in place. Keeps the mesh closed, 2-manifold, oriented,
 // with vertex valence ≥ 4; keeps the enclosed volume (collapsed vertices are placed to preserve
 // it). Velocities are carried along (averaged on split/collapse) for the CG warm start.
+//
+// Passes: each pass runs split sweeps until none applies, then collapse sweeps, then flip sweeps
+// (each kind at most max_passes sweeps per pass); passes repeat until one changes nothing or
+// max_passes passes ran. Within a sweep no triangle/vertex is modified twice.
+//
+// Volume: splits put the new vertex on the straight edge (exact up to round-off); collapses
+// place the merged vertex so that the enclosed volume is unchanged (closed form, round-off
+// level); flips are volume-corrected (see RemeshParams), else change it by their tetrahedron.
+//
+// Refusal counters count refusal events: a candidate refused in several sweeps counts each time.
+//
+// Vertex numbering: on any operation vertices are renumbered (surviving vertices keep their
+// relative order, removed ones are compacted out, split vertices are appended). A call that
+// changes nothing leaves the mesh bit-identical.
 RemeshStats remesh(TriMesh& mesh, const RemeshParams& params);
+
+// Same, and reports the renumbering: old_to_new has one entry per vertex of the input mesh, the
+// index in the output mesh of the vertex it became (a collapsed vertex maps to the vertex it was
+// merged into). Vertices created by splits are the ones no input vertex maps to.
+RemeshStats remesh(TriMesh& mesh, const RemeshParams& params, std::vector<int>& old_to_new);
 
 }  // namespace activefoam

@@ -1,0 +1,392 @@
+// Remeshing (DESIGN.md §5): invariants and physics, never hard-coded outputs.
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <random>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "activefoam/remesh.h"
+
+using namespace activefoam;
+
+namespace {
+
+constexpr double kRadius = 8.88;  // µm, reference cell
+const double kMeanArea = 4.0 * M_PI * kRadius * kRadius / 320.0;
+
+TriMesh sphere(const Vec3& center = Vec3::Zero()) {
+  TriMesh m = icosphere(2);
+  m.x *= kRadius;
+  m.x.colwise() += center;
+  return m;
+}
+
+RemeshParams defaultParams() {
+  RemeshParams p;
+  p.min_area = kMeanArea / 3.0;
+  p.max_area = 3.0 * kMeanArea;
+  return p;
+}
+
+std::vector<int> valences(const TriMesh& m) {
+  std::vector<int> val(m.numVertices(), 0);
+  for (const Tri& f : m.tri)
+    for (int k : f) ++val[k];
+  return val;
+}
+
+int minValence(const TriMesh& m) {
+  const auto val = valences(m);
+  return *std::min_element(val.begin(), val.end());
+}
+
+std::pair<double, double> areaRange(const TriMesh& m) {
+  double lo = 1e300, hi = 0;
+  for (int t = 0; t < m.numTriangles(); ++t) {
+    lo = std::min(lo, triangleArea(m, t));
+    hi = std::max(hi, triangleArea(m, t));
+  }
+  return {lo, hi};
+}
+
+// Moves every vertex tangentially (Gaussian, σ = amp) and puts it back on the sphere of radius
+// kRadius about `center`.
+void perturbOnSphere(TriMesh& m, double amp, unsigned seed, const Vec3& center = Vec3::Zero()) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n01;
+  for (int i = 0; i < m.numVertices(); ++i) {
+    Vec3 r = m.x.col(i) - center;
+    const Vec3 nrm = r.normalized();
+    Vec3 d(n01(rng), n01(rng), n01(rng));
+    d -= d.dot(nrm) * nrm;
+    r += amp * d;
+    m.x.col(i) = center + kRadius * r.normalized();
+  }
+}
+
+// Independent Delaunay test: interior angles opposite each edge, by atan2.
+double angleAt(const Vec3& apex, const Vec3& a, const Vec3& b) {
+  const Vec3 u = a - apex, v = b - apex;
+  return std::atan2(u.cross(v).norm(), u.dot(v));
+}
+
+struct EdgeQuad {
+  int i, j, k, l;  // triangles (i,j,k) and (j,i,l)
+};
+
+std::vector<EdgeQuad> edgeQuads(const TriMesh& m) {
+  std::map<std::pair<int, int>, int> third;  // directed edge → opposite vertex in its triangle
+  for (const Tri& f : m.tri)
+    for (int e = 0; e < 3; ++e) third[{f[e], f[(e + 1) % 3]}] = f[(e + 2) % 3];
+  std::vector<EdgeQuad> q;
+  for (const auto& [ij, k] : third)
+    if (ij.first < ij.second)
+      q.push_back({ij.first, ij.second, k, third.at({ij.second, ij.first})});
+  return q;
+}
+
+int countDelaunayViolations(const TriMesh& m, double tol = 1e-6) {
+  int n = 0;
+  for (const EdgeQuad& e : edgeQuads(m)) {
+    const Vec3 xi = m.x.col(e.i), xj = m.x.col(e.j), xk = m.x.col(e.k), xl = m.x.col(e.l);
+    if (angleAt(xk, xi, xj) + angleAt(xl, xi, xj) > M_PI + tol) ++n;
+  }
+  return n;
+}
+
+void expectValid(const TriMesh& m) {
+  EXPECT_EQ(checkClosedManifold(m), "");
+  EXPECT_GT(meshVolume(m), 0);
+  EXPECT_GE(minValence(m), 4);
+  EXPECT_EQ(m.v.cols(), m.x.cols());
+}
+
+}  // namespace
+
+TEST(Remesh, IcosphereNeedsNoOperation) {
+  const TriMesh ref = sphere();
+  TriMesh m = ref;
+  m.v.setRandom();
+  const TriMesh withV = m;
+  std::vector<int> map;
+  const RemeshStats st = remesh(m, defaultParams(), map);
+  EXPECT_EQ(st.splits, 0);
+  EXPECT_EQ(st.collapses, 0);
+  EXPECT_EQ(st.flips, 0);
+  EXPECT_EQ(st.refused_collapses, 0);
+  EXPECT_EQ(st.refused_flips, 0);
+  EXPECT_EQ(st.volume_before, st.volume_after);
+  EXPECT_EQ(st.volume_before, meshVolume(ref));
+  // Bit-identical, identity renumbering.
+  EXPECT_TRUE(m.x == withV.x);
+  EXPECT_TRUE(m.v == withV.v);
+  EXPECT_EQ(m.tri, withV.tri);
+  ASSERT_EQ(static_cast<int>(map.size()), ref.numVertices());
+  for (int i = 0; i < ref.numVertices(); ++i) EXPECT_EQ(map[i], i);
+}
+
+TEST(Remesh, DisabledThresholdsDoNothingOnIcosphere) {
+  TriMesh m = sphere();
+  const RemeshStats st = remesh(m, RemeshParams{});  // min_area = max_area = 0: off
+  EXPECT_EQ(st.operations(), 0);
+}
+
+TEST(Remesh, ForcedSplitsKeepVolumeAndBoundArea) {
+  // Off-origin centre: the volume bookkeeping must not depend on the frame.
+  for (const Vec3& c : {Vec3(0, 0, 0), Vec3(120, -75, 40)}) {
+    for (bool flips : {false, true}) {
+      TriMesh m = sphere(c);
+      const int nv0 = m.numVertices();
+      const TriMesh before = m;
+      std::vector<double> areas;
+      for (int t = 0; t < m.numTriangles(); ++t) areas.push_back(triangleArea(m, t));
+      std::sort(areas.begin(), areas.end());
+      RemeshParams p;
+      p.max_area = areas[areas.size() / 2];  // median: about half the triangles must split
+      p.flips = flips;
+      std::vector<int> map;
+      const RemeshStats st = remesh(m, p, map);
+      EXPECT_GT(st.splits, 0);
+      EXPECT_EQ(st.collapses, 0);
+      expectValid(m);
+      EXPECT_EQ(m.numVertices(), nv0 + st.splits);
+      EXPECT_EQ(m.numTriangles(), 320 + 2 * st.splits);
+      // Guarantee: a split halves both triangles at the edge, and sweeps repeat until no
+      // triangle exceeds max_area (within max_passes; met here).
+      EXPECT_LE(areaRange(m).second, p.max_area);
+      EXPECT_NEAR(st.volume_after, st.volume_before, 1e-12 * st.volume_before);
+      EXPECT_NEAR(meshVolume(m), meshVolume(before), 1e-12 * meshVolume(before));
+      if (!flips) {
+        // Original vertices untouched and numbered as before.
+        for (int i = 0; i < nv0; ++i) {
+          EXPECT_EQ(map[i], i);
+          EXPECT_TRUE(m.x.col(i) == before.x.col(i));
+        }
+        EXPECT_EQ(st.flips, 0);
+      }
+    }
+  }
+}
+
+TEST(Remesh, SplitsStopAtMaxVertices) {
+  TriMesh m = sphere();
+  RemeshParams p;
+  p.max_area = 1e-9;  // would split forever
+  p.max_vertices = 1000;
+  const RemeshStats st = remesh(m, p);
+  expectValid(m);
+  EXPECT_GE(m.numVertices(), p.max_vertices);
+  EXPECT_LE(m.numVertices(), p.max_vertices + 1);
+  EXPECT_NEAR(st.volume_after, st.volume_before, 1e-12 * st.volume_before);
+}
+
+TEST(Remesh, ForcedCollapsesPreserveVolume) {
+  for (bool flips : {false, true}) {
+    TriMesh m = sphere(Vec3(-30, 12, 55));
+    double lo = 1e300, sum = 0;
+    for (int t = 0; t < m.numTriangles(); ++t) {
+      lo = std::min(lo, triangleArea(m, t));
+      sum += triangleArea(m, t);
+    }
+    RemeshParams p;
+    p.min_area = 0.5 * (lo + sum / m.numTriangles());  // between the smallest and the mean
+    p.flips = flips;
+    const RemeshStats st = remesh(m, p);
+    EXPECT_GT(st.collapses, 0);
+    EXPECT_EQ(st.splits, 0);
+    expectValid(m);
+    EXPECT_EQ(m.numVertices(), 162 - st.collapses);
+    EXPECT_EQ(m.numTriangles(), 320 - 2 * st.collapses);
+    // Closed-form volume-preserving placement (flip corrections too): round-off only.
+    EXPECT_NEAR(st.volume_after, st.volume_before, 1e-12 * st.volume_before);
+  }
+}
+
+TEST(Remesh, CollapseGuardsStopAtValidMesh) {
+  // Every triangle is "too small": collapses run until the guards refuse; the mesh must stay
+  // a valid closed 2-manifold with valence ≥ 4 and at least min_vertices vertices.
+  for (int level : {1, 2}) {
+    TriMesh m = icosphere(level);
+    m.x *= kRadius;
+    RemeshParams p;
+    p.min_area = 1e6;
+    p.max_passes = 50;
+    const RemeshStats st = remesh(m, p);
+    EXPECT_GT(st.collapses, 0);
+    EXPECT_GT(st.refused_collapses, 0);
+    expectValid(m);
+    EXPECT_GE(m.numVertices(), p.min_vertices);
+    EXPECT_NEAR(st.volume_after, st.volume_before, 1e-10 * st.volume_before);
+  }
+}
+
+TEST(Remesh, FlipsRestoreDelaunayUnlessGuarded) {
+  for (double amp : {0.5, 1.0}) {
+    TriMesh m = sphere(Vec3(40, 40, -40));
+    perturbOnSphere(m, amp, 12345, Vec3(40, 40, -40));
+    ASSERT_EQ(checkClosedManifold(m), "");
+    const int before = countDelaunayViolations(m);
+    ASSERT_GT(before, 0);
+    const TriMesh m0 = m;
+    RemeshParams p;  // flips only
+    p.max_passes = 20;
+    const RemeshStats st = remesh(m, p);
+    EXPECT_GT(st.flips, 0);
+    EXPECT_EQ(st.splits + st.collapses, 0);
+    expectValid(m);
+    EXPECT_EQ(m.numVertices(), m0.numVertices());
+    EXPECT_NEAR(st.volume_after, st.volume_before, 1e-12 * st.volume_before);
+    // Volume correction moves vertices only slightly (far below the edge length ~2.7 µm).
+    const double moved = (m.x - m0.x).colwise().norm().maxCoeff();
+    // Each flip moves its four vertices by at most 5% of the shortest quad edge (measured max
+    // over the call: 0.038 µm at amp 0.5, 0.23 µm at the strongly distorted amp 1.0).
+    EXPECT_LT(moved, amp <= 0.5 ? 0.05 : 0.3);
+    const int after = countDelaunayViolations(m);
+    EXPECT_LT(after, before);
+    // Converged: a second call flips nothing, and every remaining violation is one the guards
+    // refuse (one sweep examines every edge once, so refusals = violations).
+    const RemeshStats again = remesh(m, p);
+    EXPECT_EQ(again.flips, 0);
+    EXPECT_EQ(again.refused_flips, after);
+    const std::string tag = amp <= 0.5 ? "_amp05" : "_amp10";
+    RecordProperty("violations_before" + tag, before);
+    RecordProperty("violations_after" + tag, after);
+    RecordProperty("flips" + tag, st.flips);
+    RecordProperty("max_move_nm" + tag, static_cast<int>(moved * 1e3));
+  }
+}
+
+TEST(Remesh, FlipsWithoutCorrectionChangeVolumeByBoundedAmount) {
+  TriMesh m = sphere();
+  perturbOnSphere(m, 0.5, 777);
+  const TriMesh m0 = m;
+  RemeshParams p;
+  p.flip_volume_correction = false;
+  p.flip_max_volume = 1e-5;
+  const RemeshStats st = remesh(m, p);
+  expectValid(m);
+  EXPECT_TRUE(m.x == m0.x);  // positions untouched without the correction
+  // Each flip changes the volume by at most flip_max_volume·V.
+  EXPECT_LE(std::abs(st.volume_after - st.volume_before),
+            st.flips * p.flip_max_volume * st.volume_before * (1 + 1e-9));
+}
+
+TEST(Remesh, RandomStress) {
+  TriMesh m = sphere();
+  const RemeshParams p = defaultParams();
+  std::mt19937 rng(2024);
+  std::normal_distribution<double> n01;
+  RemeshStats total;
+  double worstDv = 0;
+  for (int round = 0; round < 200; ++round) {
+    Vec3 c = Vec3::Zero();
+    for (int i = 0; i < m.numVertices(); ++i) c += m.x.col(i);
+    c /= m.numVertices();
+    for (int i = 0; i < m.numVertices(); ++i) {
+      const Vec3 nrm = (m.x.col(i) - c).normalized();
+      Vec3 d(n01(rng), n01(rng), n01(rng));
+      const Vec3 radial = d.dot(nrm) * nrm;
+      m.x.col(i) += 0.1 * (d - radial) + 0.02 * radial;  // µm
+    }
+    const RemeshStats st = remesh(m, p);
+    total.splits += st.splits;
+    total.collapses += st.collapses;
+    total.flips += st.flips;
+    total.refused_collapses += st.refused_collapses;
+    total.refused_flips += st.refused_flips;
+    const double dv = std::abs(st.volume_after - st.volume_before) / st.volume_before;
+    worstDv = std::max(worstDv, dv);
+    ASSERT_EQ(checkClosedManifold(m), "") << "round " << round;
+    ASSERT_GT(meshVolume(m), 0) << "round " << round;
+    ASSERT_GE(minValence(m), 4) << "round " << round;
+    const auto [lo, hi] = areaRange(m);
+    ASSERT_GE(lo, p.min_area / 2) << "round " << round;
+    ASSERT_LE(hi, 2 * p.max_area) << "round " << round;
+    ASSERT_LT(dv, 1e-3) << "round " << round;   // DESIGN.md §5 bound
+    ASSERT_LT(dv, 1e-12) << "round " << round;  // what the placement/correction achieves
+  }
+  EXPECT_GT(total.splits, 0);
+  EXPECT_GT(total.collapses, 0);
+  EXPECT_GT(total.flips, 0);
+  RecordProperty("splits", total.splits);
+  RecordProperty("collapses", total.collapses);
+  RecordProperty("flips", total.flips);
+  RecordProperty("refused_collapses", total.refused_collapses);
+  RecordProperty("refused_flips", total.refused_flips);
+  RecordProperty("worst_rel_dV_e15", static_cast<int>(worstDv * 1e15));
+}
+
+TEST(Remesh, VelocitiesAveraged) {
+  // Uniform velocity stays uniform through splits, collapses and flips.
+  {
+    TriMesh m = sphere();
+    perturbOnSphere(m, 0.8, 99);
+    const Vec3 u(0.3, -1.2, 0.05);
+    m.v.colwise() = u;
+    RemeshParams p = defaultParams();
+    p.min_area = 0.6 * kMeanArea;
+    p.max_area = 1.4 * kMeanArea;
+    const RemeshStats st = remesh(m, p);
+    EXPECT_GT(st.splits, 0);
+    EXPECT_GT(st.collapses, 0);
+    for (int i = 0; i < m.numVertices(); ++i) EXPECT_LT((m.v.col(i) - u).norm(), 1e-14);
+  }
+  // A linear field v = B x + b stays exactly linear through splits (new vertices are edge
+  // midpoints carrying the average of the endpoint velocities).
+  {
+    TriMesh m = sphere(Vec3(5, -3, 2));
+    Eigen::Matrix3d B;
+    B << 0.1, -0.4, 0.2, 0.3, 0.05, -0.1, -0.2, 0.15, 0.25;
+    const Vec3 b(1, 2, -3);
+    m.v = (B * m.x).colwise() + b;
+    RemeshParams p;
+    p.max_area = 0.5 * kMeanArea;
+    p.flips = false;  // flip volume correction moves vertices, not velocities
+    const RemeshStats st = remesh(m, p);
+    EXPECT_GT(st.splits, 0);
+    for (int i = 0; i < m.numVertices(); ++i)
+      EXPECT_LT((m.v.col(i) - (B * m.x.col(i) + b)).norm(), 1e-12);
+  }
+}
+
+TEST(Remesh, OldToNewMapping) {
+  TriMesh m = sphere();
+  perturbOnSphere(m, 0.8, 4242);
+  const TriMesh m0 = m;
+  RemeshParams p;
+  p.min_area = 0.7 * kMeanArea;
+  p.flips = false;
+  std::vector<int> map;
+  const RemeshStats st = remesh(m, p, map);
+  ASSERT_GT(st.collapses, 0);
+  ASSERT_EQ(static_cast<int>(map.size()), m0.numVertices());
+  std::map<int, int> hits;
+  for (int i = 0; i < m0.numVertices(); ++i) {
+    ASSERT_GE(map[i], 0);
+    ASSERT_LT(map[i], m.numVertices());
+    ++hits[map[i]];
+  }
+  // Without splits every output vertex comes from an input vertex; merged ones have several.
+  EXPECT_EQ(static_cast<int>(hits.size()), m.numVertices());
+  int merged = 0;
+  for (int i = 0; i < m0.numVertices(); ++i) {
+    if (hits[map[i]] == 1) {
+      EXPECT_TRUE(m.x.col(map[i]) == m0.x.col(i));  // untouched vertex, same position
+    } else {
+      ++merged;
+    }
+  }
+  EXPECT_GE(merged, 2);  // at least one pair merged
+  EXPECT_EQ(m0.numVertices() - m.numVertices(), st.collapses);
+  // Surviving vertices keep their relative order.
+  for (int i = 0, last = -1; i < m0.numVertices(); ++i)
+    if (hits[map[i]] == 1) {
+      EXPECT_GT(map[i], last);
+      last = map[i];
+    }
+}
