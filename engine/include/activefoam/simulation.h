@@ -11,6 +11,7 @@
 
 #include "activefoam/block_matrix.h"
 #include "activefoam/cellset.h"
+#include "activefoam/contacts.h"
 #include "activefoam/force_term.h"
 #include "activefoam/geometry.h"
 #include "activefoam/run.h"
@@ -24,6 +25,7 @@ struct StepReport {
   FailureKind failure = FailureKind::None;
   std::string reason;
   SolveStats cg;
+  int contacts = 0;               // active triangle pairs this step
   int remesh_ops = 0;             // operations of a remesh done at the end of this step
   double remesh_volume_jump = 0;  // max over cells of |ΔV|/V across that remesh
   bool ok() const { return failure == FailureKind::None; }
@@ -31,7 +33,7 @@ struct StepReport {
 
 // Accumulated wall time per phase, seconds.
 struct PhaseTimes {
-  double geometry = 0, forces = 0, matrix = 0, solve = 0, remesh = 0;
+  double geometry = 0, contacts = 0, forces = 0, matrix = 0, solve = 0, remesh = 0;
 };
 
 // Builds the cells of a scene (radii from the Gamma law with the spec's seed).
@@ -54,6 +56,8 @@ class Simulation {
   const SceneSpec& spec() const { return spec_; }
   const CellSet& cells() const { return cells_; }
   const Geometry& geometry() const { return geo_; }
+  const ContactList& contacts() const { return contacts_; }
+  bool hasContacts() const { return with_contacts_; }
   double time() const { return t_; }
   std::int64_t steps() const { return steps_; }
   double pressure(int c) const { return pressure_->pressure(cells_, geo_, c); }
@@ -61,6 +65,7 @@ class Simulation {
   std::int64_t remeshOps() const { return remesh_ops_; }
 
   // Pieces of a step, exposed for tests and benchmarks. Geometry must be current.
+  void detect();                              // contacts of the current geometry
   double computeForces(Eigen::Matrix3Xd& f);  // returns the sum of term energies
   const SpMat& assembleFriction();
   // Replaces positions (tests: finite differences, perturbations) and refreshes geometry.
@@ -68,14 +73,24 @@ class Simulation {
 
  private:
   void init();
-  StepContext context() const { return {cells_, geo_, topo_, spec_.numerics.dt_s, t_}; }
+  StepContext context() const {
+    return {cells_, geo_, topo_, spec_.numerics.dt_s, t_, with_contacts_ ? &contacts_ : nullptr};
+  }
+  bool patternCoversContacts() const;
+  void rebuildPattern();
 
   SceneSpec spec_;
   CellSet cells_;
   Geometry geo_, geo_prev_;
   Topology topo_;
+  bool with_contacts_ = false;
+  ContactLaw law_;
+  ContactList contacts_;
   BlockMatrix gamma_;
   std::uint64_t pattern_version_ = ~std::uint64_t{0};
+  // Triangle pairs whose vertex couplings the pattern holds (sorted): the contact candidates
+  // within h0 + skin when it was built, so that it survives many steps of sliding contacts.
+  std::vector<std::pair<int, int>> pattern_pairs_;
   LinearSolver solver_;
   std::vector<std::unique_ptr<ForceTerm>> terms_;
   const CytoplasmPressure* pressure_ = nullptr;

@@ -6,15 +6,16 @@
 namespace activefoam {
 
 // S2–S4: F_i += (γ_s/2)(x_k − x_j) × n̂_A = −γ_s ∂S_A/∂x_i. Energy Σ γ_s S_A.
-// γ_s = γ on free surface; the contact reduction (γ − w f_A) joins with the contact term.
+// γ_s = γ − w f_A with f_A the contacting fraction of the triangle this step (ctx.contacts) and
+// w = (1 − α) γ, so that a fully contacting triangle has γ_s = αγ (Young–Dupré, DESIGN.md §4.1).
 class SurfaceTension : public ForceTerm {
  public:
-  explicit SurfaceTension(const CellParams& p) : gamma_(p.gamma) {}
+  explicit SurfaceTension(const CellParams& p) : gamma_(p.gamma), w_(adhesionW(p)) {}
   std::string_view name() const override { return "surface_tension"; }
   double addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) const override;
 
  private:
-  double gamma_;
+  double gamma_, w_;
 };
 
 // S5–S7: P_l = 2γ/r_l − K ε_l − (K/τ_K) I_l, F_i += P_l S_A n̂_A / 3. The integral I_l is

@@ -1,5 +1,6 @@
 #include "activefoam/simulation.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <sstream>
@@ -37,17 +38,32 @@ void Simulation::init() {
   terms_.push_back(std::move(pressure));
   terms_.push_back(std::make_unique<MediumDrag>(p));
   terms_.push_back(std::make_unique<CortexViscosity>(p));
+  with_contacts_ = cells_.numCells() > 1;
+  if (with_contacts_) {
+    law_.k = p.k_contact;
+    law_.h0 = contactRangeH0(p);
+    terms_.push_back(std::make_unique<ContactAdhesion>());
+    const bool implicit = spec_.numerics.integrator == IntegratorKind::ContactImplicit;
+    terms_.push_back(std::make_unique<ContactFriction>(p, implicit ? spec_.numerics.dt_s : 0.0));
+  }
 
   const double every = spec_.numerics.remesh_every_s.value_or(5 * tauShell(p));
   remesh_interval_steps_ =
       every > 0 ? std::max<std::int64_t>(1, std::llround(every / spec_.numerics.dt_s)) : 0;
   updateTopology(cells_, topo_);
   computeGeometry(cells_, geo_);
+  detect();
+}
+
+void Simulation::detect() {
+  if (with_contacts_)
+    detectContacts(cells_, geo_, law_, spec_.numerics.contact_quadrature, contacts_);
 }
 
 void Simulation::setPositions(const Eigen::Matrix3Xd& x) {
   cells_.x = x;
   computeGeometry(cells_, geo_);
+  detect();
 }
 
 double Simulation::computeForces(Eigen::Matrix3Xd& f) {
@@ -58,16 +74,41 @@ double Simulation::computeForces(Eigen::Matrix3Xd& f) {
   return energy;
 }
 
-const SpMat& Simulation::assembleFriction() {
-  if (pattern_version_ != cells_.topology_version) {
-    std::vector<std::pair<int, int>> couplings;
-    couplings.reserve(topo_.edges.size());
-    for (const Edge& e : topo_.edges) couplings.emplace_back(e.i, e.j);
-    gamma_.setPattern(cells_.numVertices(), std::move(couplings));
-    pattern_version_ = cells_.topology_version;
-  } else {
-    gamma_.setZero();
+bool Simulation::patternCoversContacts() const {
+  for (const ContactPair& p : contacts_.pairs)
+    if (!std::binary_search(pattern_pairs_.begin(), pattern_pairs_.end(),
+                            std::make_pair(p.ta, p.tb)))
+      return false;
+  return true;
+}
+
+void Simulation::rebuildPattern() {
+  std::vector<std::pair<int, int>> couplings;
+  couplings.reserve(topo_.edges.size());
+  for (const Edge& e : topo_.edges) couplings.emplace_back(e.i, e.j);
+  pattern_pairs_.clear();
+  if (with_contacts_) {
+    // Skin of a few contact ranges plus a fraction of the cell radius: contacts can slide for
+    // many steps before a pair outside the pattern appears and forces a rebuild.
+    const double skin = 0.1 * spec_.cells.radius_mean_um;
+    pattern_pairs_ = findContactCandidates(cells_.x, cells_.tri, cells_.tri_cell, law_.h0 + skin);
+    for (const ContactPair& p : contacts_.pairs) pattern_pairs_.emplace_back(p.ta, p.tb);
+    std::sort(pattern_pairs_.begin(), pattern_pairs_.end());
+    pattern_pairs_.erase(std::unique(pattern_pairs_.begin(), pattern_pairs_.end()),
+                         pattern_pairs_.end());
+    for (const auto& [ta, tb] : pattern_pairs_)
+      for (int i : cells_.tri[ta])
+        for (int k : cells_.tri[tb]) couplings.emplace_back(i, k);
   }
+  gamma_.setPattern(cells_.numVertices(), std::move(couplings));
+  pattern_version_ = cells_.topology_version;
+}
+
+const SpMat& Simulation::assembleFriction() {
+  if (pattern_version_ != cells_.topology_version || !patternCoversContacts())
+    rebuildPattern();
+  else
+    gamma_.setZero();
   const StepContext ctx = context();
   for (const auto& term : terms_) term->addFriction(ctx, gamma_);
   return gamma_.matrix();
@@ -76,6 +117,7 @@ const SpMat& Simulation::assembleFriction() {
 StepReport Simulation::step() {
   StepReport rep;
   const double dt = spec_.numerics.dt_s;
+  rep.contacts = static_cast<int>(contacts_.pairs.size());
   auto t0 = Clock::now();
   computeForces(f_);
   times_.forces += since(t0);
@@ -119,6 +161,9 @@ StepReport Simulation::step() {
   std::swap(geo_prev_, geo_);
   computeGeometry(cells_, geo_);
   times_.geometry += since(t0);
+  t0 = Clock::now();
+  detect();
+  times_.contacts += since(t0);
 
   // Failure checks: a triangle whose normal turned by more than 90° in one step has inverted.
   for (int t = 0; t < cells_.numTriangles(); ++t) {
@@ -172,6 +217,7 @@ StepReport Simulation::remeshAll() {
     cells_.setCellMeshes(meshes);
     updateTopology(cells_, topo_);
     computeGeometry(cells_, geo_);
+    detect();
   }
   rep.remesh_ops = ops;
   remesh_ops_ += ops;

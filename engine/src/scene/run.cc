@@ -3,8 +3,8 @@
 #include <chrono>
 #include <cmath>
 
-#include <Eigen/Eigenvalues>
 
+#include "activefoam/observables.h"
 #include "activefoam/simulation.h"
 
 namespace activefoam {
@@ -12,13 +12,6 @@ namespace {
 
 const std::vector<std::string> kCommon = {"t_s", "steps", "wall_s", "cg_iters_mean",
                                           "volume_error_max"};
-
-// Ratio of the largest to the smallest principal axis of cell c (1 for a sphere).
-double aspectRatio(const CellSet& cells, int c) {
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cellCovariance(cells, c));
-  const auto ev = es.eigenvalues();  // ascending
-  return std::sqrt(ev(2) / std::max(ev(0), 1e-300));
-}
 
 // The scene's observables, aligned with sampleColumns() after the common five.
 std::vector<std::pair<std::string, double>> sceneObservables(const Simulation& sim) {
@@ -29,6 +22,16 @@ std::vector<std::pair<std::string, double>> sceneObservables(const Simulation& s
       out.emplace_back("pressure_kpa", sim.pressure(0));
       out.emplace_back("laplace_pressure_kpa", 2 * sim.spec().cells.gamma / sim.cells().radius[0]);
       break;
+    case SceneKind::Doublet: {
+      out.emplace_back("contact_angle_deg", doubletContactAngleDeg(sim.cells(), sim.contacts()));
+      double area = 0;
+      for (const ContactPair& p : sim.contacts().pairs) area += p.c.area;
+      out.emplace_back("contact_area_um2", area);
+      out.emplace_back("contact_pairs", static_cast<double>(sim.contacts().pairs.size()));
+      out.emplace_back("distance_um",
+                       (sim.geometry().cell_centroid[1] - sim.geometry().cell_centroid[0]).norm());
+      break;
+    }
     default:
       break;
   }
@@ -81,6 +84,10 @@ std::vector<std::string> sampleColumns(SceneKind scene) {
   switch (scene) {
     case SceneKind::Cell:
       cols.insert(cols.end(), {"aspect_ratio", "pressure_kpa", "laplace_pressure_kpa"});
+      break;
+    case SceneKind::Doublet:
+      cols.insert(cols.end(),
+                  {"contact_angle_deg", "contact_area_um2", "contact_pairs", "distance_um"});
       break;
     default:
       break;
@@ -154,6 +161,7 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs) {
   sum.final_values.emplace_back("volume_error_max", maxVolumeError(sim));
   const PhaseTimes& pt = sim.phaseTimes();
   sum.phase_wall_s = {{"geometry", pt.geometry},
+                      {"contacts", pt.contacts},
                       {"forces", pt.forces},
                       {"matrix", pt.matrix},
                       {"solve", pt.solve},

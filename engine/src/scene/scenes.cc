@@ -41,9 +41,20 @@ CellSet buildScene(const SceneSpec& spec) {
       cells.addCell(ellipsoidCell(r, spec.scene_params.axes_ratio, tris, Vec3::Zero()), r);
       return cells;
     }
+    case SceneKind::Doublet: {
+      // Two cells along x, the gap measured between the meshes' facing extremes.
+      const double ra = drawRadius(spec.cells, rng), rb = drawRadius(spec.cells, rng);
+      TriMesh a = ellipsoidCell(ra, 1.0, tris, Vec3::Zero());
+      TriMesh b = ellipsoidCell(rb, 1.0, tris, Vec3::Zero());
+      const double shift = a.x.row(0).maxCoeff() - b.x.row(0).minCoeff() + spec.scene_params.gap_um;
+      b.x.row(0).array() += shift;
+      cells.addCell(a, ra);
+      cells.addCell(b, rb);
+      return cells;
+    }
     default:
       throw std::invalid_argument("scene '" + std::string(toString(spec.scene)) +
-                                  "' is not available in this engine version (available: cell)");
+                                  "' is not available in this engine version (available: cell, doublet)");
   }
 }
 

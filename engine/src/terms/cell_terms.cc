@@ -1,5 +1,6 @@
 #include <cmath>
 
+#include "activefoam/contacts.h"
 #include "activefoam/terms.h"
 
 namespace activefoam {
@@ -7,10 +8,11 @@ namespace activefoam {
 double SurfaceTension::addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) const {
   const auto& x = ctx.cells.x;
   double energy = 0;
+  const std::vector<double>* frac = ctx.contacts ? &ctx.contacts->tri_contact_fraction : nullptr;
   for (int t = 0; t < ctx.cells.numTriangles(); ++t) {
     const Tri& tr = ctx.cells.tri[t];
     const Vec3& n = ctx.geo.tri_normal[t];
-    const double g = gamma_;
+    const double g = frac ? gamma_ - w_ * (*frac)[t] : gamma_;
     energy += g * ctx.geo.tri_area[t];
     for (int k = 0; k < 3; ++k) {
       const int i = tr[k], j = tr[(k + 1) % 3], l = tr[(k + 2) % 3];

@@ -1,0 +1,55 @@
+// The per-step contact set between cells (DESIGN.md §4.6–4.7) and the terms that use it.
+#pragma once
+
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "activefoam/contact_geometry.h"
+#include "activefoam/force_term.h"
+
+namespace activefoam {
+
+struct ContactPair {
+  int ta, tb;  // triangles of different cells; ta < tb
+  TriangleContact c;
+};
+
+struct ContactList {
+  std::vector<ContactPair> pairs;          // active pairs this step
+  std::vector<double> tri_contact_area;    // Σ S_AB over the pairs a triangle takes part in
+  std::vector<double> tri_contact_fraction;  // f_A = min(1, contact area / S_A)
+  std::vector<double> vertex_contact_area;   // S_i^c = Σ_{A∋i} f_A S_A / 3
+  std::vector<double> cell_contact_area;     // S_c,l = Σ_{A∈l} f_A S_A
+};
+
+// Finds the active contact pairs of the current geometry: broad phase with margin h0, then the
+// narrow phase on every candidate; fills the per-triangle, per-vertex and per-cell areas.
+void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw& law,
+                    ContactQuadrature quadrature, ContactList& out);
+
+// Adhesion/repulsion (S17–S18): nodal forces from each pair's linear pressure.
+class ContactAdhesion : public ForceTerm {
+ public:
+  std::string_view name() const override { return "contact_adhesion"; }
+  double addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) const override;
+};
+
+// Friction (S14–S16) with barycentric weights w_ik = λ_i^A(c) λ_k^B(c), plus — for the
+// contact-implicit integrator — the linearised normal stiffness Δt k_AB S w_ik n̂n̂ᵀ of the
+// contact springs, so that Γ v = F becomes (Γ + Δt K_c) v = F. Both are PSD couplings.
+class ContactFriction : public ForceTerm {
+ public:
+  ContactFriction(const CellParams& p, double implicit_stiffness_dt)
+      : xi_n_(p.xi_normal.value_or(p.xi)),
+        xi_t_(p.xi_tangential.value_or(p.xi)),
+        k_(p.k_contact),
+        implicit_dt_(implicit_stiffness_dt) {}
+  std::string_view name() const override { return "contact_friction"; }
+  void addFriction(const StepContext& ctx, BlockMatrix& gamma) const override;
+
+ private:
+  double xi_n_, xi_t_, k_, implicit_dt_;
+};
+
+}  // namespace activefoam
