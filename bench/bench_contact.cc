@@ -97,7 +97,7 @@ struct PackedScene {
 };
 
 PackedScene packedScene(int n_cells) {
-  const double r = 8.88, d = 1.9 * r, a = d * std::sqrt(2.0);  // FCC cube edge
+  const double r = 8.88, d = 1.95 * r, a = d * std::sqrt(2.0);  // FCC cube edge
   std::vector<Vec3> sites;
   for (int i = -6; i <= 6; ++i)
     for (int j = -6; j <= 6; ++j)

@@ -8,6 +8,9 @@
 #include <random>
 
 #include <gtest/gtest.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 #include <Eigen/Geometry>
 
 #include "activefoam/contact_geometry.h"
@@ -270,7 +273,7 @@ TEST(ContactBroadPhase, EqualsBruteForceOnRandomTriangleSoups) {
       std::vector<Tri> f;
       const int n_tri = 5 + static_cast<int>(30 * u01(rng));
       for (int t = 0; t < n_tri; ++t) {
-        // Mostly small triangles, a few large ones (exercise the "large" path), a few degenerate.
+        // Mostly small triangles, a few large ones, a few degenerate.
         const double size = u01(rng) < 0.05 ? 3.0 : 0.3 * u01(rng);
         const Vec3 p = center + Vec3(u01(rng), u01(rng), u01(rng)) - Vec3::Constant(0.5);
         const int base = static_cast<int>(v.size());
@@ -280,7 +283,8 @@ TEST(ContactBroadPhase, EqualsBruteForceOnRandomTriangleSoups) {
         v.push_back(u01(rng) < 0.05 ? v.back() : Vec3(p + size * randomDir()));
         f.push_back({base, base + 1, base + 2});
       }
-      appendCell(s, v, f, c);
+      // Large, sparse ids in half the configurations (the id-compression fallback).
+      appendCell(s, v, f, config % 2 ? c : 50'000'000 * c + 7);
     }
     const double margin = 0.05 * u01(rng);
     const auto fast = findContactCandidates(s.x, s.tri, s.tri_cell, margin);
@@ -289,6 +293,29 @@ TEST(ContactBroadPhase, EqualsBruteForceOnRandomTriangleSoups) {
     EXPECT_EQ(fast, brute) << "configuration " << config;
   }
 }
+
+#ifdef _OPENMP
+TEST(ContactBroadPhase, ResultIndependentOfThreadCount) {
+  const LocalMesh ico = localIcosphere(2);
+  Scene s;
+  s.x.resize(3, 0);
+  for (int c = 0; c < 27; ++c) {  // 3×3×3 block of overlapping spheres
+    const Vec3 center = 1.9 * Vec3(c % 3, (c / 3) % 3, c / 9);
+    std::vector<Vec3> v;
+    for (const Vec3& p : ico.x) v.push_back(center + p);
+    appendCell(s, v, ico.tri, c);
+  }
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const auto one = findContactCandidates(s.x, s.tri, s.tri_cell, 0.06);
+  omp_set_num_threads(4);
+  const auto four = findContactCandidates(s.x, s.tri, s.tri_cell, 0.06);
+  omp_set_num_threads(saved);
+  EXPECT_GT(one.size(), 0u);
+  EXPECT_EQ(one, four);
+  EXPECT_EQ(one, findContactCandidatesBruteForce(s.x, s.tri, s.tri_cell, 0.06));
+}
+#endif
 
 TEST(ContactBroadPhase, TwoCellsInContactAndTrivialInputs) {
   // Two unit spheres overlapping by 0.1: facing pairs exist only near the contact.

@@ -1,20 +1,21 @@
 // Broad phase of the triangle–triangle contact (DESIGN.md §4.6): candidate pairs of facing
 // triangles of different cells whose margin-inflated bounding boxes overlap.
 //
-// findContactCandidates:
+// findContactCandidates (O(T + candidates) for packed cells with a bounded number of neighbours):
 //   1. inflated triangle boxes and raw normals (shared with the brute-force oracle, so both use
 //      bit-identical tests);
-//   2. cell boxes (union of their triangles' inflated boxes) and the overlapping cell pairs
-//      (sweep and prune along x);
-//   3. a triangle is kept only if its box overlaps the box of a cell that touches its own cell;
-//   4. kept triangles go into a uniform grid (hashed, counting-sorted), cell size ≈ the mean
-//      inflated triangle box size; a pair is tested only in the grid cell holding the minimum
-//      corner of the intersection of the two boxes, so each pair is found exactly once.
-//      Triangles spanning many grid cells are tested against all kept triangles instead.
+//   2. cell boxes (union of their triangles' inflated boxes) and the cell pairs whose boxes
+//      overlap (sweep and prune along x): cell pairs that cannot touch are skipped;
+//   3. per overlapping cell pair, only the triangles of either cell whose boxes meet the
+//      intersection of the two cell boxes, swept and pruned along the intersection's longest
+//      axis. Each triangle pair belongs to exactly one cell pair, so it is tested once and never
+//      against its own cell. Cell pairs run in parallel (OpenMP); the result is counting-sorted,
+//      hence identical for any thread count.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <numeric>
+#include <stdexcept>
 
 #include <Eigen/Geometry>
 
@@ -37,7 +38,10 @@ struct TriData {
   std::vector<Vec3> normal;  // unnormalised (b−a)×(c−a); facing iff dot < 0
 };
 
-TriData triangleData(const Eigen::Matrix3Xd& x, const std::vector<Tri>& tri, double margin) {
+TriData triangleData(const Eigen::Matrix3Xd& x, const std::vector<Tri>& tri,
+                     const std::vector<int>& tri_cell, double margin) {
+  if (tri_cell.size() != tri.size())
+    throw std::invalid_argument("findContactCandidates: tri_cell.size() != tri.size()");
   TriData d;
   d.box.resize(tri.size());
   d.normal.resize(tri.size());
@@ -61,13 +65,25 @@ inline std::uint64_t packPair(int s, int t) {
   return (static_cast<std::uint64_t>(s) << 32) | static_cast<std::uint32_t>(t);
 }
 
-std::vector<std::pair<int, int>> unpackSorted(std::vector<std::uint64_t>& keys) {
-  std::sort(keys.begin(), keys.end());
-  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+// Sorted, duplicate-free pair list: counting sort by the first index (O(pairs + T)), then the
+// short runs of second indices sorted in place.
+std::vector<std::pair<int, int>> unpackSorted(const std::vector<std::uint64_t>& keys, int T) {
+  std::vector<int> start(static_cast<size_t>(T) + 1, 0);
+  for (std::uint64_t k : keys) ++start[(k >> 32) + 1];
+  for (int t = 0; t < T; ++t) start[t + 1] += start[t];
+  std::vector<int> second(keys.size());
+  {
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (std::uint64_t k : keys) second[fill[k >> 32]++] = static_cast<int>(k & 0xffffffffu);
+  }
   std::vector<std::pair<int, int>> out;
   out.reserve(keys.size());
-  for (std::uint64_t k : keys)
-    out.emplace_back(static_cast<int>(k >> 32), static_cast<int>(k & 0xffffffffu));
+  for (int s = 0; s < T; ++s) {
+    const auto b = second.begin() + start[s], e = second.begin() + start[s + 1];
+    std::sort(b, e);
+    for (auto it = b; it != e; ++it)
+      if (it == b || *it != *(it - 1)) out.emplace_back(s, *it);
+  }
   return out;
 }
 
@@ -77,7 +93,7 @@ std::vector<std::pair<int, int>> findContactCandidatesBruteForce(const Eigen::Ma
                                                                  const std::vector<Tri>& tri,
                                                                  const std::vector<int>& tri_cell,
                                                                  double margin) {
-  const TriData d = triangleData(x, tri, margin);
+  const TriData d = triangleData(x, tri, tri_cell, margin);
   const int T = static_cast<int>(tri.size());
   std::vector<std::pair<int, int>> out;
   for (int s = 0; s < T; ++s)
@@ -92,26 +108,46 @@ std::vector<std::pair<int, int>> findContactCandidates(const Eigen::Matrix3Xd& x
                                                        double margin) {
   const int T = static_cast<int>(tri.size());
   if (T < 2) return {};
-  const TriData d = triangleData(x, tri, margin);
+  const TriData d = triangleData(x, tri, tri_cell, margin);
 
-  // --- cells: dense ids, boxes, overlapping pairs ---------------------------------------------
-  std::vector<int> ids(tri_cell.begin(), tri_cell.end());
-  std::sort(ids.begin(), ids.end());
-  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
-  const int C = static_cast<int>(ids.size());
-  if (C < 2) return {};
+  // --- cells: dense indices, triangles grouped by cell, boxes ---------------------------------
   std::vector<int> cell_of(T);
-  for (int t = 0; t < T; ++t)
-    cell_of[t] =
-        static_cast<int>(std::lower_bound(ids.begin(), ids.end(), tri_cell[t]) - ids.begin());
-
+  int C = 0;
+  {
+    const auto [mn, mx] = std::minmax_element(tri_cell.begin(), tri_cell.end());
+    if (*mn >= 0 && *mx <= 4 * T) {  // the usual case: small non-negative ids, O(T)
+      std::vector<int> dense(static_cast<size_t>(*mx) + 1, -1);
+      for (int t = 0; t < T; ++t) dense[tri_cell[t]] = 0;
+      for (int& v : dense)
+        if (v == 0) v = C++;
+      for (int t = 0; t < T; ++t) cell_of[t] = dense[tri_cell[t]];
+    } else {
+      std::vector<int> ids(tri_cell.begin(), tri_cell.end());
+      std::sort(ids.begin(), ids.end());
+      ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+      C = static_cast<int>(ids.size());
+      for (int t = 0; t < T; ++t)
+        cell_of[t] =
+            static_cast<int>(std::lower_bound(ids.begin(), ids.end(), tri_cell[t]) - ids.begin());
+    }
+  }
+  if (C < 2) return {};
+  std::vector<int> cell_start(C + 1, 0), cell_tris(T);
+  for (int t = 0; t < T; ++t) ++cell_start[cell_of[t] + 1];
+  for (int c = 0; c < C; ++c) cell_start[c + 1] += cell_start[c];
+  {
+    std::vector<int> fill(cell_start.begin(), cell_start.end() - 1);
+    for (int t = 0; t < T; ++t) cell_tris[fill[cell_of[t]]++] = t;
+  }
   std::vector<Box> cell_box(C, Box{Vec3::Constant(INFINITY), Vec3::Constant(-INFINITY)});
   for (int t = 0; t < T; ++t) {
     Box& b = cell_box[cell_of[t]];
     b.lo = b.lo.cwiseMin(d.box[t].lo);
     b.hi = b.hi.cwiseMax(d.box[t].hi);
   }
-  std::vector<std::vector<int>> neighbours(C);
+
+  // --- cell pairs whose boxes overlap (sweep and prune along x) -------------------------------
+  std::vector<std::pair<int, int>> cell_pairs;
   {
     std::vector<int> order(C);
     std::iota(order.begin(), order.end(), 0);
@@ -119,130 +155,64 @@ std::vector<std::pair<int, int>> findContactCandidates(const Eigen::Matrix3Xd& x
               [&](int p, int q) { return cell_box[p].lo.x() < cell_box[q].lo.x(); });
     for (int i = 0; i < C; ++i) {
       const Box& bi = cell_box[order[i]];
-      for (int j = i + 1; j < C && cell_box[order[j]].lo.x() <= bi.hi.x(); ++j) {
-        if (overlaps(bi, cell_box[order[j]])) {
-          neighbours[order[i]].push_back(order[j]);
-          neighbours[order[j]].push_back(order[i]);
+      for (int j = i + 1; j < C && cell_box[order[j]].lo.x() <= bi.hi.x(); ++j)
+        if (overlaps(bi, cell_box[order[j]])) cell_pairs.emplace_back(order[i], order[j]);
+    }
+  }
+
+  // --- per cell pair: triangles inside the boxes' intersection, swept along its longest axis ---
+  struct Interval {
+    double lo, hi;
+    int tri;
+    bool operator<(const Interval& o) const { return lo < o.lo; }
+  };
+  // Thread-local gathering; the final counting sort makes the result independent of the
+  // thread count and schedule.
+  std::vector<std::uint64_t> found;
+  const int n_cell_pairs = static_cast<int>(cell_pairs.size());
+#pragma omp parallel
+  {
+    std::vector<Interval> A, B;
+    std::vector<std::uint64_t> local;
+#pragma omp for schedule(dynamic, 16) nowait
+    for (int cp = 0; cp < n_cell_pairs; ++cp) {
+      const auto [c1, c2] = cell_pairs[cp];
+      const Box I{cell_box[c1].lo.cwiseMax(cell_box[c2].lo),
+                  cell_box[c1].hi.cwiseMin(cell_box[c2].hi)};
+      int axis;
+      (I.hi - I.lo).maxCoeff(&axis);
+      auto gather = [&](int c, std::vector<Interval>& out) {
+        out.clear();
+        for (int p = cell_start[c]; p < cell_start[c + 1]; ++p) {
+          const int t = cell_tris[p];
+          if (overlaps(d.box[t], I)) out.push_back({d.box[t].lo[axis], d.box[t].hi[axis], t});
+        }
+        std::sort(out.begin(), out.end());
+      };
+      gather(c1, A);
+      if (A.empty()) continue;
+      gather(c2, B);
+      auto test = [&](int s, int t) {
+        if (overlaps(d.box[s], d.box[t]) && d.normal[s].dot(d.normal[t]) < 0)
+          local.push_back(packPair(s, t));
+      };
+      // Two-list sweep: every pair whose intervals overlap is visited exactly once, from the
+      // member with the smaller lower end.
+      size_t i = 0, j = 0;
+      while (i < A.size() && j < B.size()) {
+        if (A[i].lo <= B[j].lo) {
+          for (size_t k = j; k < B.size() && B[k].lo <= A[i].hi; ++k) test(A[i].tri, B[k].tri);
+          ++i;
+        } else {
+          for (size_t k = i; k < A.size() && A[k].lo <= B[j].hi; ++k) test(A[k].tri, B[j].tri);
+          ++j;
         }
       }
     }
+#pragma omp critical(activefoam_broad_phase_merge)
+    found.insert(found.end(), local.begin(), local.end());
   }
-
-  // --- triangles that can touch another cell at all -------------------------------------------
-  std::vector<int> kept;
-  kept.reserve(T);
-  Box scene{Vec3::Constant(INFINITY), Vec3::Constant(-INFINITY)};
-  double extent_sum = 0;
-  for (int t = 0; t < T; ++t) {
-    bool touches = false;
-    for (int c : neighbours[cell_of[t]]) {
-      if (overlaps(d.box[t], cell_box[c])) {
-        touches = true;
-        break;
-      }
-    }
-    if (!touches) continue;
-    kept.push_back(t);
-    scene.lo = scene.lo.cwiseMin(d.box[t].lo);
-    scene.hi = scene.hi.cwiseMax(d.box[t].hi);
-    extent_sum += (d.box[t].hi - d.box[t].lo).maxCoeff();
-  }
-  if (kept.size() < 2) return {};
-
-  // --- uniform grid ---------------------------------------------------------------------------
-  const double scene_extent = (scene.hi - scene.lo).maxCoeff();
-  if (!std::isfinite(scene_extent))
-    return findContactCandidatesBruteForce(x, tri, tri_cell, margin);
-  // At most 2^20 grid cells per axis (keys pack into 63 bits); never a zero cell size.
-  double h = 3.0 * extent_sum / static_cast<double>(kept.size());
-  h = std::max({h, scene_extent / double(1 << 20), 1e-300});
-  const double inv_h = 1.0 / h;
-  auto cellIndex = [&](double v, int axis) {
-    const double c = std::floor((v - scene.lo[axis]) * inv_h);
-    return static_cast<std::int64_t>(std::clamp(c, 0.0, double((1 << 21) - 1)));
-  };
-  auto key = [](std::int64_t i, std::int64_t j, std::int64_t k) {
-    return static_cast<std::uint64_t>((i << 42) | (j << 21) | k);
-  };
-
-  // A triangle spanning more than kMaxSpan grid cells along an axis goes to the "large" list.
-  constexpr std::int64_t kMaxSpan = 4;
-  struct Entry {
-    std::uint64_t key;
-    int tri;
-  };
-  std::vector<Entry> entries;
-  entries.reserve(kept.size() * 4);
-  std::vector<int> large;
-  std::vector<char> is_large(T, 0);
-  for (int t : kept) {
-    const Box& b = d.box[t];
-    std::int64_t lo[3], hi[3];
-    bool big = false;
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = cellIndex(b.lo[a], a);
-      hi[a] = cellIndex(b.hi[a], a);
-      big = big || hi[a] - lo[a] + 1 > kMaxSpan;
-    }
-    if (big) {
-      large.push_back(t);
-      is_large[t] = 1;
-      continue;
-    }
-    for (std::int64_t i = lo[0]; i <= hi[0]; ++i)
-      for (std::int64_t j = lo[1]; j <= hi[1]; ++j)
-        for (std::int64_t k = lo[2]; k <= hi[2]; ++k) entries.push_back({key(i, j, k), t});
-  }
-
-  // Counting sort of the entries into hash buckets.
-  const size_t E = entries.size();
-  size_t nbuckets = 1;
-  while (nbuckets < 2 * E) nbuckets <<= 1;
-  auto bucketOf = [&](std::uint64_t k) {
-    k ^= k >> 33;
-    k *= 0xff51afd7ed558ccdULL;
-    k ^= k >> 33;
-    return static_cast<size_t>(k & (nbuckets - 1));
-  };
-  std::vector<std::uint32_t> start(nbuckets + 1, 0);
-  for (const Entry& e : entries) ++start[bucketOf(e.key) + 1];
-  for (size_t i = 0; i < nbuckets; ++i) start[i + 1] += start[i];
-  std::vector<Entry> sorted(E);
-  {
-    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-    for (const Entry& e : entries) sorted[fill[bucketOf(e.key)]++] = e;
-  }
-
-  std::vector<std::uint64_t> found;
-  found.reserve(kept.size() * 2);
-  for (size_t bkt = 0; bkt < nbuckets; ++bkt) {
-    for (std::uint32_t p = start[bkt]; p < start[bkt + 1]; ++p) {
-      const Entry& ep = sorted[p];
-      for (std::uint32_t q = p + 1; q < start[bkt + 1]; ++q) {
-        const Entry& eq = sorted[q];
-        if (ep.key != eq.key) continue;  // hash collision of two grid cells
-        const int s = ep.tri, t = eq.tri;
-        if (!isCandidate(d, tri_cell, s, t)) continue;
-        // Report only in the grid cell of the intersection's minimum corner.
-        const Box& bs = d.box[s];
-        const Box& bt = d.box[t];
-        const std::uint64_t owner = key(cellIndex(std::max(bs.lo.x(), bt.lo.x()), 0),
-                                        cellIndex(std::max(bs.lo.y(), bt.lo.y()), 1),
-                                        cellIndex(std::max(bs.lo.z(), bt.lo.z()), 2));
-        if (owner == ep.key) found.push_back(packPair(s, t));
-      }
-    }
-  }
-
-  // Large triangles against every kept triangle (large–large pairs once).
-  for (int s : large) {
-    for (int t : kept) {
-      if (t == s || (is_large[t] && t < s)) continue;
-      if (isCandidate(d, tri_cell, s, t)) found.push_back(packPair(s, t));
-    }
-  }
-
-  return unpackSorted(found);
+  return unpackSorted(found, T);
 }
 
 }  // namespace activefoam
