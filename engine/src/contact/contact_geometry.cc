@@ -202,6 +202,12 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
   const Vec2 g_grad = sb_grad - sa_grad;
   auto gap = [&](const Vec2& y) { return g0 + g_grad.dot(y); };
 
+  // Early out: g is affine and the polygon lies inside projected A, so g ≥ h0 at A's corners
+  // means g ≥ h0 on the whole polygon (the clip below would leave nothing of positive area).
+  // The same holds for B's corners.
+  if (gap(pa[0]) >= law.h0 && gap(pa[1]) >= law.h0 && gap(pa[2]) >= law.h0) return out;
+  if (gap(pb[0]) >= law.h0 && gap(pb[1]) >= law.h0 && gap(pb[2]) >= law.h0) return out;
+
   // Clip projected A (counter-clockwise) by projected B (clockwise; walked reversed) ...
   Polygon poly;
   poly.n = 3;
