@@ -42,13 +42,25 @@ struct TriangleContact {
 
 // a, b: the three vertices of triangles A and B (counter-clockwise seen from outside their
 // cells). Returns an inactive contact when the triangles do not face each other
-// (n̂_A·n̂_B ≥ 0), are degenerate, or their projections do not overlap within g < h0.
+// (n̂_A·n̂_B ≥ 0), are degenerate (area ≤ 1e-14 · longest edge²) or non-finite, or their
+// projections do not overlap within g < h0 (polygon area ≤ 1e-14 · the larger projected
+// triangle area). An inactive contact is all zeros. There is no lower cut-off on g: a pair
+// that interpenetrates deeply is pushed apart with P = k g, however negative g is.
+// `area`, `force`, `centroid` are exact for every quadrature; `force_weight_*`,
+// `center_of_pressure` and `energy` are exact for Exact and Dunavant7 only.
 TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::array<Vec3, 3>& b,
                                        const ContactLaw& law, ContactQuadrature quadrature);
 
 // Broad phase: all pairs (tA, tB), tA < tB, of triangles of different cells whose axis-aligned
 // bounding boxes, inflated by `margin`, overlap and whose normals face (n̂_A·n̂_B < 0).
-// Sorted ascending. `tri_cell[t]` is the cell of triangle t.
+// Sorted ascending. `tri_cell[t]` is the cell of triangle t (any int ids; same size as `tri`,
+// else std::invalid_argument).
+// Each box is inflated by `margin` on every side, so boxes up to 2·margin apart qualify:
+// two points at gap g (along n̂_AB) are |g| apart, so margin = h0/2 catches every pair with a
+// contact point at |g| ≤ h0 (a pair interpenetrating by more than 2·margin everywhere is not
+// caught).
+// Degenerate triangles (zero normal) never face anything. Runs in parallel (OpenMP) over
+// overlapping cell pairs; the result does not depend on the thread count.
 std::vector<std::pair<int, int>> findContactCandidates(const Eigen::Matrix3Xd& x,
                                                        const std::vector<Tri>& tri,
                                                        const std::vector<int>& tri_cell,

@@ -1,0 +1,218 @@
+// Broad phase of the triangle–triangle contact (DESIGN.md §4.6): candidate pairs of facing
+// triangles of different cells whose margin-inflated bounding boxes overlap.
+//
+// findContactCandidates (O(T + candidates) for packed cells with a bounded number of neighbours):
+//   1. inflated triangle boxes and raw normals (shared with the brute-force oracle, so both use
+//      bit-identical tests);
+//   2. cell boxes (union of their triangles' inflated boxes) and the cell pairs whose boxes
+//      overlap (sweep and prune along x): cell pairs that cannot touch are skipped;
+//   3. per overlapping cell pair, only the triangles of either cell whose boxes meet the
+//      intersection of the two cell boxes, swept and pruned along the intersection's longest
+//      axis. Each triangle pair belongs to exactly one cell pair, so it is tested once and never
+//      against its own cell. Cell pairs run in parallel (OpenMP); the result is counting-sorted,
+//      hence identical for any thread count.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <numeric>
+#include <stdexcept>
+
+#include <Eigen/Geometry>
+
+#include "activefoam/contact_geometry.h"
+
+namespace activefoam {
+namespace {
+
+struct Box {
+  Vec3 lo, hi;
+};
+
+inline bool overlaps(const Box& p, const Box& q) {
+  return p.lo.x() <= q.hi.x() && q.lo.x() <= p.hi.x() && p.lo.y() <= q.hi.y() &&
+         q.lo.y() <= p.hi.y() && p.lo.z() <= q.hi.z() && q.lo.z() <= p.hi.z();
+}
+
+struct TriData {
+  std::vector<Box> box;      // inflated by margin on every side
+  std::vector<Vec3> normal;  // unnormalised (b−a)×(c−a); facing iff dot < 0
+};
+
+TriData triangleData(const Eigen::Matrix3Xd& x, const std::vector<Tri>& tri,
+                     const std::vector<int>& tri_cell, double margin) {
+  if (tri_cell.size() != tri.size())
+    throw std::invalid_argument("findContactCandidates: tri_cell.size() != tri.size()");
+  TriData d;
+  d.box.resize(tri.size());
+  d.normal.resize(tri.size());
+  const Vec3 m = Vec3::Constant(margin);
+  for (size_t t = 0; t < tri.size(); ++t) {
+    const Vec3 p0 = x.col(tri[t][0]), p1 = x.col(tri[t][1]), p2 = x.col(tri[t][2]);
+    d.box[t].lo = p0.cwiseMin(p1).cwiseMin(p2) - m;
+    d.box[t].hi = p0.cwiseMax(p1).cwiseMax(p2) + m;
+    d.normal[t] = (p1 - p0).cross(p2 - p0);
+  }
+  return d;
+}
+
+inline bool isCandidate(const TriData& d, const std::vector<int>& tri_cell, int s, int t) {
+  return tri_cell[s] != tri_cell[t] && overlaps(d.box[s], d.box[t]) &&
+         d.normal[s].dot(d.normal[t]) < 0;
+}
+
+inline std::uint64_t packPair(int s, int t) {
+  if (s > t) std::swap(s, t);
+  return (static_cast<std::uint64_t>(s) << 32) | static_cast<std::uint32_t>(t);
+}
+
+// Sorted, duplicate-free pair list: counting sort by the first index (O(pairs + T)), then the
+// short runs of second indices sorted in place.
+std::vector<std::pair<int, int>> unpackSorted(const std::vector<std::uint64_t>& keys, int T) {
+  std::vector<int> start(static_cast<size_t>(T) + 1, 0);
+  for (std::uint64_t k : keys) ++start[(k >> 32) + 1];
+  for (int t = 0; t < T; ++t) start[t + 1] += start[t];
+  std::vector<int> second(keys.size());
+  {
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (std::uint64_t k : keys) second[fill[k >> 32]++] = static_cast<int>(k & 0xffffffffu);
+  }
+  std::vector<std::pair<int, int>> out;
+  out.reserve(keys.size());
+  for (int s = 0; s < T; ++s) {
+    const auto b = second.begin() + start[s], e = second.begin() + start[s + 1];
+    std::sort(b, e);
+    for (auto it = b; it != e; ++it)
+      if (it == b || *it != *(it - 1)) out.emplace_back(s, *it);
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<std::pair<int, int>> findContactCandidatesBruteForce(const Eigen::Matrix3Xd& x,
+                                                                 const std::vector<Tri>& tri,
+                                                                 const std::vector<int>& tri_cell,
+                                                                 double margin) {
+  const TriData d = triangleData(x, tri, tri_cell, margin);
+  const int T = static_cast<int>(tri.size());
+  std::vector<std::pair<int, int>> out;
+  for (int s = 0; s < T; ++s)
+    for (int t = s + 1; t < T; ++t)
+      if (isCandidate(d, tri_cell, s, t)) out.emplace_back(s, t);
+  return out;
+}
+
+std::vector<std::pair<int, int>> findContactCandidates(const Eigen::Matrix3Xd& x,
+                                                       const std::vector<Tri>& tri,
+                                                       const std::vector<int>& tri_cell,
+                                                       double margin) {
+  const int T = static_cast<int>(tri.size());
+  if (T < 2) return {};
+  const TriData d = triangleData(x, tri, tri_cell, margin);
+
+  // --- cells: dense indices, triangles grouped by cell, boxes ---------------------------------
+  std::vector<int> cell_of(T);
+  int C = 0;
+  {
+    const auto [mn, mx] = std::minmax_element(tri_cell.begin(), tri_cell.end());
+    if (*mn >= 0 && *mx <= 4 * T) {  // the usual case: small non-negative ids, O(T)
+      std::vector<int> dense(static_cast<size_t>(*mx) + 1, -1);
+      for (int t = 0; t < T; ++t) dense[tri_cell[t]] = 0;
+      for (int& v : dense)
+        if (v == 0) v = C++;
+      for (int t = 0; t < T; ++t) cell_of[t] = dense[tri_cell[t]];
+    } else {
+      std::vector<int> ids(tri_cell.begin(), tri_cell.end());
+      std::sort(ids.begin(), ids.end());
+      ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+      C = static_cast<int>(ids.size());
+      for (int t = 0; t < T; ++t)
+        cell_of[t] =
+            static_cast<int>(std::lower_bound(ids.begin(), ids.end(), tri_cell[t]) - ids.begin());
+    }
+  }
+  if (C < 2) return {};
+  std::vector<int> cell_start(C + 1, 0), cell_tris(T);
+  for (int t = 0; t < T; ++t) ++cell_start[cell_of[t] + 1];
+  for (int c = 0; c < C; ++c) cell_start[c + 1] += cell_start[c];
+  {
+    std::vector<int> fill(cell_start.begin(), cell_start.end() - 1);
+    for (int t = 0; t < T; ++t) cell_tris[fill[cell_of[t]]++] = t;
+  }
+  std::vector<Box> cell_box(C, Box{Vec3::Constant(INFINITY), Vec3::Constant(-INFINITY)});
+  for (int t = 0; t < T; ++t) {
+    Box& b = cell_box[cell_of[t]];
+    b.lo = b.lo.cwiseMin(d.box[t].lo);
+    b.hi = b.hi.cwiseMax(d.box[t].hi);
+  }
+
+  // --- cell pairs whose boxes overlap (sweep and prune along x) -------------------------------
+  std::vector<std::pair<int, int>> cell_pairs;
+  {
+    std::vector<int> order(C);
+    std::iota(order.begin(), order.end(), 0);
+    std::sort(order.begin(), order.end(),
+              [&](int p, int q) { return cell_box[p].lo.x() < cell_box[q].lo.x(); });
+    for (int i = 0; i < C; ++i) {
+      const Box& bi = cell_box[order[i]];
+      for (int j = i + 1; j < C && cell_box[order[j]].lo.x() <= bi.hi.x(); ++j)
+        if (overlaps(bi, cell_box[order[j]])) cell_pairs.emplace_back(order[i], order[j]);
+    }
+  }
+
+  // --- per cell pair: triangles inside the boxes' intersection, swept along its longest axis ---
+  struct Interval {
+    double lo, hi;
+    int tri;
+    bool operator<(const Interval& o) const { return lo < o.lo; }
+  };
+  // Thread-local gathering; the final counting sort makes the result independent of the
+  // thread count and schedule.
+  std::vector<std::uint64_t> found;
+  const int n_cell_pairs = static_cast<int>(cell_pairs.size());
+#pragma omp parallel
+  {
+    std::vector<Interval> A, B;
+    std::vector<std::uint64_t> local;
+#pragma omp for schedule(dynamic, 16) nowait
+    for (int cp = 0; cp < n_cell_pairs; ++cp) {
+      const auto [c1, c2] = cell_pairs[cp];
+      const Box I{cell_box[c1].lo.cwiseMax(cell_box[c2].lo),
+                  cell_box[c1].hi.cwiseMin(cell_box[c2].hi)};
+      int axis;
+      (I.hi - I.lo).maxCoeff(&axis);
+      auto gather = [&](int c, std::vector<Interval>& out) {
+        out.clear();
+        for (int p = cell_start[c]; p < cell_start[c + 1]; ++p) {
+          const int t = cell_tris[p];
+          if (overlaps(d.box[t], I)) out.push_back({d.box[t].lo[axis], d.box[t].hi[axis], t});
+        }
+        std::sort(out.begin(), out.end());
+      };
+      gather(c1, A);
+      if (A.empty()) continue;
+      gather(c2, B);
+      auto test = [&](int s, int t) {
+        if (overlaps(d.box[s], d.box[t]) && d.normal[s].dot(d.normal[t]) < 0)
+          local.push_back(packPair(s, t));
+      };
+      // Two-list sweep: every pair whose intervals overlap is visited exactly once, from the
+      // member with the smaller lower end.
+      size_t i = 0, j = 0;
+      while (i < A.size() && j < B.size()) {
+        if (A[i].lo <= B[j].lo) {
+          for (size_t k = j; k < B.size() && B[k].lo <= A[i].hi; ++k) test(A[i].tri, B[k].tri);
+          ++i;
+        } else {
+          for (size_t k = i; k < A.size() && A[k].lo <= B[j].hi; ++k) test(A[k].tri, B[j].tri);
+          ++j;
+        }
+      }
+    }
+#pragma omp critical(activefoam_broad_phase_merge)
+    found.insert(found.end(), local.begin(), local.end());
+  }
+  return unpackSorted(found, T);
+}
+
+}  // namespace activefoam

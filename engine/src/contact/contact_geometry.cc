@@ -1,0 +1,272 @@
+// Narrow phase of the triangle–triangle contact (DESIGN.md §4.6–4.7, supplement S14–S18).
+//
+// Both triangles are projected onto the plane ⟂ n̂_AB (2D coordinates y in an orthonormal basis
+// e1, e2 with e1 × e2 = n̂_AB, origin o = mean of the six vertices), clipped against each other
+// and against the half-plane g(y) < h0, and the affine pressure P = k g is integrated over the
+// resulting convex polygon with the requested quadrature, fan-triangulated from its first vertex.
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Geometry>
+
+#include "activefoam/contact_geometry.h"
+
+namespace activefoam {
+namespace {
+
+using Vec2 = Eigen::Vector2d;
+
+// A triangle is degenerate when its area is below this fraction of its longest edge squared.
+constexpr double kDegenerateRel = 1e-14;
+// A contact polygon whose area is below this fraction of the larger projected triangle area is
+// treated as empty (roundoff slivers from touching edges).
+constexpr double kEmptyPolygonRel = 1e-14;
+// |∫P dS| below this fraction of S · k · max|g| counts as "∫P ≈ 0": the centre of pressure is
+// then reported as the polygon centroid (the nodal weights need no such special case).
+constexpr double kZeroLoadRel = 1e-9;
+
+inline double cross2(const Vec2& u, const Vec2& v) {
+  return u.x() * v.y() - u.y() * v.x();
+}
+
+// Convex polygon with at most 3 + 3 + 1 vertices (triangle clipped by 3 edges and one line).
+struct Polygon {
+  std::array<Vec2, 8> v;
+  int n = 0;
+};
+
+// Sutherland–Hodgman step: keep the part of `in` where the affine function d(y) ≥ 0.
+// `d` holds d at each vertex of `in`; intersections use the linear interpolation of d.
+template <class F>
+Polygon clipHalfPlane(const Polygon& in, F&& dist) {
+  Polygon out;
+  if (in.n == 0) return out;
+  std::array<double, 8> d;
+  for (int i = 0; i < in.n; ++i) d[i] = dist(in.v[i]);
+  for (int i = 0; i < in.n; ++i) {
+    const int j = (i + 1) % in.n;
+    const double dc = d[i], dn = d[j];
+    if (dc >= 0) out.v[out.n++] = in.v[i];
+    if ((dc > 0 && dn < 0) || (dc < 0 && dn > 0)) {
+      const double t = dc / (dc - dn);
+      out.v[out.n++] = in.v[i] + t * (in.v[j] - in.v[i]);
+    }
+    if (out.n >= 8) break;  // cannot happen for convex input; guards the fixed storage
+  }
+  return out;
+}
+
+// Barycentric coordinates of y in the 2D triangle p (any orientation), as ratios of signed
+// areas, so that Σ λ_i = 1 and Σ λ_i p_i = y hold for every y (affine reproduction).
+struct Barycentric {
+  std::array<Vec2, 3> p;
+  double inv_twice_area;
+  explicit Barycentric(const std::array<Vec2, 3>& pts) : p(pts) {
+    inv_twice_area = 1.0 / cross2(p[1] - p[0], p[2] - p[0]);
+  }
+  std::array<double, 3> operator()(const Vec2& y) const {
+    const double l0 = cross2(p[1] - y, p[2] - y) * inv_twice_area;
+    const double l1 = cross2(p[2] - y, p[0] - y) * inv_twice_area;
+    return {l0, l1, 1.0 - l0 - l1};
+  }
+};
+
+// Quadrature rules on a triangle in barycentric coordinates, weights summing to 1.
+struct QuadPoint {
+  double b0, b1, b2, w;
+};
+
+const std::array<QuadPoint, 3>& edgeMidpointRule() {
+  static const std::array<QuadPoint, 3> r{
+      {{0.5, 0.5, 0.0, 1.0 / 3.0}, {0.0, 0.5, 0.5, 1.0 / 3.0}, {0.5, 0.0, 0.5, 1.0 / 3.0}}};
+  return r;
+}
+
+// Dunavant's degree-5, 7-point rule (closed form of the weights and points).
+const std::array<QuadPoint, 7>& dunavant7Rule() {
+  static const std::array<QuadPoint, 7> r = [] {
+    const double s15 = std::sqrt(15.0);
+    const double b1 = (6.0 + s15) / 21.0, a1 = 1.0 - 2.0 * b1;
+    const double b2 = (6.0 - s15) / 21.0, a2 = 1.0 - 2.0 * b2;
+    const double w1 = (155.0 + s15) / 1200.0, w2 = (155.0 - s15) / 1200.0;
+    return std::array<QuadPoint, 7>{{{1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0, 9.0 / 40.0},
+                                     {a1, b1, b1, w1},
+                                     {b1, a1, b1, w1},
+                                     {b1, b1, a1, w1},
+                                     {a2, b2, b2, w2},
+                                     {b2, a2, b2, w2},
+                                     {b2, b2, a2, w2}}};
+  }();
+  return r;
+}
+
+const std::array<QuadPoint, 1>& centroidRule() {
+  static const std::array<QuadPoint, 1> r{{{1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0, 1.0}}};
+  return r;
+}
+
+// Accumulated integrals over the contact polygon (2D coordinates).
+struct Integrals {
+  double area = 0;                    // ∫ dS
+  Vec2 y = Vec2::Zero();              // ∫ y dS
+  double g = 0;                       // ∫ g dS
+  double g2 = 0;                      // ∫ g² dS
+  Vec2 gy = Vec2::Zero();             // ∫ g y dS
+  std::array<double, 3> ga{0, 0, 0};  // ∫ g λ^A_i dS
+  std::array<double, 3> gb{0, 0, 0};  // ∫ g λ^B_i dS
+};
+
+template <class Rule>
+void integrate(const Polygon& poly, const Rule& rule, double g0, const Vec2& grad_g,
+               const Barycentric& lam_a, const Barycentric& lam_b, Integrals& I) {
+  const Vec2& v0 = poly.v[0];
+  for (int t = 1; t + 1 < poly.n; ++t) {
+    const Vec2& v1 = poly.v[t];
+    const Vec2& v2 = poly.v[t + 1];
+    const double tri_area = 0.5 * cross2(v1 - v0, v2 - v0);
+    for (const QuadPoint& q : rule) {
+      const Vec2 y = q.b0 * v0 + q.b1 * v1 + q.b2 * v2;
+      const double w = q.w * tri_area;
+      const double g = g0 + grad_g.dot(y);
+      const std::array<double, 3> la = lam_a(y);
+      const std::array<double, 3> lb = lam_b(y);
+      I.area += w;
+      I.y += w * y;
+      I.g += w * g;
+      I.g2 += w * g * g;
+      I.gy += (w * g) * y;
+      for (int i = 0; i < 3; ++i) {
+        I.ga[i] += w * g * la[i];
+        I.gb[i] += w * g * lb[i];
+      }
+    }
+  }
+}
+
+// Clamp roundoff negatives of barycentric coordinates of an interior point and renormalise.
+std::array<double, 3> clampBarycentric(std::array<double, 3> l) {
+  double sum = 0;
+  for (double& v : l) {
+    v = std::max(v, 0.0);
+    sum += v;
+  }
+  if (!(sum > 0)) return {1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0};
+  for (double& v : l) v /= sum;
+  return l;
+}
+
+double maxEdgeSquared(const std::array<Vec3, 3>& p) {
+  return std::max(
+      {(p[1] - p[0]).squaredNorm(), (p[2] - p[1]).squaredNorm(), (p[0] - p[2]).squaredNorm()});
+}
+
+}  // namespace
+
+TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::array<Vec3, 3>& b,
+                                       const ContactLaw& law, ContactQuadrature quadrature) {
+  TriangleContact out;
+
+  // Outward normals; degenerate (or non-finite) triangles never make contact.
+  const Vec3 na_raw = (a[1] - a[0]).cross(a[2] - a[0]);
+  const Vec3 nb_raw = (b[1] - b[0]).cross(b[2] - b[0]);
+  const double na_len = na_raw.norm(), nb_len = nb_raw.norm();
+  if (!(na_len > 2 * kDegenerateRel * maxEdgeSquared(a))) return out;
+  if (!(nb_len > 2 * kDegenerateRel * maxEdgeSquared(b))) return out;
+  const Vec3 na = na_raw / na_len, nb = nb_raw / nb_len;
+  if (!(na.dot(nb) < 0)) return out;  // not facing
+
+  // Contact normal and an orthonormal basis of the projection plane (e1 × e2 = n).
+  const Vec3 n = (na - nb).normalized();  // |n̂_A − n̂_B| ≥ √2 for facing pairs
+  int axis = 0;
+  if (std::abs(n.y()) < std::abs(n[axis])) axis = 1;
+  if (std::abs(n.z()) < std::abs(n[axis])) axis = 2;
+  const Vec3 e1 = Vec3::Unit(axis).cross(n).normalized();
+  const Vec3 e2 = n.cross(e1);
+  const Vec3 o = (a[0] + a[1] + a[2] + b[0] + b[1] + b[2]) / 6.0;
+
+  auto project = [&](const Vec3& x) {
+    const Vec3 r = x - o;
+    return Vec2(r.dot(e1), r.dot(e2));
+  };
+  const std::array<Vec2, 3> pa{project(a[0]), project(a[1]), project(a[2])};
+  const std::array<Vec2, 3> pb{project(b[0]), project(b[1]), project(b[2])};
+
+  // Gap: the line o + y + s n meets plane A at s_A(y) and plane B at s_B(y); both affine.
+  // n̂_A·n ≥ 1/√2 and n̂_B·n ≤ −1/√2, so the divisions are well conditioned.
+  const double dna = na.dot(n), dnb = nb.dot(n);
+  const Vec3 ca = (a[0] + a[1] + a[2]) / 3.0 - o, cb = (b[0] + b[1] + b[2]) / 3.0 - o;
+  const double sa0 = na.dot(ca) / dna, sb0 = nb.dot(cb) / dnb;
+  const Vec2 sa_grad(-na.dot(e1) / dna, -na.dot(e2) / dna);
+  const Vec2 sb_grad(-nb.dot(e1) / dnb, -nb.dot(e2) / dnb);
+  const double g0 = sb0 - sa0;
+  const Vec2 g_grad = sb_grad - sa_grad;
+  auto gap = [&](const Vec2& y) { return g0 + g_grad.dot(y); };
+
+  // Early out: g is affine and the polygon lies inside projected A, so g ≥ h0 at A's corners
+  // means g ≥ h0 on the whole polygon (the clip below would leave nothing of positive area).
+  // The same holds for B's corners.
+  if (gap(pa[0]) >= law.h0 && gap(pa[1]) >= law.h0 && gap(pa[2]) >= law.h0) return out;
+  if (gap(pb[0]) >= law.h0 && gap(pb[1]) >= law.h0 && gap(pb[2]) >= law.h0) return out;
+
+  // Clip projected A (counter-clockwise) by projected B (clockwise; walked reversed) ...
+  Polygon poly;
+  poly.n = 3;
+  for (int i = 0; i < 3; ++i) poly.v[i] = pa[i];
+  const std::array<Vec2, 3> qb{pb[0], pb[2], pb[1]};
+  for (int k = 0; k < 3 && poly.n > 0; ++k) {
+    const Vec2 q0 = qb[k], edge = qb[(k + 1) % 3] - qb[k];
+    poly = clipHalfPlane(poly, [&](const Vec2& y) { return cross2(edge, y - q0); });
+  }
+  // ... and by the range of the law, g < h0.
+  poly = clipHalfPlane(poly, [&](const Vec2& y) { return law.h0 - gap(y); });
+  if (poly.n < 3) return out;
+
+  double poly_area = 0;
+  for (int t = 1; t + 1 < poly.n; ++t)
+    poly_area += 0.5 * cross2(poly.v[t] - poly.v[0], poly.v[t + 1] - poly.v[0]);
+  const double ref_area = std::max(std::abs(cross2(pa[1] - pa[0], pa[2] - pa[0])),
+                                   std::abs(cross2(pb[1] - pb[0], pb[2] - pb[0])));
+  if (!(poly_area > kEmptyPolygonRel * ref_area)) return out;
+
+  const Barycentric lam_a(pa), lam_b(pb);
+  Integrals I;
+  switch (quadrature) {
+    case ContactQuadrature::Exact:
+      integrate(poly, edgeMidpointRule(), g0, g_grad, lam_a, lam_b, I);
+      break;
+    case ContactQuadrature::Dunavant7:
+      integrate(poly, dunavant7Rule(), g0, g_grad, lam_a, lam_b, I);
+      break;
+    case ContactQuadrature::Centroid:
+      integrate(poly, centroidRule(), g0, g_grad, lam_a, lam_b, I);
+      break;
+  }
+
+  auto toMidSurface = [&](const Vec2& y) {
+    const double s_mid = 0.5 * (sa0 + sa_grad.dot(y) + sb0 + sb_grad.dot(y));
+    return Vec3(o + y.x() * e1 + y.y() * e2 + s_mid * n);
+  };
+
+  const double k = law.k;
+  out.active = true;
+  out.normal = n;
+  out.area = poly_area;
+  out.force = (k * I.g) * n;
+  for (int i = 0; i < 3; ++i) {
+    out.force_weight_a[i] = k * I.ga[i];
+    out.force_weight_b[i] = k * I.gb[i];
+  }
+  const Vec2 centroid2 = I.y / I.area;
+  out.centroid = toMidSurface(centroid2);
+  double g_max = 0;
+  for (int i = 0; i < poly.n; ++i) g_max = std::max(g_max, std::abs(gap(poly.v[i])));
+  const bool loaded = std::abs(I.g) > kZeroLoadRel * I.area * g_max;
+  out.center_of_pressure = loaded ? toMidSurface(I.gy / I.g) : out.centroid;
+  out.bary_a = clampBarycentric(lam_a(centroid2));
+  out.bary_b = clampBarycentric(lam_b(centroid2));
+  out.energy = 0.5 * k * I.g2;
+  out.mean_gap = I.g / I.area;
+  return out;
+}
+
+}  // namespace activefoam

@@ -1,0 +1,748 @@
+// Tests of the triangle–triangle contact geometry (DESIGN.md §4.6–4.7): broad phase against its
+// brute-force oracle, and the narrow phase against the physics it must satisfy (action–reaction,
+// energy consistency, moment balance, hand-computed special cases, an independent grid
+// integration).
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <random>
+
+#include <gtest/gtest.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+#include <Eigen/Geometry>
+
+#include "activefoam/contact_geometry.h"
+
+namespace activefoam {
+namespace {
+
+using Tri3 = std::array<Vec3, 3>;
+using Vec2 = Eigen::Vector2d;
+
+constexpr ContactQuadrature kAllQuadratures[] = {
+    ContactQuadrature::Exact, ContactQuadrature::Dunavant7, ContactQuadrature::Centroid};
+
+// ---- helpers ---------------------------------------------------------------------------------
+
+Vec3 triNormal(const Tri3& t) {
+  return (t[1] - t[0]).cross(t[2] - t[0]).normalized();
+}
+double triArea(const Tri3& t) {
+  return 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).norm();
+}
+
+Eigen::Matrix3d randomRotation(std::mt19937& rng) {
+  std::normal_distribution<double> n01;
+  Eigen::Quaterniond q(n01(rng), n01(rng), n01(rng), n01(rng));
+  return q.normalized().toRotationMatrix();
+}
+
+Eigen::Matrix3d rotationAbout(const Vec3& axis, double angle) {
+  return Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix();
+}
+
+Tri3 transformed(const Tri3& t, const Eigen::Matrix3d& R, const Vec3& shift) {
+  return {R * t[0] + shift, R * t[1] + shift, R * t[2] + shift};
+}
+
+// Random triangle in the plane z = 0, roughly of size `size`, not too thin; counter-clockwise
+// seen from +z when `ccw`, clockwise otherwise.
+Tri3 randomFlatTriangle(std::mt19937& rng, double size, bool ccw) {
+  std::uniform_real_distribution<double> u(-size, size);
+  for (;;) {
+    Tri3 t{Vec3(u(rng), u(rng), 0), Vec3(u(rng), u(rng), 0), Vec3(u(rng), u(rng), 0)};
+    const double z = (t[1] - t[0]).cross(t[2] - t[0]).z();
+    if (std::abs(z) < 0.2 * size * size) continue;
+    if ((z > 0) != ccw) std::swap(t[1], t[2]);
+    return t;
+  }
+}
+
+struct Pair {
+  Tri3 a, b;
+};
+
+// A facing pair: A in z = 0 with outward normal +z, B around z = gap with outward normal −z,
+// tilted by up to `tilt` rad about a random in-plane axis through (0, 0, gap), then the whole
+// pair moved by a random rigid motion.
+Pair randomFacingPair(std::mt19937& rng, double gap_lo, double gap_hi, double tilt) {
+  std::uniform_real_distribution<double> ug(gap_lo, gap_hi), ut(-tilt, tilt), uphi(0, 2 * M_PI),
+      ushift(-5, 5);
+  const double gap = ug(rng);
+  Tri3 a = randomFlatTriangle(rng, 1.0, true);
+  Tri3 b = randomFlatTriangle(rng, 1.0, false);
+  const double phi = uphi(rng);
+  const Eigen::Matrix3d Rt = rotationAbout(Vec3(std::cos(phi), std::sin(phi), 0), ut(rng));
+  const Vec3 pivot(0, 0, gap);
+  for (Vec3& p : b) p = pivot + Rt * p;
+  const Eigen::Matrix3d R = randomRotation(rng);
+  const Vec3 shift(ushift(rng), ushift(rng), ushift(rng));
+  return {transformed(a, R, shift), transformed(b, R, shift)};
+}
+
+// Nodal forces of a contact: A's three nodes then B's three nodes.
+std::array<Vec3, 6> nodalForces(const TriangleContact& c) {
+  std::array<Vec3, 6> f;
+  for (int i = 0; i < 3; ++i) {
+    f[i] = c.force_weight_a[i] * c.normal;
+    f[3 + i] = -c.force_weight_b[i] * c.normal;
+  }
+  return f;
+}
+
+bool allFinite(const TriangleContact& c) {
+  bool ok = c.normal.allFinite() && c.force.allFinite() && c.center_of_pressure.allFinite() &&
+            c.centroid.allFinite() && std::isfinite(c.area) && std::isfinite(c.energy) &&
+            std::isfinite(c.mean_gap);
+  for (int i = 0; i < 3; ++i)
+    ok = ok && std::isfinite(c.force_weight_a[i]) && std::isfinite(c.force_weight_b[i]) &&
+         std::isfinite(c.bary_a[i]) && std::isfinite(c.bary_b[i]);
+  return ok;
+}
+
+void expectInactiveAndZero(const TriangleContact& c) {
+  EXPECT_FALSE(c.active);
+  EXPECT_TRUE(allFinite(c));
+  EXPECT_EQ(c.area, 0.0);
+  EXPECT_EQ(c.force.norm(), 0.0);
+  EXPECT_EQ(c.energy, 0.0);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(c.force_weight_a[i], 0.0);
+    EXPECT_EQ(c.force_weight_b[i], 0.0);
+  }
+}
+
+// Independent reference: integrate over a fine grid of the projection plane, testing each
+// sample point for membership in both projected triangles and g < h0, with the gap measured
+// along n̂_AB between the 3D planes.
+struct GridReference {
+  double area = 0, int_p = 0, energy = 0;
+  std::array<double, 3> wa{0, 0, 0}, wb{0, 0, 0};
+  Vec3 centroid = Vec3::Zero();
+};
+
+std::array<double, 3> bary2(const std::array<Vec2, 3>& p, const Vec2& y) {
+  auto cr = [](const Vec2& u, const Vec2& v) { return u.x() * v.y() - u.y() * v.x(); };
+  const double d = cr(p[1] - p[0], p[2] - p[0]);
+  const double l0 = cr(p[1] - y, p[2] - y) / d, l1 = cr(p[2] - y, p[0] - y) / d;
+  return {l0, l1, 1 - l0 - l1};
+}
+
+GridReference gridIntegrate(const Tri3& a, const Tri3& b, const ContactLaw& law, int n_grid) {
+  const Vec3 na = triNormal(a), nb = triNormal(b);
+  const Vec3 n = (na - nb).normalized();
+  const Vec3 e1 = n.unitOrthogonal(), e2 = n.cross(e1);
+  const Vec3 o = a[0];
+  std::array<Vec2, 3> pa, pb;
+  for (int i = 0; i < 3; ++i) {
+    pa[i] = Vec2((a[i] - o).dot(e1), (a[i] - o).dot(e2));
+    pb[i] = Vec2((b[i] - o).dot(e1), (b[i] - o).dot(e2));
+  }
+  Vec2 lo = pa[0].cwiseMin(pa[1]).cwiseMin(pa[2]), hi = pa[0].cwiseMax(pa[1]).cwiseMax(pa[2]);
+  const Vec2 h = (hi - lo) / n_grid;
+  const double dA = h.x() * h.y();
+  GridReference r;
+  for (int i = 0; i < n_grid; ++i) {
+    for (int j = 0; j < n_grid; ++j) {
+      const Vec2 y = lo + Vec2((i + 0.5) * h.x(), (j + 0.5) * h.y());
+      const auto la = bary2(pa, y), lb = bary2(pb, y);
+      if (*std::min_element(la.begin(), la.end()) < 0) continue;
+      if (*std::min_element(lb.begin(), lb.end()) < 0) continue;
+      const Vec3 X = o + y.x() * e1 + y.y() * e2;
+      const double sA = na.dot(a[0] - X) / na.dot(n), sB = nb.dot(b[0] - X) / nb.dot(n);
+      const double g = sB - sA;
+      if (!(g < law.h0)) continue;
+      const double P = law.k * g;
+      r.area += dA;
+      r.int_p += P * dA;
+      r.energy += 0.5 * law.k * g * g * dA;
+      for (int k = 0; k < 3; ++k) {
+        r.wa[k] += P * la[k] * dA;
+        r.wb[k] += P * lb[k] * dA;
+      }
+      r.centroid += (X + 0.5 * (sA + sB) * n) * dA;
+    }
+  }
+  if (r.area > 0) r.centroid /= r.area;
+  return r;
+}
+
+// Small icosphere (local helper; the engine's mesh builders live elsewhere).
+struct LocalMesh {
+  std::vector<Vec3> x;
+  std::vector<Tri> tri;
+};
+
+LocalMesh localIcosphere(int levels) {
+  const double t = (1.0 + std::sqrt(5.0)) / 2.0;
+  LocalMesh m;
+  m.x = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
+         {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
+  for (Vec3& p : m.x) p.normalize();
+  m.tri = {{0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+           {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+           {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+  for (int l = 0; l < levels; ++l) {
+    std::map<std::pair<int, int>, int> mid;
+    auto midpoint = [&](int i, int j) {
+      const auto key = std::minmax(i, j);
+      auto it = mid.find(key);
+      if (it != mid.end()) return it->second;
+      m.x.push_back((m.x[i] + m.x[j]).normalized());
+      const int id = static_cast<int>(m.x.size()) - 1;
+      mid.emplace(key, id);
+      return id;
+    };
+    std::vector<Tri> next;
+    for (const Tri& f : m.tri) {
+      const int ab = midpoint(f[0], f[1]), bc = midpoint(f[1], f[2]), ca = midpoint(f[2], f[0]);
+      next.push_back({f[0], ab, ca});
+      next.push_back({f[1], bc, ab});
+      next.push_back({f[2], ca, bc});
+      next.push_back({ab, bc, ca});
+    }
+    m.tri = std::move(next);
+  }
+  for (Tri& f : m.tri) {  // outward orientation
+    const Vec3 nrm = (m.x[f[1]] - m.x[f[0]]).cross(m.x[f[2]] - m.x[f[0]]);
+    if (nrm.dot(m.x[f[0]] + m.x[f[1]] + m.x[f[2]]) < 0) std::swap(f[1], f[2]);
+  }
+  return m;
+}
+
+struct Scene {
+  Eigen::Matrix3Xd x;
+  std::vector<Tri> tri;
+  std::vector<int> tri_cell;
+};
+
+void appendCell(Scene& s, const std::vector<Vec3>& verts, const std::vector<Tri>& tris, int cell) {
+  const int base = static_cast<int>(s.x.cols());
+  s.x.conservativeResize(3, base + static_cast<int>(verts.size()));
+  for (size_t i = 0; i < verts.size(); ++i) s.x.col(base + i) = verts[i];
+  for (const Tri& f : tris) {
+    s.tri.push_back({f[0] + base, f[1] + base, f[2] + base});
+    s.tri_cell.push_back(cell);
+  }
+}
+
+// ---- 1. broad phase -------------------------------------------------------------------------
+
+TEST(ContactBroadPhase, EqualsBruteForceOnRandomIcosphereCells) {
+  std::mt19937 rng(11);
+  const LocalMesh ico = localIcosphere(2);
+  std::uniform_real_distribution<double> u01(0, 1);
+  for (int config = 0; config < 8; ++config) {
+    Scene s;
+    s.x.resize(3, 0);
+    const int n_cells = 10 + static_cast<int>(20 * u01(rng));
+    const double box = 1.2 * std::cbrt(static_cast<double>(n_cells));  // dense enough to overlap
+    for (int c = 0; c < n_cells; ++c) {
+      const Vec3 center(box * u01(rng), box * u01(rng), box * u01(rng));
+      const double r = 0.6 + 0.5 * u01(rng);
+      std::vector<Vec3> v;
+      for (const Vec3& p : ico.x) v.push_back(center + r * (1 + 0.05 * (u01(rng) - 0.5)) * p);
+      // Non-contiguous cell ids exercise the id compression.
+      appendCell(s, v, ico.tri, 3 * c + (config % 2));
+    }
+    const double margin = config == 0 ? 0.0 : 0.01 + 0.1 * u01(rng);
+    const auto fast = findContactCandidates(s.x, s.tri, s.tri_cell, margin);
+    const auto brute = findContactCandidatesBruteForce(s.x, s.tri, s.tri_cell, margin);
+    EXPECT_GT(brute.size(), 0u) << "configuration " << config << " has no contacts";
+    EXPECT_EQ(fast, brute) << "configuration " << config;
+    EXPECT_TRUE(std::is_sorted(fast.begin(), fast.end()));
+    for (const auto& [p, q] : fast) {
+      ASSERT_LT(p, q);
+      EXPECT_NE(s.tri_cell[p], s.tri_cell[q]);
+    }
+  }
+}
+
+TEST(ContactBroadPhase, EqualsBruteForceOnRandomTriangleSoups) {
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> u01(0, 1);
+  for (int config = 0; config < 10; ++config) {
+    Scene s;
+    s.x.resize(3, 0);
+    const int n_cells = 10 + static_cast<int>(20 * u01(rng));
+    for (int c = 0; c < n_cells; ++c) {
+      const Vec3 center = 3.0 * Vec3(u01(rng), u01(rng), u01(rng));
+      std::vector<Vec3> v;
+      std::vector<Tri> f;
+      const int n_tri = 5 + static_cast<int>(30 * u01(rng));
+      for (int t = 0; t < n_tri; ++t) {
+        // Mostly small triangles, a few large ones, a few degenerate.
+        const double size = u01(rng) < 0.05 ? 3.0 : 0.3 * u01(rng);
+        const Vec3 p = center + Vec3(u01(rng), u01(rng), u01(rng)) - Vec3::Constant(0.5);
+        const int base = static_cast<int>(v.size());
+        v.push_back(p);
+        auto randomDir = [&] { return Vec3(2 * u01(rng) - 1, 2 * u01(rng) - 1, 2 * u01(rng) - 1); };
+        v.push_back(p + size * randomDir());
+        v.push_back(u01(rng) < 0.05 ? v.back() : Vec3(p + size * randomDir()));
+        f.push_back({base, base + 1, base + 2});
+      }
+      // Large, sparse ids in half the configurations (the id-compression fallback).
+      appendCell(s, v, f, config % 2 ? c : 50'000'000 * c + 7);
+    }
+    const double margin = 0.05 * u01(rng);
+    const auto fast = findContactCandidates(s.x, s.tri, s.tri_cell, margin);
+    const auto brute = findContactCandidatesBruteForce(s.x, s.tri, s.tri_cell, margin);
+    EXPECT_GT(brute.size(), 0u);
+    EXPECT_EQ(fast, brute) << "configuration " << config;
+  }
+}
+
+#ifdef _OPENMP
+TEST(ContactBroadPhase, ResultIndependentOfThreadCount) {
+  const LocalMesh ico = localIcosphere(2);
+  Scene s;
+  s.x.resize(3, 0);
+  for (int c = 0; c < 27; ++c) {  // 3×3×3 block of overlapping spheres
+    const Vec3 center = 1.9 * Vec3(c % 3, (c / 3) % 3, c / 9);
+    std::vector<Vec3> v;
+    for (const Vec3& p : ico.x) v.push_back(center + p);
+    appendCell(s, v, ico.tri, c);
+  }
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const auto one = findContactCandidates(s.x, s.tri, s.tri_cell, 0.06);
+  omp_set_num_threads(4);
+  const auto four = findContactCandidates(s.x, s.tri, s.tri_cell, 0.06);
+  omp_set_num_threads(saved);
+  EXPECT_GT(one.size(), 0u);
+  EXPECT_EQ(one, four);
+  EXPECT_EQ(one, findContactCandidatesBruteForce(s.x, s.tri, s.tri_cell, 0.06));
+}
+#endif
+
+TEST(ContactBroadPhase, TwoCellsInContactAndTrivialInputs) {
+  // Two unit spheres overlapping by 0.1: facing pairs exist only near the contact.
+  const LocalMesh ico = localIcosphere(2);
+  Scene s;
+  s.x.resize(3, 0);
+  std::vector<Vec3> v0, v1;
+  for (const Vec3& p : ico.x) {
+    v0.push_back(p);
+    v1.push_back(p + Vec3(1.9, 0, 0));
+  }
+  appendCell(s, v0, ico.tri, 0);
+  appendCell(s, v1, ico.tri, 1);
+  const auto fast = findContactCandidates(s.x, s.tri, s.tri_cell, 0.06);
+  EXPECT_EQ(fast, findContactCandidatesBruteForce(s.x, s.tri, s.tri_cell, 0.06));
+  ASSERT_GT(fast.size(), 0u);
+  for (const auto& [p, q] : fast) {
+    // Every candidate lies in the slab around the contact plane x = 0.95.
+    for (int t : {p, q})
+      for (int k = 0; k < 3; ++k) EXPECT_NEAR(s.x(0, s.tri[t][k]), 0.95, 0.5);
+  }
+  // One cell only, or no triangles: nothing.
+  Scene one;
+  one.x.resize(3, 0);
+  appendCell(one, v0, ico.tri, 7);
+  EXPECT_TRUE(findContactCandidates(one.x, one.tri, one.tri_cell, 0.1).empty());
+  EXPECT_TRUE(findContactCandidates(one.x, {}, {}, 0.1).empty());
+}
+
+// ---- 2. Newton's third law -------------------------------------------------------------------
+
+TEST(ContactNarrowPhase, ActionReactionForceAndTorqueVanish) {
+  std::mt19937 rng(21);
+  const ContactLaw law;
+  int active = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    const Pair pr = randomFacingPair(rng, -0.1, 0.1, 0.3);
+    for (ContactQuadrature q : kAllQuadratures) {
+      const TriangleContact c = computeTriangleContact(pr.a, pr.b, law, q);
+      ASSERT_TRUE(allFinite(c));
+      if (!c.active) continue;
+      ++active;
+      const auto f = nodalForces(c);
+      Vec3 fsum = Vec3::Zero(), torque = Vec3::Zero();
+      double fabs_sum = 0, rmax = 0;
+      for (int i = 0; i < 3; ++i) {
+        fsum += f[i] + f[3 + i];
+        torque += pr.a[i].cross(f[i]) + pr.b[i].cross(f[3 + i]);
+        fabs_sum += f[i].norm() + f[3 + i].norm();
+        rmax = std::max({rmax, pr.a[i].norm(), pr.b[i].norm()});
+      }
+      EXPECT_LE(fsum.norm(), 1e-12 * fabs_sum);
+      EXPECT_LE(torque.norm(), 1e-10 * fabs_sum * rmax);
+      // A's share reproduces the total force.
+      EXPECT_LE((f[0] + f[1] + f[2] - c.force).norm(), 1e-12 * fabs_sum);
+    }
+  }
+  EXPECT_GT(active, 300);
+}
+
+// ---- 3. energy consistency -------------------------------------------------------------------
+
+TEST(ContactNarrowPhase, ForceIsMinusEnergyGradientAlongNormal) {
+  std::mt19937 rng(31);
+  int checked = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    // Half the pairs with the default range and small tilt/gaps (whole polygon below h0),
+    // half with a range far beyond any gap (large tilts, strongly interpenetrating parts).
+    const bool default_range = trial % 2 == 0;
+    ContactLaw law;
+    if (!default_range) law.h0 = 1e3;
+    const Pair pr = default_range ? randomFacingPair(rng, -0.04, 0.0, 0.01)
+                                  : randomFacingPair(rng, -0.2, 0.2, 0.5);
+    for (ContactQuadrature q : {ContactQuadrature::Exact, ContactQuadrature::Dunavant7}) {
+      const TriangleContact c = computeTriangleContact(pr.a, pr.b, law, q);
+      if (!c.active) continue;
+      // The h0 clip must not be active: same area with an unlimited range.
+      const TriangleContact unlimited =
+          computeTriangleContact(pr.a, pr.b, ContactLaw{law.k, 1e9}, q);
+      if (std::abs(unlimited.area - c.area) > 1e-14 * c.area) continue;
+      const double ds = 1e-5;
+      auto energyAt = [&](double s) {
+        Tri3 moved = pr.a;
+        for (Vec3& p : moved) p += s * c.normal;
+        const TriangleContact cs = computeTriangleContact(moved, pr.b, law, q);
+        EXPECT_NEAR(cs.area, c.area, 1e-10 * c.area);  // the polygon does not change
+        return cs.energy;
+      };
+      const double dEds = (energyAt(ds) - energyAt(-ds)) / (2 * ds);
+      const double fn = c.force.dot(c.normal);
+      EXPECT_NEAR(-dEds, fn, 1e-6 * (std::abs(fn) + law.k * c.area * 1e-3))
+          << "trial " << trial << " mean gap " << c.mean_gap;
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 300);
+}
+
+// ---- 4. force and moment reproduction (S18) --------------------------------------------------
+
+TEST(ContactNarrowPhase, NodalForcesReproduceForceAndMomentAboutCentreOfPressure) {
+  std::mt19937 rng(41);
+  const ContactLaw law;
+  int checked = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    const Pair pr = randomFacingPair(rng, -0.1, 0.1, 0.3);
+    const TriangleContact c = computeTriangleContact(pr.a, pr.b, law, ContactQuadrature::Exact);
+    if (!c.active) continue;
+    const auto f = nodalForces(c);
+    double fabs_sum = 0, diam = 0;
+    for (int i = 0; i < 6; ++i) fabs_sum += f[i].norm();
+    for (int i = 0; i < 3; ++i) diam = std::max(diam, (pr.a[i] - c.centroid).norm());
+    // Σ F_i = F for A and −F for B; all nodal forces are collinear with n̂_AB.
+    EXPECT_LE((f[0] + f[1] + f[2] - c.force).norm(), 1e-12 * fabs_sum);
+    EXPECT_LE((f[3] + f[4] + f[5] + c.force).norm(), 1e-12 * fabs_sum);
+    for (int i = 0; i < 6; ++i) EXPECT_LE(f[i].cross(c.normal).norm(), 1e-14 * fabs_sum);
+    // Moment of the nodal forces about the polygon centroid x_AB (S18) equals the moment of the
+    // pressure, (x_p − x_AB) × F; in particular it vanishes about the centre of pressure.
+    Vec3 m_centroid = Vec3::Zero(), m_cop = Vec3::Zero();
+    for (int i = 0; i < 3; ++i) {
+      m_centroid += (pr.a[i] - c.centroid).cross(f[i]);
+      m_cop += (pr.a[i] - c.center_of_pressure).cross(f[i]);
+    }
+    const Vec3 expected = (c.center_of_pressure - c.centroid).cross(c.force);
+    const double lever = diam + (c.center_of_pressure - c.centroid).norm();
+    EXPECT_LE((m_centroid - expected).norm(), 1e-10 * fabs_sum * lever);
+    // Only meaningful where the net load does not nearly cancel.
+    if (std::abs(c.force.dot(c.normal)) > 0.1 * fabs_sum / 2) {
+      EXPECT_LE(m_cop.norm(), 1e-10 * fabs_sum * lever);
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 100);
+}
+
+TEST(ContactNarrowPhase, MatchesIndependentGridIntegration) {
+  std::mt19937 rng(42);
+  const ContactLaw law;
+  int checked = 0;
+  for (int trial = 0; trial < 30; ++trial) {
+    const Pair pr = randomFacingPair(rng, -0.05, 0.08, 0.15);
+    const TriangleContact c = computeTriangleContact(pr.a, pr.b, law, ContactQuadrature::Exact);
+    const GridReference r = gridIntegrate(pr.a, pr.b, law, 800);
+    const double area_scale = triArea(pr.a);
+    if (!c.active) {
+      EXPECT_LT(r.area, 1e-2 * area_scale);
+      continue;
+    }
+    ++checked;
+    const double p_scale = law.k * area_scale * 0.1;
+    EXPECT_NEAR(c.area, r.area, 5e-3 * area_scale);
+    EXPECT_NEAR(c.force.dot(c.normal), r.int_p, 5e-3 * p_scale);
+    EXPECT_NEAR(c.energy, r.energy, 5e-3 * p_scale * 0.1);
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_NEAR(c.force_weight_a[i], r.wa[i], 5e-3 * p_scale);
+      EXPECT_NEAR(c.force_weight_b[i], r.wb[i], 5e-3 * p_scale);
+    }
+    if (c.area > 0.05 * area_scale) {
+      EXPECT_LT((c.centroid - r.centroid).norm(), 1e-2);
+    }
+  }
+  EXPECT_GT(checked, 15);
+}
+
+// ---- 5. special cases ------------------------------------------------------------------------
+
+TEST(ContactNarrowPhase, ParallelFacingTrianglesHexagonOverlap) {
+  // A = {x ≥ 0, y ≥ 0, x + y ≤ 2} in z = 0 (normal +z); B = {x ≤ 1.5, y ≤ 1.5, x + y ≥ 1} in
+  // z = g0 (normal −z). Overlap = A minus three corner triangles: 2 − 0.5 − 2·0.125 = 1.25.
+  const ContactLaw law;
+  const double g0 = 0.03;
+  const Tri3 a{Vec3(0, 0, 0), Vec3(2, 0, 0), Vec3(0, 2, 0)};
+  const Tri3 b{Vec3(1.5, 1.5, g0), Vec3(1.5, -0.5, g0), Vec3(-0.5, 1.5, g0)};
+  ASSERT_LT(triNormal(b).z(), 0);
+  std::mt19937 rng(51);
+  for (int motion = 0; motion < 5; ++motion) {
+    const Eigen::Matrix3d R = motion == 0 ? Eigen::Matrix3d::Identity() : randomRotation(rng);
+    const Vec3 shift = motion == 0 ? Vec3::Zero() : Vec3(3, -2, 7);
+    for (ContactQuadrature q : kAllQuadratures) {
+      const TriangleContact c =
+          computeTriangleContact(transformed(a, R, shift), transformed(b, R, shift), law, q);
+      ASSERT_TRUE(c.active);
+      const Vec3 n = R * Vec3::UnitZ();
+      EXPECT_NEAR((c.normal - n).norm(), 0, 1e-14);
+      EXPECT_NEAR(c.area, 1.25, 1e-13);
+      EXPECT_NEAR((c.force - law.k * g0 * 1.25 * n).norm(), 0, 1e-12);
+      EXPECT_NEAR(c.energy, 0.5 * law.k * g0 * g0 * 1.25, 1e-14);
+      EXPECT_NEAR(c.mean_gap, g0, 1e-13);
+      // Uniform pressure: centre of pressure = centroid, on the mid plane z = g0/2. The hexagon
+      // is symmetric about x = y; its centroid from the corner cut-outs:
+      // (2·(2/3) − 0.5·(1/3) − 0.125·(5/3 + 1/6)) / 1.25 on both axes.
+      const double cxy = (2.0 * (2.0 / 3.0) - 0.5 / 3.0 - 0.125 * (5.0 / 3.0 + 1.0 / 6.0)) / 1.25;
+      const Vec3 centroid = R * Vec3(cxy, cxy, g0 / 2) + shift;
+      EXPECT_NEAR((c.centroid - centroid).norm(), 0, 1e-12);
+      EXPECT_NEAR((c.center_of_pressure - centroid).norm(), 0, 1e-12);
+      // Weights: k g0 ∫λ_i = k g0 S λ_i(centroid) = k g0 S · bary (λ affine).
+      for (int i = 0; i < 3; ++i) {
+        EXPECT_NEAR(c.force_weight_a[i], law.k * g0 * 1.25 * c.bary_a[i], 1e-11);
+        EXPECT_NEAR(c.force_weight_b[i], law.k * g0 * 1.25 * c.bary_b[i], 1e-11);
+      }
+    }
+  }
+}
+
+TEST(ContactNarrowPhase, ParallelShiftedTrianglesAndSmallTriangleInside) {
+  const ContactLaw law;
+  // B = A shifted by t along x (and facing down): overlap is a right triangle of legs 2 − t.
+  const double t = 0.5, g0 = -0.02;
+  const Tri3 a{Vec3(0, 0, 0), Vec3(2, 0, 0), Vec3(0, 2, 0)};
+  const Tri3 b{Vec3(t, 0, g0), Vec3(t, 2, g0), Vec3(t + 2, 0, g0)};
+  const TriangleContact c = computeTriangleContact(a, b, law, ContactQuadrature::Exact);
+  ASSERT_TRUE(c.active);
+  EXPECT_NEAR(c.area, 0.5 * (2 - t) * (2 - t), 1e-13);
+  EXPECT_NEAR(c.force.z(), law.k * g0 * c.area, 1e-12);  // repulsive: pushes A down
+  EXPECT_LT(c.force.z(), 0);
+
+  // A small tilted triangle whose projection lies inside the big one: area = its area
+  // projected onto the plane ⟂ n̂_AB.
+  const Tri3 big{Vec3(-5, -5, 0), Vec3(5, -5, 0), Vec3(0, 6, 0)};
+  const Eigen::Matrix3d tilt = rotationAbout(Vec3(1, 2, 0), 0.4);
+  Tri3 small{Vec3(0, 0, 0), Vec3(0, 0.5, 0), Vec3(0.5, 0, 0)};  // normal −z
+  for (Vec3& p : small) p = tilt * p + Vec3(0.3, -0.2, 0.02);
+  for (ContactQuadrature q : kAllQuadratures) {
+    const TriangleContact cs = computeTriangleContact(big, small, ContactLaw{law.k, 10.0}, q);
+    ASSERT_TRUE(cs.active);
+    EXPECT_NEAR(cs.area, triArea(small) * std::abs(triNormal(small).dot(cs.normal)), 1e-13);
+    // The gap at the centroid of the small triangle, measured along n̂_AB.
+    const Vec3 cen = (small[0] + small[1] + small[2]) / 3.0;
+    const double g_cen = cen.z() / cs.normal.z();  // distance to z = 0 along n̂_AB
+    EXPECT_NEAR(cs.mean_gap, g_cen, 1e-12);
+    // Friction weights of B are those of its own centroid: 1/3 each.
+    for (int i = 0; i < 3; ++i) EXPECT_NEAR(cs.bary_b[i], 1.0 / 3.0, 1e-12);
+  }
+}
+
+TEST(ContactNarrowPhase, PartlyBeyondRangeIsClippedAnalytically) {
+  // A = {x ≥ 0, y ≥ 0, x + y ≤ 2} in z = 0; B is a large triangle on the tilted plane
+  // z = g0 + τx facing down. The line from (x, y, 0) along n̂ = (nx, 0, nz) meets B after
+  // s = (g0 + τx)/(nz − τ nx): the gap grows linearly with x and reaches h0 at
+  // x_c = (h0 (nz − τ nx) − g0)/τ. The contact is A ∩ {x < x_c}, scaled by n̂_A·n̂ = nz.
+  const ContactLaw law;  // h0 = 0.06
+  const double g0 = 0.01, tau = 0.05;
+  const Tri3 a{Vec3(0, 0, 0), Vec3(2, 0, 0), Vec3(0, 2, 0)};
+  auto onB = [&](double x, double y) { return Vec3(x, y, g0 + tau * x); };
+  const Tri3 b{onB(-2, -2), onB(-2, 6), onB(6, -2)};
+  const Vec3 na(0, 0, 1), nb = triNormal(b);
+  const Vec3 n = (na - nb).normalized();
+  const double nx = n.x(), nz = n.z(), denom = nz - tau * nx;
+  const double xc = (law.h0 * denom - g0) / tau;
+  ASSERT_GT(xc, 0.2);
+  ASSERT_LT(xc, 1.8);
+  const double area_on_a = 2.0 - 0.5 * (2 - xc) * (2 - xc);
+  // ∫ g over the region on A: ∫_0^xc (α + βx)(2 − x) dx with α = g0/denom, β = τ/denom.
+  const double al = g0 / denom, be = tau / denom;
+  auto prim = [&](double x) { return 2 * al * x + (2 * be - al) * x * x / 2 - be * x * x * x / 3; };
+  const double int_g_on_a = prim(xc);
+  for (ContactQuadrature q : kAllQuadratures) {
+    const TriangleContact c = computeTriangleContact(a, b, law, q);
+    ASSERT_TRUE(c.active);
+    EXPECT_NEAR((c.normal - n).norm(), 0, 1e-14);
+    EXPECT_NEAR(c.area, area_on_a * nz, 1e-12);
+    EXPECT_NEAR(c.force.dot(n), law.k * int_g_on_a * nz, 1e-10);
+    EXPECT_NEAR(c.mean_gap, int_g_on_a / area_on_a, 1e-12);
+    EXPECT_GT(c.mean_gap, 0);
+    EXPECT_LT(c.mean_gap, law.h0);
+  }
+}
+
+TEST(ContactNarrowPhase, GapBeyondRangeIsInactive) {
+  const ContactLaw law;
+  const Tri3 a{Vec3(0, 0, 0), Vec3(2, 0, 0), Vec3(0, 2, 0)};
+  for (double g0 : {law.h0 * 1.0001, 0.1, 1.0}) {
+    const Tri3 b{Vec3(0, 0, g0), Vec3(0, 2, g0), Vec3(2, 0, g0)};
+    expectInactiveAndZero(computeTriangleContact(a, b, law, ContactQuadrature::Exact));
+  }
+  // Tilted, minimum gap above h0 everywhere.
+  const Tri3 b{Vec3(0, 0, 0.07), Vec3(0, 2, 0.07), Vec3(2, 0, 0.2)};
+  expectInactiveAndZero(computeTriangleContact(a, b, law, ContactQuadrature::Exact));
+  // Projections do not overlap.
+  const Tri3 far{Vec3(3, 3, 0.01), Vec3(3, 5, 0.01), Vec3(5, 3, 0.01)};
+  expectInactiveAndZero(computeTriangleContact(a, far, law, ContactQuadrature::Exact));
+}
+
+TEST(ContactNarrowPhase, NotFacingOrDegenerateIsInactiveAndFinite) {
+  const ContactLaw law;
+  const Tri3 a{Vec3(0, 0, 0), Vec3(2, 0, 0), Vec3(0, 2, 0)};
+  // Same orientation (not facing), and exactly perpendicular.
+  expectInactiveAndZero(computeTriangleContact(
+      a, {Vec3(0, 0, 0.01), Vec3(2, 0, 0.01), Vec3(0, 2, 0.01)}, law, ContactQuadrature::Exact));
+  expectInactiveAndZero(
+      computeTriangleContact(a, {Vec3(0.5, 0.5, -1), Vec3(0.5, 0.5, 1), Vec3(1.5, 0.5, 0)}, law,
+                             ContactQuadrature::Exact));
+  // Degenerate B: collinear, coincident vertices, nearly collinear.
+  const std::vector<Tri3> degenerate{
+      {Vec3(0, 0, 0.01), Vec3(1, 1, 0.01), Vec3(2, 2, 0.01)},
+      {Vec3(0.5, 0.5, 0.01), Vec3(0.5, 0.5, 0.01), Vec3(0.5, 0.5, 0.01)},
+      {Vec3(0, 0, 0.01), Vec3(1, 1e-16, 0.01), Vec3(2, 0, 0.01)},
+      {Vec3(0, 0, 0.01), Vec3(0, 1, 0.01), Vec3(0, 1 + 1e-15, 0.01)}};
+  for (const Tri3& d : degenerate) {
+    expectInactiveAndZero(computeTriangleContact(a, d, law, ContactQuadrature::Exact));
+    expectInactiveAndZero(computeTriangleContact(d, a, law, ContactQuadrature::Exact));
+  }
+  // Non-finite input.
+  const Tri3 bad{Vec3(NAN, 0, 0.01), Vec3(0, 1, 0.01), Vec3(1, 0, 0.01)};
+  expectInactiveAndZero(computeTriangleContact(a, bad, law, ContactQuadrature::Exact));
+}
+
+TEST(ContactNarrowPhase, NearlyPerpendicularFacingTrianglesAreFiniteAndConsistent) {
+  // B's normal makes an angle just beyond 90° with A's: n̂_A·n̂_B = −sin(ε).
+  const ContactLaw law;
+  const Tri3 a{Vec3(-1, -1, 0), Vec3(1, -1, 0), Vec3(0, 1, 0)};
+  for (double eps : {1e-12, 1e-6, 1e-2, 0.3}) {
+    // B's plane contains the y axis direction rotated so that its normal is
+    // (−cos ε, 0, −sin ε); it passes through (0.02, 0, 0) so it crosses A.
+    const Vec3 nb(-std::cos(eps), 0, -std::sin(eps));
+    const Vec3 u(0, 1, 0), w = nb.cross(u);  // in-plane directions of B, (u, w) ⟂ nb
+    const Vec3 p(0.02, 0, 0);
+    Tri3 b{p - 0.5 * u - 0.5 * w, p + 0.5 * u - 0.5 * w, p + 0.6 * w};
+    if (triNormal(b).dot(nb) < 0) std::swap(b[1], b[2]);
+    ASSERT_LT(triNormal(a).dot(triNormal(b)), 0);
+    for (ContactQuadrature q : kAllQuadratures) {
+      const TriangleContact c = computeTriangleContact(a, b, law, q);
+      ASSERT_TRUE(allFinite(c)) << eps;
+      ASSERT_TRUE(c.active) << eps;
+      EXPECT_GT(c.area, 0);
+      EXPECT_LE(c.mean_gap, law.h0);
+      const auto f = nodalForces(c);
+      Vec3 fsum = Vec3::Zero(), torque = Vec3::Zero();
+      double fabs_sum = 0;
+      for (int i = 0; i < 3; ++i) {
+        fsum += f[i] + f[3 + i];
+        torque += a[i].cross(f[i]) + b[i].cross(f[3 + i]);
+        fabs_sum += f[i].norm() + f[3 + i].norm();
+      }
+      EXPECT_LE(fsum.norm(), 1e-12 * fabs_sum);
+      EXPECT_LE(torque.norm(), 1e-10 * fabs_sum);
+    }
+    if (eps >= 1e-2) {
+      const TriangleContact c = computeTriangleContact(a, b, law, ContactQuadrature::Exact);
+      const GridReference r = gridIntegrate(a, b, law, 1000);
+      EXPECT_NEAR(c.area, r.area, 2e-2 * c.area);
+      EXPECT_NEAR(c.force.dot(c.normal), r.int_p, 2e-2 * law.k * c.area * law.h0);
+    }
+  }
+}
+
+// ---- 6. quadratures --------------------------------------------------------------------------
+
+TEST(ContactNarrowPhase, QuadratureRulesAgreeWhereExact) {
+  std::mt19937 rng(61);
+  const ContactLaw law;
+  int weights_differ = 0, checked = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    const Pair pr = randomFacingPair(rng, -0.1, 0.1, 0.3);
+    const TriangleContact e = computeTriangleContact(pr.a, pr.b, law, ContactQuadrature::Exact);
+    const TriangleContact d = computeTriangleContact(pr.a, pr.b, law, ContactQuadrature::Dunavant7);
+    const TriangleContact m = computeTriangleContact(pr.a, pr.b, law, ContactQuadrature::Centroid);
+    ASSERT_EQ(e.active, d.active);
+    ASSERT_EQ(e.active, m.active);
+    if (!e.active) continue;
+    ++checked;
+    const double fs = law.k * e.area * 0.1;  // force scale
+    // Exact and Dunavant7 are both exact for these degree ≤ 2 integrands.
+    EXPECT_NEAR(e.area, d.area, 1e-12 * e.area);
+    EXPECT_NEAR((e.force - d.force).norm(), 0, 1e-10 * fs);
+    EXPECT_NEAR(e.energy, d.energy, 1e-10 * fs * 0.1);
+    EXPECT_NEAR((e.center_of_pressure - d.center_of_pressure).norm(), 0,
+                1e-10 * (1 + (e.center_of_pressure - e.centroid).norm()));
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_NEAR(e.force_weight_a[i], d.force_weight_a[i], 1e-10 * fs);
+      EXPECT_NEAR(e.force_weight_b[i], d.force_weight_b[i], 1e-10 * fs);
+    }
+    // Centroid rule: exact for the affine pressure (same total force, area, centroid) ...
+    EXPECT_NEAR(e.area, m.area, 1e-12 * e.area);
+    EXPECT_NEAR((e.force - m.force).norm(), 0, 1e-10 * fs);
+    EXPECT_NEAR((e.centroid - m.centroid).norm(), 0, 1e-10);
+    // ... but not for the quadratic P·λ: weights generally differ, still summing to ∫P.
+    double diff = 0, sum_a = 0, sum_b = 0;
+    for (int i = 0; i < 3; ++i) {
+      diff = std::max(diff, std::abs(e.force_weight_a[i] - m.force_weight_a[i]));
+      sum_a += m.force_weight_a[i];
+      sum_b += m.force_weight_b[i];
+    }
+    EXPECT_NEAR(sum_a, m.force.dot(m.normal), 1e-12 * fs);
+    EXPECT_NEAR(sum_b, m.force.dot(m.normal), 1e-12 * fs);
+    if (diff > 1e-6 * fs) ++weights_differ;
+  }
+  EXPECT_GT(checked, 150);
+  EXPECT_GT(weights_differ, checked / 2);
+}
+
+// ---- 7. friction weights ---------------------------------------------------------------------
+
+TEST(ContactNarrowPhase, FrictionBarycentricsAreAConvexCombinationGivingTheCentroid) {
+  std::mt19937 rng(71);
+  const ContactLaw law;
+  int checked = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    const Pair pr = randomFacingPair(rng, -0.1, 0.1, 0.3);
+    const TriangleContact c = computeTriangleContact(pr.a, pr.b, law, ContactQuadrature::Exact);
+    if (!c.active) continue;
+    ++checked;
+    // Projection onto the plane ⟂ n̂_AB.
+    const Eigen::Matrix3d proj = Eigen::Matrix3d::Identity() - c.normal * c.normal.transpose();
+    double sa = 0, sb = 0;
+    Vec3 ya = Vec3::Zero(), yb = Vec3::Zero();
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_GE(c.bary_a[i], 0);
+      EXPECT_GE(c.bary_b[i], 0);
+      sa += c.bary_a[i];
+      sb += c.bary_b[i];
+      ya += c.bary_a[i] * (proj * pr.a[i]);
+      yb += c.bary_b[i] * (proj * pr.b[i]);
+    }
+    EXPECT_NEAR(sa, 1, 1e-14);
+    EXPECT_NEAR(sb, 1, 1e-14);
+    const double size = (pr.a[1] - pr.a[0]).norm() + (pr.b[1] - pr.b[0]).norm();
+    EXPECT_LE((ya - proj * c.centroid).norm(), 1e-12 * size);
+    EXPECT_LE((yb - proj * c.centroid).norm(), 1e-12 * size);
+    // The friction weights w_ik = λ_i^A λ_k^B then sum to 1 and are non-negative.
+    double wsum = 0;
+    for (int i = 0; i < 3; ++i)
+      for (int k = 0; k < 3; ++k) wsum += c.bary_a[i] * c.bary_b[k];
+    EXPECT_NEAR(wsum, 1, 1e-14);
+  }
+  EXPECT_GT(checked, 200);
+}
+
+}  // namespace
+}  // namespace activefoam
