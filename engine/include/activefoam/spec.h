@@ -54,6 +54,9 @@ struct NumericsParams {
   double remesh_max_area_factor = 3.0;        // A_M = factor · A_Δ
   ContactQuadrature contact_quadrature = ContactQuadrature::Exact;
   double max_volume_error = 0.05;  // |V − V*|/V* beyond this stops the run as failed
+  // Mean interpenetration of a contact pair beyond this many h0 stops the run as failed: the
+  // explicit contact scheme's instability shows up first as surfaces driven through each other.
+  double max_penetration_h0 = 1.0;
 };
 
 struct SceneParams {

@@ -186,6 +186,21 @@ StepReport Simulation::step() {
     }
   }
 
+  if (with_contacts_) {
+    const double limit = -spec_.numerics.max_penetration_h0 * law_.h0;
+    for (const ContactPair& p : contacts_.pairs) {
+      if (p.c.mean_gap < limit) {
+        rep.failure = FailureKind::Interpenetration;
+        why << "cells " << cells_.tri_cell[p.ta] << " and " << cells_.tri_cell[p.tb]
+            << " interpenetrate by " << -p.c.mean_gap << " µm > numerics.max_penetration_h0 × h0 = "
+            << -limit << " µm at t=" << t_ << " s (contact forces too stiff for dt with the "
+            << toString(spec_.numerics.integrator) << " integrator?)";
+        rep.reason = why.str();
+        return rep;
+      }
+    }
+  }
+
   if (remesh_interval_steps_ > 0 && steps_ % remesh_interval_steps_ == 0) {
     StepReport r = remeshAll();
     rep.remesh_ops = r.remesh_ops;
