@@ -21,18 +21,18 @@ enum class PreconditionerKind { Jacobi, BlockJacobi };
 enum class ContactQuadrature { Exact, Dunavant7, Centroid };
 
 struct CellParams {
-  double radius_mean_um = 8.88;  // mean cell radius r
-  double radius_gamma_k = 37;    // Gamma shape k (θ = r/k); 0 = every cell has radius r exactly
-  double gamma = 0.5;            // cortex tension γ, nN/µm
-  double eta = 5.0;              // cortex 2D viscosity η, nN·s/µm
-  double eta_m = 0.4;            // medium viscosity η_m, kPa·s
-  double bulk_modulus = 0.5;     // K, kPa
-  std::optional<double> tau_k_s;  // PI integration time τ_K; default 2 τ_shell
-  double alpha = 0.4375;          // relative cell–cell tension α = 1 − w/γ
-  double p_a = 0.0372;            // protrusion pressure, kPa
-  double tau_p_s = 600;           // persistence time τ_p, s
-  double xi = 0.25;               // contact friction ξ, kPa·s/µm
-  std::optional<double> xi_normal;      // ξ⊥, default ξ
+  double radius_mean_um = 8.88;     // mean cell radius r
+  double radius_gamma_k = 37;       // Gamma shape k (θ = r/k); 0 = every cell has radius r exactly
+  double gamma = 0.5;               // cortex tension γ, nN/µm
+  double eta = 5.0;                 // cortex 2D viscosity η, nN·s/µm
+  double eta_m = 0.4;               // medium viscosity η_m, kPa·s
+  double bulk_modulus = 0.5;        // K, kPa
+  std::optional<double> tau_k_s;    // PI integration time τ_K; default 2 τ_shell
+  double alpha = 0.4375;            // relative cell–cell tension α = 1 − w/γ
+  double p_a = 0.0372;              // protrusion pressure, kPa
+  double tau_p_s = 600;             // persistence time τ_p, s
+  double xi = 0.25;                 // contact friction ξ, kPa·s/µm
+  std::optional<double> xi_normal;  // ξ⊥, default ξ
   std::optional<double> xi_tangential;  // ξ∥, default ξ
   double k_contact = 71.1;              // contact stiffness k_AB, nN/µm³
   double eps_n = 0.1;                   // out-of-plane factor of cortex viscosity (S13)
@@ -50,10 +50,10 @@ struct NumericsParams {
   double cg_tol = 1e-3;
   std::int64_t cg_max_iter = 1000;
   PreconditionerKind preconditioner = PreconditionerKind::Jacobi;
-  std::int64_t triangles_per_cell = 320;       // 80 | 320 | 1280
-  std::optional<double> remesh_every_s;        // τ_r, default 5 τ_shell; 0 disables remeshing
-  double remesh_min_area_factor = 1.0 / 3.0;   // A_m = factor · A_Δ
-  double remesh_max_area_factor = 3.0;         // A_M = factor · A_Δ
+  std::int64_t triangles_per_cell = 320;      // 80 | 320 | 1280
+  std::optional<double> remesh_every_s;       // τ_r, default 5 τ_shell; 0 disables remeshing
+  double remesh_min_area_factor = 1.0 / 3.0;  // A_m = factor · A_Δ
+  double remesh_max_area_factor = 3.0;        // A_M = factor · A_Δ
   ContactQuadrature contact_quadrature = ContactQuadrature::Exact;
   double max_volume_error = 0.05;  // |V − V*|/V* beyond this stops the run as failed
 
@@ -61,11 +61,11 @@ struct NumericsParams {
 };
 
 struct SceneParams {
-  double axes_ratio = 1.3;  // cell: start as ellipsoid (q r, r, r/q) at equal volume; 1 = sphere
-  double gap_um = 0.05;     // doublet: initial gap between the two cells
-  std::int64_t n_cells = 100;    // spheroid: N; fusion: N per spheroid unless a/b are given
-  std::int64_t n_cells_a = 0;    // fusion: cells in spheroid A (0 = n_cells)
-  std::int64_t n_cells_b = 0;    // fusion: cells in spheroid B (0 = n_cells)
+  double axes_ratio = 1.3;     // cell: start as ellipsoid (q r, r, r/q) at equal volume; 1 = sphere
+  double gap_um = 0.05;        // doublet: initial gap between the two cells
+  std::int64_t n_cells = 100;  // spheroid: N; fusion: N per spheroid unless a/b are given
+  std::int64_t n_cells_a = 0;  // fusion: cells in spheroid A (0 = n_cells)
+  std::int64_t n_cells_b = 0;  // fusion: cells in spheroid B (0 = n_cells)
 
   friend bool operator==(const SceneParams&, const SceneParams&) = default;
 };
@@ -91,11 +91,11 @@ using SpecValue = std::variant<double, std::int64_t, std::string, bool>;
 enum class FieldType { Real, Integer, Choice };
 
 struct SpecField {
-  std::string key;   // dotted path as in the TOML: "seed", "cells.gamma", "numerics.dt_s", ...
+  std::string key;  // dotted path as in the TOML: "seed", "cells.gamma", "numerics.dt_s", ...
   FieldType type;
-  double lo, hi;     // allowed closed range [lo, hi] for Real/Integer
-  bool lo_open;      // true: (lo, hi]
-  bool optional;     // may be left unset (a derived default applies)
+  double lo, hi;  // allowed closed range [lo, hi] for Real/Integer
+  bool lo_open;   // true: (lo, hi]
+  bool optional;  // may be left unset (a derived default applies)
   std::string unit;
   std::string help;
   std::vector<std::string> choices;  // for Choice (and the allowed values of an Integer key)
@@ -163,8 +163,8 @@ inline constexpr double kMaxSamples = 1.0e7;         // duration_s / sample_ever
 inline constexpr double kMaxSnapshots = 1.0e5;       // duration_s / snapshot_every_s
 
 // Derived quantities of a (resolved) spec.
-double tauShell(const CellParams& c);          // η / (2√3 γ)
-double adhesionW(const CellParams& c);         // w = (1 − α) γ
-double contactRangeH0(const CellParams& c);    // h0 = √(w / k_AB)
+double tauShell(const CellParams& c);        // η / (2√3 γ)
+double adhesionW(const CellParams& c);       // w = (1 − α) γ
+double contactRangeH0(const CellParams& c);  // h0 = √(w / k_AB)
 
 }  // namespace activefoam
