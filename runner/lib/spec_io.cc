@@ -10,6 +10,7 @@
 #include <iostream>
 #include <iterator>
 #include <limits>
+#include <regex>
 #include <sstream>
 
 #include <toml++/toml.h>
@@ -89,7 +90,13 @@ class Walker {
         error(key, "unknown key '" + key + "'" + suggestion(key));
       return;
     }
-    if (isSceneKey(key)) result_.scene_given = true;
+    if (isSceneKey(key)) {
+      if (result_.scene_given) {
+        error(key, "the scene is given twice (scene = \"...\" and kind in [scene])");
+        return;
+      }
+      result_.scene_given = true;
+    }
     if (auto e = setField(spec_, key, value)) result_.errors.push_back(*e);
   }
 
@@ -145,12 +152,46 @@ class Walker {
   SpecParseResult& result_;
 };
 
-// ---- TOML
-// ----------------------------------------------------------------------------------------
+// ---- TOML --------------------------------------------------------------------------------------
+
+// DESIGN.md §10 writes `scene = "fusion"` and a [scene] table in one document, which TOML forbids
+// (a key redefined as a table). That form is accepted: when the top level assigns `scene`, a
+// `[scene]` header is read as this name and walked as the scene table. Lines keep their numbers.
+constexpr std::string_view kSceneTableAlias = "__scene_table__";
+
+std::string liftSceneTable(std::string_view text) {
+  static const std::regex kHeader(R"(^\s*\[\s*scene\s*\]\s*(#.*)?$)");
+  static const std::regex kAnyHeader(R"(^\s*\[)");
+  static const std::regex kSceneKey(R"(^\s*scene\s*=)");
+  std::vector<std::string> lines;
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    const std::size_t end = std::min(text.find('\n', start), text.size());
+    lines.emplace_back(text.substr(start, end - start));
+    start = end + 1;
+  }
+  bool top = true, scene_key = false;
+  for (const std::string& l : lines) {
+    if (std::regex_search(l, kAnyHeader)) top = false;
+    if (top && std::regex_search(l, kSceneKey)) scene_key = true;
+  }
+  if (!scene_key) return std::string(text);
+  std::string out;
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    std::smatch m;
+    if (std::regex_match(lines[i], m, kHeader))
+      out += "[" + std::string(kSceneTableAlias) + "] " + m[1].str();
+    else
+      out += lines[i];
+    if (i + 1 < lines.size()) out += '\n';
+  }
+  return out;
+}
 
 void walkToml(const toml::table& table, const std::string& prefix, Walker& w) {
   for (auto&& [k, node] : table) {
-    const std::string key = join(prefix, k.str());
+    const std::string key =
+        prefix.empty() && k.str() == kSceneTableAlias ? "scene" : join(prefix, k.str());
     switch (node.type()) {
       case toml::node_type::table:
         if (w.table(key)) walkToml(*node.as_table(), key, w);
@@ -177,8 +218,7 @@ void walkToml(const toml::table& table, const std::string& prefix, Walker& w) {
   }
 }
 
-// ---- JSON
-// ----------------------------------------------------------------------------------------
+// ---- JSON --------------------------------------------------------------------------------------
 
 void walkJson(const nlohmann::json& obj, const std::string& prefix, Walker& w) {
   for (auto it = obj.begin(); it != obj.end(); ++it) {
@@ -292,7 +332,7 @@ SpecParseResult parseSpecText(std::string_view text, SpecFormat format, const Sc
   const std::string source = sourceName(options, "<toml>");
   toml::table doc;
   try {
-    doc = toml::parse(text, source);
+    doc = toml::parse(liftSceneTable(text), source);
   } catch (const toml::parse_error& e) {
     std::ostringstream msg;
     msg << "TOML parse error at line " << e.source().begin.line << ", column "

@@ -322,11 +322,28 @@ TEST(SpecIo, JsonMustBeAnObject) {
   EXPECT_NE(r.errors[0].message.find("object"), std::string::npos);
 }
 
-TEST(SpecIo, TopLevelSceneAndSceneTableConflict) {
-  // TOML cannot redefine a key as a table: the parser says so, with the line.
-  const auto r = parseSpecText("scene = \"cell\"\n[scene]\ngap_um = 1\n");
-  ASSERT_EQ(r.errors.size(), 1u);
-  EXPECT_NE(r.errors[0].message.find("line 2"), std::string::npos) << r.errors[0].str();
+TEST(SpecIo, TheDesignExampleWithSceneKeyAndSceneTable) {
+  // DESIGN.md §10 writes both `scene = "fusion"` and a [scene] table, which plain TOML forbids.
+  const auto r = parseSpecText(
+      "scene = \"fusion\"  # the kind\nseed = 3\n[cells]\nalpha = 0.5\n[scene]  # params\n"
+      "n_cells = 40\nn_cells_b = 30\n[numerics]\ndt_s = 0.05\n");
+  ASSERT_TRUE(r.ok()) << joined(r.errors);
+  EXPECT_EQ(r.spec->scene, SceneKind::Fusion);
+  EXPECT_EQ(r.spec->scene_params.n_cells, 40);
+  EXPECT_EQ(r.spec->scene_params.n_cells_b, 30);
+  EXPECT_EQ(r.spec->cells.alpha, 0.5);
+  EXPECT_EQ(r.spec->numerics.dt_s, 0.05);
+  // Errors inside that table still name scene.<key>, with the document's line numbers.
+  auto bad = parseSpecText("scene = \"cell\"\n[scene]\naxes_ratio = 50\n");
+  ASSERT_EQ(bad.errors.size(), 1u);
+  EXPECT_EQ(bad.errors[0].field, "scene.axes_ratio");
+  bad = parseSpecText("scene = \"cell\"\n[scene]\naxes_ratio = \n");
+  ASSERT_EQ(bad.errors.size(), 1u);
+  EXPECT_NE(bad.errors[0].message.find("line 3"), std::string::npos) << bad.errors[0].str();
+  // The kind given both ways is an error.
+  bad = parseSpecText("scene = \"cell\"\n[scene]\nkind = \"doublet\"\n");
+  ASSERT_EQ(bad.errors.size(), 1u);
+  EXPECT_NE(bad.errors[0].message.find("twice"), std::string::npos) << bad.errors[0].str();
 }
 
 TEST(SpecIo, FormatIsSniffed) {

@@ -5,9 +5,10 @@
 // every error (unknown keys and tables, wrong types, out-of-range values) instead of stopping at
 // the first; syntax errors carry the parser's line and column.
 //
-// The scene kind: TOML and JSON cannot hold both `scene = "fusion"` and a [scene] table, so the
-// kind is either the top-level string `scene = "fusion"` (when there is no [scene] table) or
-// `kind = "fusion"` inside [scene]. specToJson writes the second form.
+// The scene kind: plain TOML and JSON cannot hold both `scene = "fusion"` and a [scene] table.
+// The kind is the top-level string `scene = "fusion"`, or `kind = "fusion"` inside [scene]
+// (the form specToJson writes). For TOML, the form of DESIGN.md §10 — `scene = "fusion"` at the
+// top and a [scene] table below — is accepted as well (the header is renamed before parsing).
 #pragma once
 
 #include <filesystem>
