@@ -137,8 +137,7 @@ std::string utcNow() {
   return buf;
 }
 
-// ---- RunOutput
-// -----------------------------------------------------------------------------------
+// ---- RunOutput ---------------------------------------------------------------------------------
 
 RunOutput::RunOutput(fs::path dir, const SceneSpec& resolved)
     : dir_(std::move(dir)), spec_(resolved) {}
