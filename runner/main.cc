@@ -108,7 +108,9 @@ void printKeys() {
 
 std::string formatDuration(double s) {
   char buf[64];
-  if (s < 120)
+  if (s < 10)
+    std::snprintf(buf, sizeof buf, "%.1f s", s);
+  else if (s < 120)
     std::snprintf(buf, sizeof buf, "%.0f s", s);
   else if (s < 7200)
     std::snprintf(buf, sizeof buf, "%.0f min", s / 60);
