@@ -41,6 +41,7 @@ enum class FailureKind {
   CgNotConverged,
   InvertedTriangle,
   VolumeDrift,
+  Interpenetration,
   Cancelled
 };
 std::string_view toString(FailureKind);

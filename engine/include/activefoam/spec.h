@@ -40,6 +40,8 @@ struct CellParams {
   std::optional<double> tau_gamma_s;    // τ_γ = η/γ → η
   std::optional<double> pa_reduced;     // p_a r/2γ → p_a
   std::optional<double> l_eta_reduced;  // L_η/r = √(η/ξ)/r → ξ
+
+  friend bool operator==(const CellParams&, const CellParams&) = default;
 };
 
 struct NumericsParams {
@@ -57,6 +59,8 @@ struct NumericsParams {
   // Mean interpenetration of a contact pair beyond this many h0 stops the run as failed: the
   // explicit contact scheme's instability shows up first as surfaces driven through each other.
   double max_penetration_h0 = 1.0;
+
+  friend bool operator==(const NumericsParams&, const NumericsParams&) = default;
 };
 
 struct SceneParams {
@@ -65,6 +69,8 @@ struct SceneParams {
   std::int64_t n_cells = 100;  // spheroid: N; fusion: N per spheroid unless a/b are given
   std::int64_t n_cells_a = 0;  // fusion: cells in spheroid A (0 = n_cells)
   std::int64_t n_cells_b = 0;  // fusion: cells in spheroid B (0 = n_cells)
+
+  friend bool operator==(const SceneParams&, const SceneParams&) = default;
 };
 
 struct SceneSpec {
@@ -76,6 +82,9 @@ struct SceneSpec {
   CellParams cells;
   NumericsParams numerics;
   SceneParams scene_params;  // the [scene] table
+
+  // Exact, field by field (doubles compared by value): what a round trip must keep.
+  friend bool operator==(const SceneSpec&, const SceneSpec&) = default;
 };
 
 // ---- the key table -------------------------------------------------------------------------
@@ -92,13 +101,26 @@ struct SpecField {
   bool optional;  // may be left unset (a derived default applies)
   std::string unit;
   std::string help;
-  std::vector<std::string> choices;  // for Choice
+  std::vector<std::string> choices;  // for Choice (and the allowed values of an Integer key)
+  bool hi_open = false;              // true: [lo, hi) or (lo, hi)
   std::string range() const;         // "(0, 10]" or "one of cell|doublet|..." for messages
 };
 
 // Every key, in a stable order (the order of DESIGN.md §10).
+//
+// The top-level key "scene" (the scene kind) shares its name with the [scene] table, which TOML
+// and JSON cannot both hold in one document. The kind may therefore also be written as `kind`
+// inside the table: findField("scene.kind") returns the "scene" field, and setField/getField
+// accept "scene.kind" as an alias of "scene".
+//
+// numerics.triangles_per_cell is an Integer key whose `choices` list its allowed values
+// ("80", "320", "1280"); range() then reads "one of 80|320|1280".
 const std::vector<SpecField>& specFields();
 const SpecField* findField(std::string_view key);
+
+// The known key closest to an unknown one (edit distance, or the same last segment in another
+// table: "gamma" → "cells.gamma"); empty when nothing is close.
+std::string suggestKey(std::string_view unknown_key);
 
 struct SpecError {
   std::string field;    // dotted key, e.g. "numerics.dt_s"
@@ -111,8 +133,16 @@ struct SpecError {
 // a non-finite number or a value outside the key's range.
 std::optional<SpecError> setField(SceneSpec& spec, std::string_view key, const SpecValue& value);
 
-// The key's value; std::nullopt for an optional key that is unset.
+// Unsets an optional key (its derived default applies again). Fails on an unknown key or a key
+// that is not optional.
+std::optional<SpecError> clearField(SceneSpec& spec, std::string_view key);
+
+// The key's value; std::nullopt for an optional key that is unset (or an unknown key).
+// Real keys give double, Integer keys std::int64_t, Choice keys std::string.
 std::optional<SpecValue> getField(const SceneSpec& spec, std::string_view key);
+
+// Whether this engine version can build the scene (the others are accepted keys, not yet built).
+bool sceneAvailable(SceneKind scene);
 
 // Every range and cross-field rule. Empty when the spec can run.
 std::vector<SpecError> validate(const SceneSpec& spec);
@@ -125,6 +155,18 @@ std::string_view toString(SceneKind);
 std::string_view toString(IntegratorKind);
 std::string_view toString(PreconditionerKind);
 std::string_view toString(ContactQuadrature);
+
+// Number of cells the scene builds: cell 1, doublet 2, spheroid n_cells, fusion a + b.
+std::int64_t sceneCellCount(const SceneSpec& spec);
+
+// Shortest decimal text that reads back to the same double ("0.1", "1e-05" → "1e-5", "86400").
+std::string formatNumber(double v);
+
+// Limits of validate() beyond the per-key ranges (guards against absurd, machine-killing input).
+inline constexpr double kMaxTotalTriangles = 2.0e6;  // cells × triangles_per_cell
+inline constexpr double kMaxSteps = 1.0e9;           // duration_s / dt_s
+inline constexpr double kMaxSamples = 1.0e7;         // duration_s / sample_every_s
+inline constexpr double kMaxSnapshots = 1.0e5;       // duration_s / snapshot_every_s
 
 // Derived quantities of a (resolved) spec.
 double tauShell(const CellParams& c);        // η / (2√3 γ)

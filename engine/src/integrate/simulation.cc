@@ -154,8 +154,8 @@ StepReport Simulation::step() {
     const StepContext ctx = context();  // geometry of the start of the step
     for (const auto& term : terms_) term->endStep(ctx, cells_);
   }
-  t_ += dt;
   ++steps_;
+  t_ = static_cast<double>(steps_) * dt;  // not a running sum: sample times stay exact
 
   t0 = Clock::now();
   std::swap(geo_prev_, geo_);

@@ -73,6 +73,8 @@ std::string_view toString(FailureKind k) {
       return "inverted-triangle";
     case FailureKind::VolumeDrift:
       return "volume-drift";
+    case FailureKind::Interpenetration:
+      return "interpenetration";
     case FailureKind::Cancelled:
       return "cancelled";
   }

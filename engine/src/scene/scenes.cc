@@ -31,6 +31,10 @@ TriMesh ellipsoidCell(double radius, double axes_ratio, int triangles, const Vec
   return m;
 }
 
+bool sceneAvailable(SceneKind scene) {
+  return scene == SceneKind::Cell || scene == SceneKind::Doublet;
+}
+
 CellSet buildScene(const SceneSpec& spec) {
   CellSet cells;
   Rng rng(spec.seed, 0);

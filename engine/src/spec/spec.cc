@@ -1,0 +1,655 @@
+// The scene spec's key table, validation and resolution (DESIGN.md §3, §9, §10).
+//
+// Everything that knows a key's type, range, unit or cross-field rule lives in this file; the
+// TOML/JSON parsers, the proto translation and `--set` all go through setField/getField.
+#include "activefoam/spec.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <limits>
+#include <type_traits>
+
+namespace activefoam {
+namespace {
+
+// Where a key's value lives in a SceneSpec.
+using Slot = std::variant<double*, std::optional<double>*, std::int64_t*, std::uint64_t*,
+                          SceneKind*, IntegratorKind*, PreconditionerKind*, ContactQuadrature*>;
+
+// An extra per-key rule beyond the range: returns an error message, empty when the value is fine.
+using ExtraRule = std::string (*)(double v);
+
+struct Entry {
+  SpecField field;
+  Slot (*slot)(SceneSpec&);
+  ExtraRule extra = nullptr;
+};
+
+constexpr double kSeedMax = 9007199254740992.0;  // 2^53: exact in a JSON number / double
+
+SpecField real(std::string key, bool lo_open, double lo, double hi, bool hi_open, std::string unit,
+               std::string help, bool optional = false) {
+  SpecField f{std::move(key),  FieldType::Real, lo, hi,     lo_open, optional,
+              std::move(unit), std::move(help), {}, hi_open};
+  return f;
+}
+
+SpecField integer(std::string key, double lo, double hi, std::string help,
+                  std::vector<std::string> allowed = {}) {
+  SpecField f{std::move(key),  FieldType::Integer, lo, hi, false, false, "",
+              std::move(help), std::move(allowed)};
+  return f;
+}
+
+SpecField choice(std::string key, std::vector<std::string> choices, std::string help) {
+  SpecField f{std::move(key),  FieldType::Choice, 0, 0, false, false, "",
+              std::move(help), std::move(choices)};
+  return f;
+}
+
+std::string gammaShapeRule(double v) {
+  if (v != 0 && v < 1)
+    return formatNumber(v) + " is not allowed: use 0 (every cell has radius r) or a shape k ≥ 1";
+  return {};
+}
+
+const std::vector<Entry>& entries() {
+  static const std::vector<Entry> table = [] {
+    constexpr bool kOpen = true, kClosed = false;
+    std::vector<Entry> t;
+    // ---- top level
+    t.push_back({choice("scene", {"cell", "doublet", "spheroid", "fusion"},
+                        "what to simulate: one cell, a doublet, one spheroid, or two fusing "
+                        "spheroids (also `kind` in the [scene] table)"),
+                 [](SceneSpec& s) -> Slot { return &s.scene; }});
+    t.push_back(
+        {integer("seed", 0, kSeedMax,
+                 "random seed; a run is reproducible from (seed, spec) on any thread count"),
+         [](SceneSpec& s) -> Slot { return &s.seed; }});
+    t.push_back({real("duration_s", kOpen, 0, 1e7, kClosed, "s", "simulated time"),
+                 [](SceneSpec& s) -> Slot { return &s.duration_s; }});
+    t.push_back({real("sample_every_s", kOpen, 0, 1e7, kClosed, "s",
+                      "interval of the observables in samples.csv (≤ duration_s, ≥ dt_s)"),
+                 [](SceneSpec& s) -> Slot { return &s.sample_every_s; }});
+    t.push_back({real("snapshot_every_s", kClosed, 0, 1e7, kClosed, "s",
+                      "interval of mesh snapshots; 0 = none"),
+                 [](SceneSpec& s) -> Slot { return &s.snapshot_every_s; }});
+    // ---- [cells]
+    t.push_back(
+        {real("cells.radius_mean_um", kOpen, 0.1, 1000, kClosed, "µm", "mean cell radius r"),
+         [](SceneSpec& s) -> Slot { return &s.cells.radius_mean_um; }});
+    t.push_back({real("cells.radius_gamma_k", kClosed, 0, 1e6, kClosed, "",
+                      "shape k of the Gamma law of cell radii (θ = r/k); 0 = all cells radius r"),
+                 [](SceneSpec& s) -> Slot { return &s.cells.radius_gamma_k; }, gammaShapeRule});
+    t.push_back({real("cells.gamma", kOpen, 0, 100, kClosed, "nN/µm", "cortex tension γ"),
+                 [](SceneSpec& s) -> Slot { return &s.cells.gamma; }});
+    t.push_back({real("cells.eta", kOpen, 0, 1e4, kClosed, "nN·s/µm",
+                      "cortex 2D viscosity η (or give cells.tau_gamma_s)"),
+                 [](SceneSpec& s) -> Slot { return &s.cells.eta; }});
+    t.push_back({real("cells.eta_m", kOpen, 0, 1e3, kClosed, "kPa·s", "medium viscosity η_m"),
+                 [](SceneSpec& s) -> Slot { return &s.cells.eta_m; }});
+    t.push_back({real("cells.bulk_modulus", kOpen, 0, 1e4, kClosed, "kPa",
+                      "bulk modulus K of the volume control"),
+                 [](SceneSpec& s) -> Slot { return &s.cells.bulk_modulus; }});
+    t.push_back({real("cells.tau_k_s", kOpen, 0, 1e6, kClosed, "s",
+                      "integration time τ_K of the volume PI control; default 2 τ_shell", true),
+                 [](SceneSpec& s) -> Slot { return &s.cells.tau_k_s; }});
+    t.push_back({real("cells.alpha", kClosed, 0, 1, kOpen, "",
+                      "relative cell–cell tension α = 1 − w/γ; contact angle θ_c = arccos α"),
+                 [](SceneSpec& s) -> Slot { return &s.cells.alpha; }});
+    t.push_back({real("cells.p_a", kClosed, 0, 10, kClosed, "kPa",
+                      "protrusion pressure of active migration (or give cells.pa_reduced)"),
+                 [](SceneSpec& s) -> Slot { return &s.cells.p_a; }});
+    t.push_back(
+        {real("cells.tau_p_s", kOpen, 0, 1e7, kClosed, "s", "polarity persistence time τ_p"),
+         [](SceneSpec& s) -> Slot { return &s.cells.tau_p_s; }});
+    t.push_back({real("cells.xi", kClosed, 0, 1e4, kClosed, "kPa·s/µm",
+                      "contact friction ξ (or give cells.l_eta_reduced)"),
+                 [](SceneSpec& s) -> Slot { return &s.cells.xi; }});
+    t.push_back({real("cells.xi_normal", kClosed, 0, 1e4, kClosed, "kPa·s/µm",
+                      "normal contact friction ξ⊥; default ξ", true),
+                 [](SceneSpec& s) -> Slot { return &s.cells.xi_normal; }});
+    t.push_back({real("cells.xi_tangential", kClosed, 0, 1e4, kClosed, "kPa·s/µm",
+                      "tangential contact friction ξ∥; default ξ", true),
+                 [](SceneSpec& s) -> Slot { return &s.cells.xi_tangential; }});
+    t.push_back({real("cells.k_contact", kOpen, 0, 1e7, kClosed, "nN/µm³",
+                      "contact stiffness k_AB; range h0 = √(w/k_AB)"),
+                 [](SceneSpec& s) -> Slot { return &s.cells.k_contact; }});
+    t.push_back({real("cells.eps_n", kClosed, 0, 1, kClosed, "",
+                      "out-of-plane factor ε_n of the cortex viscosity (S13)"),
+                 [](SceneSpec& s) -> Slot { return &s.cells.eps_n; }});
+    t.push_back({real("cells.tau_gamma_s", kOpen, 0, 1e5, kClosed, "s",
+                      "reduced: τ_γ = η/γ; when given, η = τ_γ γ", true),
+                 [](SceneSpec& s) -> Slot { return &s.cells.tau_gamma_s; }});
+    t.push_back({real("cells.pa_reduced", kClosed, 0, 50, kClosed, "",
+                      "reduced: p_a r/2γ; when given, p_a = value · 2γ/r", true),
+                 [](SceneSpec& s) -> Slot { return &s.cells.pa_reduced; }});
+    t.push_back({real("cells.l_eta_reduced", kOpen, 0, 100, kClosed, "",
+                      "reduced: L_η/r = √(η/ξ)/r; when given, ξ = η/(value · r)²", true),
+                 [](SceneSpec& s) -> Slot { return &s.cells.l_eta_reduced; }});
+    // ---- [numerics]
+    t.push_back({real("numerics.dt_s", kOpen, 0, 10, kClosed, "s", "time step Δt"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.dt_s; }});
+    t.push_back({choice("numerics.integrator", {"semi-implicit", "contact-implicit"},
+                        "semi-implicit: forces explicit, friction implicit; contact-implicit: "
+                        "also the contact springs' normal stiffness"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.integrator; }});
+    t.push_back({real("numerics.cg_tol", kOpen, 0, 0.5, kClosed, "",
+                      "relative residual tolerance of the CG solve"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.cg_tol; }});
+    t.push_back({integer("numerics.cg_max_iter", 1, 1e6,
+                         "CG iterations per step before the run fails as not converged"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.cg_max_iter; }});
+    t.push_back({choice("numerics.preconditioner", {"jacobi", "block-jacobi"},
+                        "CG preconditioner: diagonal or 3×3 block diagonal"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.preconditioner; }});
+    t.push_back({integer("numerics.triangles_per_cell", 80, 1280,
+                         "initial triangles per cell (icosphere with 1, 2 or 3 subdivisions)",
+                         {"80", "320", "1280"}),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.triangles_per_cell; }});
+    t.push_back({real("numerics.remesh_every_s", kClosed, 0, 1e7, kClosed, "s",
+                      "remeshing interval τ_r; default 5 τ_shell; 0 disables remeshing", true),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.remesh_every_s; }});
+    t.push_back({real("numerics.remesh_min_area_factor", kOpen, 0, 1, kOpen, "",
+                      "collapse triangles smaller than factor · A_Δ (A_Δ = 4πr²/triangles)"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.remesh_min_area_factor; }});
+    t.push_back({real("numerics.remesh_max_area_factor", kOpen, 1, 100, kClosed, "",
+                      "split triangles larger than factor · A_Δ"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.remesh_max_area_factor; }});
+    t.push_back({choice("numerics.contact_quadrature", {"exact", "dunavant7", "centroid"},
+                        "integration of the contact pressure over the overlap polygon"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.contact_quadrature; }});
+    t.push_back({real("numerics.max_volume_error", kOpen, 0, 1, kClosed, "",
+                      "relative cell volume error |V − V*|/V* that stops the run as failed"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.max_volume_error; }});
+    t.push_back({real("numerics.max_penetration_h0", kOpen, 0, 1e4, kClosed, "",
+                      "mean interpenetration of a contact pair, in units of h0, that stops the "
+                      "run as failed"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.max_penetration_h0; }});
+    // ---- [scene]
+    t.push_back({real("scene.axes_ratio", kClosed, 0.2, 5, kClosed, "",
+                      "cell: start as an ellipsoid (q r, r, r/q) of equal volume; 1 = sphere"),
+                 [](SceneSpec& s) -> Slot { return &s.scene_params.axes_ratio; }});
+    t.push_back({real("scene.gap_um", kClosed, 0, 10, kClosed, "µm",
+                      "doublet: initial gap between the two cells"),
+                 [](SceneSpec& s) -> Slot { return &s.scene_params.gap_um; }});
+    t.push_back(
+        {integer("scene.n_cells", 1, 2000, "spheroid: number of cells N; fusion: N per spheroid"),
+         [](SceneSpec& s) -> Slot { return &s.scene_params.n_cells; }});
+    t.push_back({integer("scene.n_cells_a", 0, 2000, "fusion: cells in spheroid A; 0 = n_cells"),
+                 [](SceneSpec& s) -> Slot { return &s.scene_params.n_cells_a; }});
+    t.push_back({integer("scene.n_cells_b", 0, 2000, "fusion: cells in spheroid B; 0 = n_cells"),
+                 [](SceneSpec& s) -> Slot { return &s.scene_params.n_cells_b; }});
+    return t;
+  }();
+  return table;
+}
+
+const Entry* findEntry(std::string_view key) {
+  if (key == "scene.kind") key = "scene";
+  for (const Entry& e : entries())
+    if (e.field.key == key) return &e;
+  return nullptr;
+}
+
+template <class... F>
+struct Overload : F... {
+  using F::operator()...;
+};
+template <class... F>
+Overload(F...) -> Overload<F...>;
+
+template <class E>
+constexpr bool kIsChoiceEnum =
+    std::is_same_v<E, SceneKind> || std::is_same_v<E, IntegratorKind> ||
+    std::is_same_v<E, PreconditionerKind> || std::is_same_v<E, ContactQuadrature>;
+
+std::string describe(const SpecValue& v) {
+  return std::visit(Overload{[](double d) { return formatNumber(d); },
+                             [](std::int64_t i) { return std::to_string(i); },
+                             [](const std::string& s) { return "'" + s + "'"; },
+                             [](bool b) { return std::string(b ? "true" : "false"); }},
+                    v);
+}
+
+std::string withUnit(const SpecField& f) {
+  return f.unit.empty() ? f.range() : f.range() + " " + f.unit;
+}
+
+// The shared range check of setField and validate. `shown` is the value as the user wrote it.
+std::string checkNumber(const Entry& e, double v, const std::string& shown) {
+  const SpecField& f = e.field;
+  if (!std::isfinite(v)) return shown + " is not a finite number";
+  if (f.type == FieldType::Integer && v != std::floor(v)) return shown + " is not an integer";
+  const bool below = f.lo_open ? !(v > f.lo) : !(v >= f.lo);
+  const bool above = f.hi_open ? !(v < f.hi) : !(v <= f.hi);
+  if (!f.choices.empty()) {  // Integer key with a fixed set of values
+    const std::string text = formatNumber(v);
+    if (std::find(f.choices.begin(), f.choices.end(), text) == f.choices.end())
+      return shown + " is not " + f.range();
+  }
+  if (below || above) return shown + " is outside the allowed range " + withUnit(f);
+  if (e.extra) return e.extra(v);
+  return {};
+}
+
+SpecError unknownKey(std::string_view key) {
+  std::string msg = "unknown key '" + std::string(key) + "'";
+  if (std::string s = suggestKey(key); !s.empty()) msg += " (did you mean '" + s + "'?)";
+  return {std::string(key), msg};
+}
+
+std::size_t editDistance(std::string_view a, std::string_view b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diag = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diag = up;
+    }
+  }
+  return row[b.size()];
+}
+
+std::string_view lastSegment(std::string_view key) {
+  const auto dot = key.rfind('.');
+  return dot == std::string_view::npos ? key : key.substr(dot + 1);
+}
+
+// Derived quantities without any checks (resolve's arithmetic).
+SceneSpec resolveUnchecked(const SceneSpec& spec) {
+  SceneSpec r = spec;
+  CellParams& c = r.cells;
+  if (c.tau_gamma_s) {
+    c.eta = *c.tau_gamma_s * c.gamma;
+    c.tau_gamma_s.reset();
+  }
+  if (c.pa_reduced) {
+    c.p_a = *c.pa_reduced * 2.0 * c.gamma / c.radius_mean_um;
+    c.pa_reduced.reset();
+  }
+  if (c.l_eta_reduced) {
+    const double l_eta = *c.l_eta_reduced * c.radius_mean_um;
+    c.xi = c.eta / (l_eta * l_eta);
+    c.l_eta_reduced.reset();
+  }
+  const double ts = tauShell(c);
+  if (!c.tau_k_s) c.tau_k_s = 2.0 * ts;
+  if (!r.numerics.remesh_every_s) r.numerics.remesh_every_s = 5.0 * ts;
+  if (!c.xi_normal) c.xi_normal = c.xi;
+  if (!c.xi_tangential) c.xi_tangential = c.xi;
+  return r;
+}
+
+}  // namespace
+
+// ---- SpecField ---------------------------------------------------------------------------------
+
+std::string SpecField::range() const {
+  if (!choices.empty()) {
+    std::string s = "one of ";
+    for (std::size_t i = 0; i < choices.size(); ++i) s += (i ? "|" : "") + choices[i];
+    return s;
+  }
+  return std::string(lo_open ? "(" : "[") + formatNumber(lo) + ", " + formatNumber(hi) +
+         (hi_open ? ")" : "]");
+}
+
+const std::vector<SpecField>& specFields() {
+  static const std::vector<SpecField> fields = [] {
+    std::vector<SpecField> f;
+    for (const Entry& e : entries()) f.push_back(e.field);
+    return f;
+  }();
+  return fields;
+}
+
+const SpecField* findField(std::string_view key) {
+  const Entry* e = findEntry(key);
+  if (!e) return nullptr;
+  // Same index in specFields() as in entries().
+  return &specFields()[static_cast<std::size_t>(e - entries().data())];
+}
+
+std::string suggestKey(std::string_view unknown) {
+  std::string best;
+  std::size_t best_d = std::max<std::size_t>(2, unknown.size() / 4) + 1;
+  std::vector<std::string_view> keys;
+  for (const Entry& e : entries()) keys.push_back(e.field.key);
+  keys.push_back("scene.kind");
+  for (std::string_view k : keys) {
+    const std::size_t d = editDistance(unknown, k);
+    if (d < best_d) {
+      best_d = d;
+      best = std::string(k);
+    }
+  }
+  if (!best.empty()) return best;
+  // Same leaf name in another table: "gamma" → "cells.gamma", "numerics.alpha" → "cells.alpha".
+  const std::string_view leaf = lastSegment(unknown);
+  for (std::string_view k : keys) {
+    if (lastSegment(k) == leaf && k != "scene") return std::string(k);
+    if (editDistance(lastSegment(k), leaf) == 1 && leaf.size() > 3) best = std::string(k);
+  }
+  return best;
+}
+
+// ---- set / get ---------------------------------------------------------------------------------
+
+std::optional<SpecError> setField(SceneSpec& spec, std::string_view key, const SpecValue& value) {
+  const Entry* e = findEntry(key);
+  if (!e) return unknownKey(key);
+  const SpecField& f = e->field;
+  auto fail = [&](std::string msg) {
+    return std::optional<SpecError>(SpecError{std::string(key), std::move(msg)});
+  };
+
+  if (f.type == FieldType::Choice) {
+    const auto* s = std::get_if<std::string>(&value);
+    if (!s) return fail("expected " + f.range() + ", got " + describe(value));
+    const auto it = std::find(f.choices.begin(), f.choices.end(), *s);
+    if (it == f.choices.end()) return fail("'" + *s + "' is not " + f.range());
+    const int index = static_cast<int>(it - f.choices.begin());
+    std::visit(
+        [&](auto* p) {
+          using T = std::remove_pointer_t<decltype(p)>;
+          if constexpr (kIsChoiceEnum<T>) *p = static_cast<T>(index);
+        },
+        e->slot(spec));
+    return std::nullopt;
+  }
+
+  double v = 0;
+  if (const auto* d = std::get_if<double>(&value)) {
+    v = *d;
+  } else if (const auto* i = std::get_if<std::int64_t>(&value)) {
+    v = static_cast<double>(*i);
+  } else {
+    return fail(std::string("expected ") +
+                (f.type == FieldType::Integer ? "an integer" : "a number") + ", got " +
+                describe(value));
+  }
+  if (std::string msg = checkNumber(*e, v, describe(value)); !msg.empty()) return fail(msg);
+
+  std::visit(Overload{[&](double* p) { *p = v; }, [&](std::optional<double>* p) { *p = v; },
+                      [&](std::int64_t* p) {
+                        const auto* i = std::get_if<std::int64_t>(&value);
+                        *p = i ? *i : static_cast<std::int64_t>(v);
+                      },
+                      [&](std::uint64_t* p) {
+                        const auto* i = std::get_if<std::int64_t>(&value);
+                        *p = static_cast<std::uint64_t>(i ? *i : static_cast<std::int64_t>(v));
+                      },
+                      [](auto*) {}},
+             e->slot(spec));
+  return std::nullopt;
+}
+
+std::optional<SpecError> clearField(SceneSpec& spec, std::string_view key) {
+  const Entry* e = findEntry(key);
+  if (!e) return unknownKey(key);
+  Slot slot = e->slot(spec);
+  if (auto** opt = std::get_if<std::optional<double>*>(&slot)) {
+    (*opt)->reset();
+    return std::nullopt;
+  }
+  return SpecError{std::string(key),
+                   "is required and cannot be unset (allowed: " + withUnit(e->field) + ")"};
+}
+
+std::optional<SpecValue> getField(const SceneSpec& spec, std::string_view key) {
+  const Entry* e = findEntry(key);
+  if (!e) return std::nullopt;
+  // The slot functions take a mutable spec; nothing is written through them here.
+  const Slot slot = e->slot(const_cast<SceneSpec&>(spec));
+  const auto& choices = e->field.choices;
+  return std::visit(Overload{[](double* p) -> std::optional<SpecValue> { return *p; },
+                             [](std::optional<double>* p) -> std::optional<SpecValue> {
+                               if (!*p) return std::nullopt;
+                               return **p;
+                             },
+                             [](std::int64_t* p) -> std::optional<SpecValue> { return *p; },
+                             [](std::uint64_t* p) -> std::optional<SpecValue> {
+                               return static_cast<std::int64_t>(*p);
+                             },
+                             [&](auto* p) -> std::optional<SpecValue> {
+                               const auto index = static_cast<std::size_t>(*p);
+                               if (index >= choices.size()) return std::string("?");
+                               return choices[index];
+                             }},
+                    slot);
+}
+
+// ---- validate ----------------------------------------------------------------------------------
+
+std::vector<SpecError> validate(const SceneSpec& spec) {
+  std::vector<SpecError> errors;
+  std::vector<std::string> bad;  // keys whose own value is invalid: cross rules skip them
+  auto error = [&](const std::string& key, std::string msg) {
+    errors.push_back({key, std::move(msg)});
+    bad.push_back(key);
+  };
+  auto ok = [&](std::initializer_list<std::string_view> keys) {
+    for (std::string_view k : keys)
+      if (std::find(bad.begin(), bad.end(), k) != bad.end()) return false;
+    return true;
+  };
+
+  // Each key on its own.
+  for (const Entry& e : entries()) {
+    const std::optional<SpecValue> v = getField(spec, e.field.key);
+    if (!v) continue;
+    if (e.field.type == FieldType::Choice) {
+      const std::string& s = std::get<std::string>(*v);
+      if (std::find(e.field.choices.begin(), e.field.choices.end(), s) == e.field.choices.end())
+        error(e.field.key, "invalid value, expected " + e.field.range());
+      continue;
+    }
+    double d = 0;
+    std::string shown;
+    if (const auto* i = std::get_if<std::int64_t>(&*v)) {
+      d = static_cast<double>(*i);
+      shown = std::to_string(*i);
+    } else {
+      d = std::get<double>(*v);
+      shown = formatNumber(d);
+    }
+    if (std::string msg = checkNumber(e, d, shown); !msg.empty()) error(e.field.key, msg);
+  }
+  if (spec.seed > static_cast<std::uint64_t>(kSeedMax))
+    error("seed", std::to_string(spec.seed) + " is outside the allowed range " +
+                      findField("seed")->range());
+
+  const double duration = spec.duration_s, dt = spec.numerics.dt_s;
+  // Time axis.
+  if (ok({"duration_s", "numerics.dt_s"})) {
+    if (dt > duration) {
+      error("numerics.dt_s",
+            formatNumber(dt) + " s is longer than duration_s = " + formatNumber(duration) + " s");
+    } else if (duration / dt > kMaxSteps) {
+      error("numerics.dt_s", "duration_s / dt_s = " + formatNumber(std::ceil(duration / dt)) +
+                                 " steps exceeds the limit of " + formatNumber(kMaxSteps));
+    }
+  }
+  if (ok({"duration_s", "sample_every_s"})) {
+    const double s = spec.sample_every_s;
+    if (s > duration) {
+      error("sample_every_s",
+            formatNumber(s) + " s is longer than duration_s = " + formatNumber(duration) + " s");
+    } else if (duration / s > kMaxSamples) {
+      error("sample_every_s",
+            "duration_s / sample_every_s = " + formatNumber(std::ceil(duration / s)) +
+                " samples exceeds the limit of " + formatNumber(kMaxSamples));
+    } else if (ok({"numerics.dt_s"}) && s < dt) {
+      error("sample_every_s",
+            formatNumber(s) + " s is shorter than numerics.dt_s = " + formatNumber(dt) + " s");
+    }
+  }
+  if (ok({"duration_s", "snapshot_every_s"}) && spec.snapshot_every_s > 0) {
+    const double s = spec.snapshot_every_s;
+    if (duration / s > kMaxSnapshots) {
+      error("snapshot_every_s",
+            "duration_s / snapshot_every_s = " + formatNumber(std::ceil(duration / s)) +
+                " snapshots exceeds the limit of " + formatNumber(kMaxSnapshots));
+    } else if (ok({"numerics.dt_s"}) && s < dt) {
+      error("snapshot_every_s", formatNumber(s) + " s is shorter than numerics.dt_s = " +
+                                    formatNumber(dt) + " s (0 disables snapshots)");
+    }
+  }
+
+  // Remeshing thresholds: a split halves a triangle, so the halves must stay above A_m.
+  const double amin = spec.numerics.remesh_min_area_factor;
+  const double amax = spec.numerics.remesh_max_area_factor;
+  if (ok({"numerics.remesh_min_area_factor", "numerics.remesh_max_area_factor"}) &&
+      !(amax > 2.0 * amin)) {
+    error("numerics.remesh_max_area_factor",
+          formatNumber(amax) + " must exceed 2 × numerics.remesh_min_area_factor = " +
+              formatNumber(2.0 * amin) + " (split halves would be collapsed again)");
+  }
+
+  // Size of the problem.
+  if (ok({"scene", "scene.n_cells", "scene.n_cells_a", "scene.n_cells_b",
+          "numerics.triangles_per_cell"})) {
+    const double cells = static_cast<double>(sceneCellCount(spec));
+    const double tris = cells * static_cast<double>(spec.numerics.triangles_per_cell);
+    if (tris > kMaxTotalTriangles) {
+      const bool ab = spec.scene == SceneKind::Fusion &&
+                      (spec.scene_params.n_cells_a > 0 || spec.scene_params.n_cells_b > 0);
+      error(ab ? "scene.n_cells_a" : "scene.n_cells",
+            formatNumber(cells) + " cells × " + std::to_string(spec.numerics.triangles_per_cell) +
+                " triangles = " + formatNumber(tris) + " triangles exceeds the limit of " +
+                formatNumber(kMaxTotalTriangles) +
+                " (lower the cell count or numerics.triangles_per_cell)");
+    }
+  }
+
+  // Values derived from reduced forms and default rules must land in their keys' ranges.
+  if (errors.empty()) {
+    const SceneSpec r = resolveUnchecked(spec);
+    auto derived = [&](const char* key, const char* target, double value, std::string how) {
+      const Entry* e = findEntry(target);
+      if (std::string msg = checkNumber(*e, value, formatNumber(value)); !msg.empty())
+        error(key, how + " = " + msg);
+    };
+    const CellParams& c = spec.cells;
+    if (c.tau_gamma_s)
+      derived("cells.tau_gamma_s", "cells.eta", r.cells.eta, "gives cells.eta = τ_γ·γ");
+    if (c.pa_reduced)
+      derived("cells.pa_reduced", "cells.p_a", r.cells.p_a, "gives cells.p_a = value·2γ/r");
+    if (c.l_eta_reduced)
+      derived("cells.l_eta_reduced", "cells.xi", r.cells.xi, "gives cells.xi = η/(value·r)²");
+    if (!c.tau_k_s)
+      derived("cells.tau_k_s", "cells.tau_k_s", *r.cells.tau_k_s,
+              "unset, and its default 2 τ_shell");
+    if (!spec.numerics.remesh_every_s)
+      derived("numerics.remesh_every_s", "numerics.remesh_every_s", *r.numerics.remesh_every_s,
+              "unset, and its default 5 τ_shell");
+  }
+  return errors;
+}
+
+// ---- resolve and derived quantities ------------------------------------------------------------
+
+SceneSpec resolve(const SceneSpec& spec) {
+  return resolveUnchecked(spec);
+}
+
+std::int64_t sceneCellCount(const SceneSpec& spec) {
+  const SceneParams& p = spec.scene_params;
+  switch (spec.scene) {
+    case SceneKind::Cell:
+      return 1;
+    case SceneKind::Doublet:
+      return 2;
+    case SceneKind::Spheroid:
+      return p.n_cells;
+    case SceneKind::Fusion:
+      return (p.n_cells_a > 0 ? p.n_cells_a : p.n_cells) +
+             (p.n_cells_b > 0 ? p.n_cells_b : p.n_cells);
+  }
+  return 0;
+}
+
+double tauShell(const CellParams& c) {
+  return c.eta / (2.0 * std::sqrt(3.0) * c.gamma);
+}
+double adhesionW(const CellParams& c) {
+  return (1.0 - c.alpha) * c.gamma;
+}
+double contactRangeH0(const CellParams& c) {
+  return std::sqrt(adhesionW(c) / c.k_contact);
+}
+
+std::string formatNumber(double v) {
+  if (std::isnan(v)) return "nan";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  char buf[64];
+  const auto res = std::to_chars(buf, buf + sizeof buf, v);
+  std::string s(buf, res.ptr);
+  // "1e+07" → "1e7", "1e-05" → "1e-5".
+  if (const auto e = s.find('e'); e != std::string::npos) {
+    std::string mant = s.substr(0, e), exp = s.substr(e + 1);
+    bool neg = false;
+    if (!exp.empty() && (exp[0] == '+' || exp[0] == '-')) {
+      neg = exp[0] == '-';
+      exp.erase(0, 1);
+    }
+    exp.erase(0, std::min(exp.find_first_not_of('0'), exp.size() - 1));
+    s = mant + "e" + (neg ? "-" : "") + exp;
+  }
+  return s;
+}
+
+// ---- enum names (the Choice spellings) ---------------------------------------------------------
+
+std::string_view toString(SceneKind k) {
+  switch (k) {
+    case SceneKind::Cell:
+      return "cell";
+    case SceneKind::Doublet:
+      return "doublet";
+    case SceneKind::Spheroid:
+      return "spheroid";
+    case SceneKind::Fusion:
+      return "fusion";
+  }
+  return "?";
+}
+
+std::string_view toString(IntegratorKind k) {
+  switch (k) {
+    case IntegratorKind::SemiImplicit:
+      return "semi-implicit";
+    case IntegratorKind::ContactImplicit:
+      return "contact-implicit";
+  }
+  return "?";
+}
+
+std::string_view toString(PreconditionerKind k) {
+  switch (k) {
+    case PreconditionerKind::Jacobi:
+      return "jacobi";
+    case PreconditionerKind::BlockJacobi:
+      return "block-jacobi";
+  }
+  return "?";
+}
+
+std::string_view toString(ContactQuadrature q) {
+  switch (q) {
+    case ContactQuadrature::Exact:
+      return "exact";
+    case ContactQuadrature::Dunavant7:
+      return "dunavant7";
+    case ContactQuadrature::Centroid:
+      return "centroid";
+  }
+  return "?";
+}
+
+}  // namespace activefoam

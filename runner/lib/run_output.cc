@@ -1,0 +1,212 @@
+// foam-run's output folder (see run_output.h).
+#include "activefoam/run_output.h"
+
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <sstream>
+#include <stdexcept>
+
+#include "activefoam/spec_io.h"
+#include "activefoam/vtk.h"
+
+namespace activefoam {
+
+namespace fs = std::filesystem;
+
+void writeFileAtomic(const fs::path& path, std::string_view content) {
+  fs::path tmp = path;
+  tmp += ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out)
+      throw std::runtime_error("cannot write " + tmp.string() + ": " + std::strerror(errno));
+    out.write(content.data(), static_cast<std::streamsize>(content.size()));
+    out.flush();
+    if (!out)
+      throw std::runtime_error("cannot write " + tmp.string() + ": " + std::strerror(errno));
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw std::runtime_error("cannot rename " + tmp.string() + " to " + path.string() + ": " +
+                             ec.message());
+  }
+}
+
+std::string checkOutputDir(const fs::path& dir, bool force) {
+  // Built by appending: GCC 12 warns falsely (-Wrestrict) on "literal" + std::string&&.
+  std::string quoted = "'";
+  quoted.append(dir.string()).append("'");
+  std::error_code ec;
+  const fs::file_status st = fs::status(dir, ec);
+  if (!fs::exists(st)) return {};
+  if (!fs::is_directory(st)) return quoted.append(" exists and is not a directory");
+  if (force) return {};
+  const bool empty = fs::is_empty(dir, ec);
+  if (ec) return std::string("cannot read ").append(quoted).append(": ").append(ec.message());
+  if (!empty)
+    return std::string("output directory ")
+        .append(quoted)
+        .append(" exists and is not empty (use --force)");
+  return {};
+}
+
+std::string csvLine(const std::vector<double>& values) {
+  std::string line;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (i) line += ',';
+    line += formatNumber(values[i]);
+  }
+  return line;
+}
+
+std::string csvLine(const std::vector<std::string>& names) {
+  std::string line;
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    if (i) line += ',';
+    line += names[i];
+  }
+  return line;
+}
+
+namespace {
+
+// JSON number, or null where JSON has none (nan, inf).
+nlohmann::json number(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
+}
+
+}  // namespace
+
+nlohmann::json reducedParameters(const SceneSpec& s) {
+  const CellParams& c = s.cells;
+  const double r = c.radius_mean_um;
+  nlohmann::json j;
+  j["tau_gamma_s"] = number(c.eta / c.gamma);
+  j["pa_reduced"] = number(c.p_a * r / (2.0 * c.gamma));
+  j["alpha"] = number(c.alpha);
+  j["l_eta_reduced"] = c.xi > 0 ? number(std::sqrt(c.eta / c.xi) / r) : nlohmann::json();
+  j["tau_p_s"] = number(c.tau_p_s);
+  j["n_cells"] = sceneCellCount(s);
+  return j;
+}
+
+nlohmann::json summaryToJson(const RunSummary& summary, const SceneSpec& resolved,
+                             const SummaryContext& ctx) {
+  nlohmann::json j;
+  const bool runner_failed = !ctx.failure_override.empty();
+  j["ok"] = summary.ok() && !runner_failed;
+  j["failure"] = runner_failed ? ctx.failure_override : std::string(toString(summary.failure));
+  j["reason"] = !ctx.reason_override.empty() ? ctx.reason_override : summary.reason;
+  j["cancelled"] = !runner_failed && summary.failure == FailureKind::Cancelled;
+  j["scene"] = std::string(toString(resolved.scene));
+  j["seed"] = resolved.seed;
+  j["engine_version"] = ACTIVEFOAM_VERSION;
+  j["t_s"] = number(summary.t_s);
+  j["duration_s"] = number(resolved.duration_s);
+  j["steps"] = summary.steps;
+  j["wall_s"] = number(summary.wall_s);
+  j["runner_wall_s"] = number(ctx.runner_wall_s);
+  j["cg_iters_mean"] = number(summary.cg_iters_mean);
+  j["remesh_ops"] = summary.remesh_ops;
+  nlohmann::json final_values = nlohmann::json::object();
+  for (const auto& [name, v] : summary.final_values) final_values[name] = number(v);
+  j["final_values"] = final_values;
+  nlohmann::json phases = nlohmann::json::object();
+  for (const auto& [name, v] : summary.phase_wall_s) phases[name] = number(v);
+  j["phase_wall_s"] = phases;
+  j["reduced"] = reducedParameters(resolved);
+  j["samples"] = ctx.samples_written;
+  j["snapshots"] = ctx.snapshots_written;
+  if (!ctx.started_utc.empty()) j["started_utc"] = ctx.started_utc;
+  if (!ctx.finished_utc.empty()) j["finished_utc"] = ctx.finished_utc;
+  return j;
+}
+
+std::string utcNow() {
+  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+// ---- RunOutput ---------------------------------------------------------------------------------
+
+RunOutput::RunOutput(fs::path dir, const SceneSpec& resolved)
+    : dir_(std::move(dir)), spec_(resolved) {}
+
+void RunOutput::fail(std::string message) {
+  if (error_.empty()) error_ = std::move(message);
+}
+
+void RunOutput::start() {
+  if (!error_.empty()) return;
+  try {
+    writeFileAtomic(dir_ / "spec.json", specToJson(spec_).dump(2) + "\n");
+  } catch (const std::exception& e) {
+    return fail(e.what());
+  }
+  const fs::path path = dir_ / "samples.csv";
+  csv_.open(path, std::ios::binary | std::ios::trunc);
+  const std::vector<std::string> columns = sampleColumns(spec_.scene);
+  columns_ = columns.size();
+  csv_ << csvLine(columns) << '\n';
+  csv_.flush();
+  if (!csv_) fail("cannot write " + path.string() + ": " + std::strerror(errno));
+}
+
+void RunOutput::onSample(const Sample& sample) {
+  if (!csv_.is_open()) start();
+  if (!error_.empty()) return;
+  std::vector<double> values = sample.values;
+  if (values.size() != columns_) {
+    if (warning_.empty())
+      warning_ = "a sample has " + std::to_string(values.size()) + " values for " +
+                 std::to_string(columns_) + " columns; rows were padded with nan or cut";
+    values.resize(columns_, std::nan(""));
+  }
+  csv_ << csvLine(values) << '\n';
+  csv_.flush();  // a crash leaves complete rows
+  if (!csv_)
+    return fail("cannot write " + (dir_ / "samples.csv").string() + ": " + std::strerror(errno));
+  ++samples_;
+}
+
+void RunOutput::onSnapshot(const Snapshot& snap) {
+  if (!error_.empty()) return;
+  const fs::path sdir = dir_ / "snapshots";
+  try {
+    std::error_code ec;
+    fs::create_directories(sdir, ec);
+    if (ec) throw std::runtime_error("cannot create " + sdir.string() + ": " + ec.message());
+    char name[32];
+    std::snprintf(name, sizeof name, "snap_%06zu.vtp", series_.size());
+    std::ostringstream vtp;
+    writeVtp(vtp, snap);
+    writeFileAtomic(sdir / name, vtp.str());
+    series_.emplace_back(snap.t_s, name);
+    std::ostringstream pvd;
+    writePvd(pvd, series_);
+    writeFileAtomic(sdir / "series.pvd", pvd.str());
+  } catch (const std::exception& e) {
+    fail(e.what());
+  }
+}
+
+void RunOutput::writeSummary(const nlohmann::json& summary) {
+  // Written even after an earlier write error: the summary is what says what happened.
+  try {
+    writeFileAtomic(dir_ / "summary.json", summary.dump(2) + "\n");
+  } catch (const std::exception& e) {
+    fail(e.what());
+  }
+}
+
+}  // namespace activefoam

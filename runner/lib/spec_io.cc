@@ -1,0 +1,432 @@
+// Scene specs from TOML, JSON and `key=value` settings, and back to JSON (see spec_io.h).
+#include "activefoam/spec_io.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <charconv>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <iterator>
+#include <limits>
+#include <regex>
+#include <sstream>
+
+#include <toml++/toml.h>
+
+namespace activefoam {
+namespace {
+
+// Errors are one line each: parser messages may quote input with newlines.
+std::string oneLine(std::string_view s) {
+  std::string out;
+  for (char c : s) out += (c == '\n' || c == '\r' || c == '\t') ? ' ' : c;
+  return out;
+}
+
+std::string join(std::string_view prefix, std::string_view key) {
+  return prefix.empty() ? std::string(key) : std::string(prefix) + "." + std::string(key);
+}
+
+// A table of keys: "cells", "numerics", "scene" (every key "<group>.<leaf>" lives in one).
+bool isGroup(std::string_view key) {
+  for (const SpecField& f : specFields())
+    if (f.key.size() > key.size() && f.key.compare(0, key.size(), key) == 0 &&
+        f.key[key.size()] == '.')
+      return true;
+  return false;
+}
+
+std::string expected(const SpecField& f) {
+  if (f.type == FieldType::Choice || !f.choices.empty()) return f.range();
+  return f.type == FieldType::Integer ? "an integer" : "a number";
+}
+
+std::size_t editDistance(std::string_view a, std::string_view b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diag = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diag = up;
+    }
+  }
+  return row[b.size()];
+}
+
+SpecError unknownTable(const std::string& key) {
+  std::string msg = "unknown table '" + key + "'";
+  for (std::string_view g : {"cells", "numerics", "scene"})
+    if (editDistance(g, key) <= 2) msg += " (did you mean [" + std::string(g) + "]?)";
+  msg += "; the tables are [cells], [numerics], [scene]";
+  return {key, msg};
+}
+
+bool isSceneKey(std::string_view key) {
+  return key == "scene" || key == "scene.kind";
+}
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.front()))) s.remove_prefix(1);
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.remove_suffix(1);
+  return s;
+}
+
+// Walks a document (TOML or JSON) and feeds its leaves to setField. `Doc` supplies, for one
+// node, what kind it is and its value.
+class Walker {
+ public:
+  Walker(SceneSpec& spec, SpecParseResult& result) : spec_(spec), result_(result) {}
+
+  void leaf(const std::string& key, const SpecValue& value) {
+    if (const SpecField* f = findField(key); !f) {
+      if (isGroup(key))
+        error(key, "expected a table, got " + describe(value));
+      else
+        error(key, "unknown key '" + key + "'" + suggestion(key));
+      return;
+    }
+    if (isSceneKey(key)) {
+      if (result_.scene_given) {
+        error(key, "the scene is given twice (scene = \"...\" and kind in [scene])");
+        return;
+      }
+      result_.scene_given = true;
+    }
+    if (auto e = setField(spec_, key, value)) result_.errors.push_back(*e);
+  }
+
+  void null(const std::string& key) {
+    const SpecField* f = findField(key);
+    if (!f) {
+      error(key, "unknown key '" + key + "'" + suggestion(key));
+    } else if (!f->optional) {
+      error(key, "expected " + expected(*f) + ", got null");
+    } else if (auto e = clearField(spec_, key)) {
+      result_.errors.push_back(*e);
+    }
+  }
+
+  // A node that is neither a table nor a scalar (array, date, ...): `what` names it.
+  void other(const std::string& key, const std::string& what) {
+    if (const SpecField* f = findField(key))
+      error(key, "expected " + expected(*f) + ", got " + what);
+    else if (isGroup(key))
+      error(key, "expected a table, got " + what);
+    else
+      error(key, "unknown key '" + key + "'" + suggestion(key));
+  }
+
+  // Returns whether the table's entries should be walked.
+  bool table(const std::string& key) {
+    if (isGroup(key)) return true;
+    if (const SpecField* f = findField(key))
+      error(key, "expected " + expected(*f) + ", got a table");
+    else if (key.find('.') == std::string::npos)
+      result_.errors.push_back(unknownTable(key));
+    else
+      error(key, "unknown table '" + key + "'" + suggestion(key));
+    return false;
+  }
+
+ private:
+  static std::string describe(const SpecValue& v) {
+    if (std::holds_alternative<std::string>(v)) return "'" + std::get<std::string>(v) + "'";
+    if (std::holds_alternative<bool>(v)) return std::get<bool>(v) ? "true" : "false";
+    if (std::holds_alternative<std::int64_t>(v)) return std::to_string(std::get<std::int64_t>(v));
+    return formatNumber(std::get<double>(v));
+  }
+  static std::string suggestion(const std::string& key) {
+    const std::string s = suggestKey(key);
+    return s.empty() ? "" : " (did you mean '" + s + "'?)";
+  }
+  void error(const std::string& key, std::string msg) {
+    result_.errors.push_back({key, oneLine(msg)});
+  }
+
+  SceneSpec& spec_;
+  SpecParseResult& result_;
+};
+
+// ---- TOML --------------------------------------------------------------------------------------
+
+// DESIGN.md §10 writes `scene = "fusion"` and a [scene] table in one document, which TOML forbids
+// (a key redefined as a table). That form is accepted: when the top level assigns `scene`, a
+// `[scene]` header is read as this name and walked as the scene table. Lines keep their numbers.
+constexpr std::string_view kSceneTableAlias = "__scene_table__";
+
+std::string liftSceneTable(std::string_view text) {
+  static const std::regex kHeader(R"(^\s*\[\s*scene\s*\]\s*(#.*)?$)");
+  static const std::regex kAnyHeader(R"(^\s*\[)");
+  static const std::regex kSceneKey(R"(^\s*scene\s*=)");
+  std::vector<std::string> lines;
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    const std::size_t end = std::min(text.find('\n', start), text.size());
+    lines.emplace_back(text.substr(start, end - start));
+    start = end + 1;
+  }
+  bool top = true, scene_key = false;
+  for (const std::string& l : lines) {
+    if (std::regex_search(l, kAnyHeader)) top = false;
+    if (top && std::regex_search(l, kSceneKey)) scene_key = true;
+  }
+  if (!scene_key) return std::string(text);
+  std::string out;
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    std::smatch m;
+    if (std::regex_match(lines[i], m, kHeader))
+      out += "[" + std::string(kSceneTableAlias) + "] " + m[1].str();
+    else
+      out += lines[i];
+    if (i + 1 < lines.size()) out += '\n';
+  }
+  return out;
+}
+
+void walkToml(const toml::table& table, const std::string& prefix, Walker& w) {
+  for (auto&& [k, node] : table) {
+    const std::string key =
+        prefix.empty() && k.str() == kSceneTableAlias ? "scene" : join(prefix, k.str());
+    switch (node.type()) {
+      case toml::node_type::table:
+        if (w.table(key)) walkToml(*node.as_table(), key, w);
+        break;
+      case toml::node_type::string:
+        w.leaf(key, std::string(node.as_string()->get()));
+        break;
+      case toml::node_type::integer:
+        w.leaf(key, static_cast<std::int64_t>(node.as_integer()->get()));
+        break;
+      case toml::node_type::floating_point:
+        w.leaf(key, node.as_floating_point()->get());
+        break;
+      case toml::node_type::boolean:
+        w.leaf(key, node.as_boolean()->get());
+        break;
+      case toml::node_type::array:
+        w.other(key, "an array");
+        break;
+      default:
+        w.other(key, "a date/time");
+        break;
+    }
+  }
+}
+
+// ---- JSON --------------------------------------------------------------------------------------
+
+void walkJson(const nlohmann::json& obj, const std::string& prefix, Walker& w) {
+  for (auto it = obj.begin(); it != obj.end(); ++it) {
+    const std::string key = join(prefix, it.key());
+    const nlohmann::json& v = it.value();
+    if (v.is_object()) {
+      if (w.table(key)) walkJson(v, key, w);
+    } else if (v.is_string()) {
+      w.leaf(key, v.get<std::string>());
+    } else if (v.is_number_unsigned()) {
+      const auto u = v.get<std::uint64_t>();
+      if (u <= static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max()))
+        w.leaf(key, static_cast<std::int64_t>(u));
+      else
+        w.leaf(key, static_cast<double>(u));
+    } else if (v.is_number_integer()) {
+      w.leaf(key, v.get<std::int64_t>());
+    } else if (v.is_number_float()) {
+      w.leaf(key, v.get<double>());
+    } else if (v.is_boolean()) {
+      w.leaf(key, v.get<bool>());
+    } else if (v.is_null()) {
+      w.null(key);
+    } else {
+      w.other(key, "an array");
+    }
+  }
+}
+
+SpecParseResult finish(SceneSpec spec, SpecParseResult result, const SpecParseOptions& options) {
+  if (options.require_scene && !result.scene_given && result.errors.empty()) {
+    result.errors.push_back({"scene", "missing: the spec must name its scene, " +
+                                          findField("scene")->range() +
+                                          " (scene = \"...\", or kind = \"...\" in [scene])"});
+  }
+  if (result.errors.empty()) result.spec = std::move(spec);
+  return result;
+}
+
+std::string sourceName(const SpecParseOptions& options, const char* fallback) {
+  return options.source.empty() ? fallback : options.source;
+}
+
+// Value text of a --set, read by the key's type.
+SpecValue settingValue(const SpecField* f, std::string_view text) {
+  text = trim(text);
+  const bool quoted = text.size() >= 2 && (text.front() == '"' || text.front() == '\'') &&
+                      text.back() == text.front();
+  if (quoted) return std::string(text.substr(1, text.size() - 2));
+  if (f && f->type == FieldType::Choice) return std::string(text);
+  std::string_view num = text;
+  if (!num.empty() && num.front() == '+') num.remove_prefix(1);
+  std::int64_t i = 0;
+  if (auto [p, ec] = std::from_chars(num.data(), num.data() + num.size(), i);
+      ec == std::errc() && p == num.data() + num.size() && !num.empty())
+    return i;
+  double d = 0;
+  if (auto [p, ec] = std::from_chars(num.data(), num.data() + num.size(), d);
+      ec == std::errc() && p == num.data() + num.size() && !num.empty())
+    return d;
+  if (text == "true") return true;
+  if (text == "false") return false;
+  return std::string(text);
+}
+
+}  // namespace
+
+SpecFormat sniffSpecFormat(std::string_view text) {
+  for (char c : text) {
+    if (std::isspace(static_cast<unsigned char>(c))) continue;
+    return c == '{' ? SpecFormat::Json : SpecFormat::Toml;
+  }
+  return SpecFormat::Toml;
+}
+
+SpecParseResult parseSpecJson(const nlohmann::json& doc, const SceneSpec& base,
+                              const SpecParseOptions& options) {
+  SpecParseResult result;
+  SceneSpec spec = base;
+  if (!doc.is_object()) {
+    result.errors.push_back(
+        {sourceName(options, "<json>"),
+         std::string("expected a JSON object at the top level, got ") + doc.type_name()});
+    return result;
+  }
+  Walker w(spec, result);
+  walkJson(doc, "", w);
+  return finish(std::move(spec), std::move(result), options);
+}
+
+SpecParseResult parseSpecText(std::string_view text, SpecFormat format, const SceneSpec& base,
+                              const SpecParseOptions& options) {
+  if (format == SpecFormat::Auto) format = sniffSpecFormat(text);
+  if (format == SpecFormat::Json) {
+    nlohmann::json doc;
+    try {
+      doc = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/true,
+                                  /*ignore_comments=*/true);
+    } catch (const nlohmann::json::parse_error& e) {
+      std::string what = e.what();
+      // "[json.exception.parse_error.101] parse error at line 2, column 3: ..."
+      if (const auto p = what.find("] "); p != std::string::npos) what.erase(0, p + 2);
+      SpecParseResult r;
+      r.errors.push_back({sourceName(options, "<json>"), oneLine("JSON " + what)});
+      return r;
+    }
+    return parseSpecJson(doc, base, options);
+  }
+
+  SpecParseResult result;
+  const std::string source = sourceName(options, "<toml>");
+  toml::table doc;
+  try {
+    doc = toml::parse(liftSceneTable(text), source);
+  } catch (const toml::parse_error& e) {
+    std::ostringstream msg;
+    msg << "TOML parse error at line " << e.source().begin.line << ", column "
+        << e.source().begin.column << ": " << e.description();
+    result.errors.push_back({source, oneLine(msg.str())});
+    return result;
+  }
+  SceneSpec spec = base;
+  Walker w(spec, result);
+  walkToml(doc, "", w);
+  return finish(std::move(spec), std::move(result), options);
+}
+
+SpecParseResult parseSpecFile(const std::filesystem::path& path, const SceneSpec& base,
+                              const SpecParseOptions& options) {
+  SpecParseOptions opts = options;
+  const bool from_stdin = path == "-";
+  if (opts.source.empty()) opts.source = from_stdin ? "<stdin>" : path.string();
+  std::string text;
+  if (from_stdin) {
+    text.assign(std::istreambuf_iterator<char>(std::cin), std::istreambuf_iterator<char>());
+  } else {
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec)) {
+      SpecParseResult r;
+      r.errors.push_back({opts.source, "cannot read: is a directory"});
+      return r;
+    }
+    std::ifstream in(path, std::ios::binary);
+    if (!in) {
+      SpecParseResult r;
+      r.errors.push_back({opts.source, std::string("cannot read: ") + std::strerror(errno)});
+      return r;
+    }
+    text.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  std::string ext = from_stdin ? "" : path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const SpecFormat format = ext == ".toml"   ? SpecFormat::Toml
+                            : ext == ".json" ? SpecFormat::Json
+                                             : SpecFormat::Auto;
+  return parseSpecText(text, format, base, opts);
+}
+
+std::optional<SpecError> applySetting(SceneSpec& spec, std::string_view kv) {
+  const auto eq = kv.find('=');
+  const std::string_view key = trim(eq == std::string_view::npos ? kv : kv.substr(0, eq));
+  if (eq == std::string_view::npos || key.empty())
+    return SpecError{std::string(kv), "expected key=value, e.g. numerics.dt_s=0.05"};
+  const SpecField* f = findField(key);
+  return setField(spec, key, settingValue(f, kv.substr(eq + 1)));
+}
+
+SpecParseResult applySettings(const SceneSpec& base, const std::vector<std::string>& settings) {
+  SpecParseResult result;
+  SceneSpec spec = base;
+  for (const std::string& s : settings) {
+    if (auto e = applySetting(spec, s)) {
+      result.errors.push_back(*e);
+      continue;
+    }
+    if (isSceneKey(trim(std::string_view(s).substr(0, s.find('='))))) result.scene_given = true;
+  }
+  if (result.errors.empty()) result.spec = std::move(spec);
+  return result;
+}
+
+SpecParseResult validateAndResolve(const SceneSpec& spec) {
+  SpecParseResult result;
+  result.errors = validate(spec);
+  if (result.errors.empty()) result.spec = resolve(spec);
+  return result;
+}
+
+nlohmann::json specToJson(const SceneSpec& spec) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const SpecField& f : specFields()) {
+    const std::optional<SpecValue> v = getField(spec, f.key);
+    nlohmann::json value;  // null when unset
+    if (v) {
+      std::visit([&](const auto& x) { value = x; }, *v);
+    }
+    if (f.key == "scene") {
+      j["scene"]["kind"] = value;
+      continue;
+    }
+    const auto dot = f.key.find('.');
+    if (dot == std::string::npos)
+      j[f.key] = value;
+    else
+      j[f.key.substr(0, dot)][f.key.substr(dot + 1)] = value;
+  }
+  return j;
+}
+
+}  // namespace activefoam

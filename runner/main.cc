@@ -1,0 +1,337 @@
+// foam-run: runs one scene spec to an output folder (DESIGN.md §10).
+//
+//   foam-run SPEC --out DIR [--set KEY=VALUE]... [--force] [--quiet]
+//
+// Exit codes: 0 the run reached duration_s; 2 invalid spec or usage (nothing is written);
+// 3 the run failed (reason on stderr and in summary.json); 130 interrupted (SIGINT/SIGTERM).
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <exception>
+#include <filesystem>
+#include <iostream>
+#include <string>
+#include <string_view>
+#include <type_traits>
+#include <vector>
+
+#include <unistd.h>
+
+#include "activefoam/run.h"
+#include "activefoam/run_output.h"
+#include "activefoam/spec.h"
+#include "activefoam/spec_io.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace activefoam;
+
+constexpr int kExitOk = 0;
+constexpr int kExitUsage = 2;
+constexpr int kExitRunFailed = 3;
+constexpr int kExitInterrupted = 130;
+
+// The engine polls g_cancel every step. Set by SIGINT/SIGTERM, and by an output error.
+std::atomic<bool> g_cancel{false};
+std::atomic<int> g_signals{0};
+static_assert(std::atomic<bool>::is_always_lock_free && std::atomic<int>::is_always_lock_free,
+              "used from a signal handler");
+
+extern "C" void onSignal(int) {
+  // First signal: ask the engine to stop at the next step and write a summary. Second: leave now.
+  if (g_signals.fetch_add(1) > 0) _exit(kExitInterrupted);
+  g_cancel.store(true);
+}
+
+void installSignalHandlers() {
+  struct sigaction sa {};
+  sa.sa_handler = onSignal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+}
+
+constexpr const char* kUsage =
+    "usage: foam-run SPEC --out DIR [--set KEY=VALUE]... [--force] [--quiet]\n"
+    "       foam-run --keys | --help | --version\n";
+
+void printHelp() {
+  std::cout
+      << kUsage
+      << "\n"
+         "Runs one scene spec (TOML or JSON; '-' reads standard input) to DIR:\n"
+         "  spec.json     the resolved spec (every default filled in)\n"
+         "  samples.csv   one row per sample (sample_every_s)\n"
+         "  snapshots/    snap_NNNNNN.vtp and series.pvd (snapshot_every_s > 0)\n"
+         "  summary.json  outcome, failure reason, cost, final values\n"
+         "\n"
+         "options:\n"
+         "  --out DIR        output folder; created; must be empty unless --force\n"
+         "  --set KEY=VALUE  override a spec key, e.g. --set numerics.dt_s=0.05 (repeatable)\n"
+         "  --force          write into a non-empty DIR (replaces earlier outputs)\n"
+         "  --quiet, -q      no progress lines on stderr\n"
+         "  --keys           list every spec key with its range, unit and default\n"
+         "  --help, -h       this text\n"
+         "  --version        engine version\n"
+         "\n"
+         "exit status: 0 done, 2 invalid spec or usage (nothing written), 3 run failed,\n"
+         "130 interrupted (SIGINT/SIGTERM; summary.json says cancelled)\n";
+}
+
+void printKeys() {
+  const SceneSpec defaults;
+  for (const SpecField& f : specFields()) {
+    std::string value = "(derived)";
+    if (const auto v = getField(defaults, f.key)) {
+      std::visit(
+          [&](const auto& x) {
+            using T = std::decay_t<decltype(x)>;
+            if constexpr (std::is_same_v<T, double>)
+              value = formatNumber(x);
+            else if constexpr (std::is_same_v<T, std::int64_t>)
+              value = std::to_string(x);
+            else if constexpr (std::is_same_v<T, std::string>)
+              value = "\"" + x + "\"";
+            else
+              value = x ? "true" : "false";
+          },
+          *v);
+    }
+    std::cout << f.key << " = " << value << "  " << f.range() << (f.unit.empty() ? "" : " ")
+              << f.unit << "\n    " << f.help << "\n";
+  }
+}
+
+std::string formatDuration(double s) {
+  char buf[64];
+  if (s < 10)
+    std::snprintf(buf, sizeof buf, "%.1f s", s);
+  else if (s < 120)
+    std::snprintf(buf, sizeof buf, "%.0f s", s);
+  else if (s < 7200)
+    std::snprintf(buf, sizeof buf, "%.0f min", s / 60);
+  else
+    std::snprintf(buf, sizeof buf, "%.0f h %02.0f min", std::floor(s / 3600),
+                  std::floor(std::fmod(s, 3600) / 60));
+  return buf;
+}
+
+// A time for people: 6 significant digits ("2.4", not "2.4000000000000004").
+std::string human(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+struct Args {
+  std::string spec;
+  std::string out;
+  std::vector<std::string> settings;
+  bool force = false;
+  bool quiet = false;
+};
+
+int usageError(const std::string& msg) {
+  std::cerr << "foam-run: " << msg << " (see foam-run --help)\n";
+  return kExitUsage;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  installSignalHandlers();
+
+  Args args;
+  bool spec_seen = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view a = argv[i];
+    auto value = [&](std::string_view name, std::string& into) {
+      if (a.size() > name.size() && a.substr(0, name.size()) == name && a[name.size()] == '=') {
+        into = std::string(a.substr(name.size() + 1));
+        return true;
+      }
+      if (a == name) {
+        if (i + 1 >= argc) throw std::invalid_argument(std::string(name) + " needs a value");
+        into = argv[++i];
+        return true;
+      }
+      return false;
+    };
+    try {
+      std::string v;
+      if (a == "--help" || a == "-h") {
+        printHelp();
+        return kExitOk;
+      } else if (a == "--version") {
+        std::cout << "foam-run " << ACTIVEFOAM_VERSION << "\n";
+        return kExitOk;
+      } else if (a == "--keys") {
+        printKeys();
+        return kExitOk;
+      } else if (a == "--quiet" || a == "-q") {
+        args.quiet = true;
+      } else if (a == "--force") {
+        args.force = true;
+      } else if (value("--out", v) || value("-o", v)) {
+        args.out = v;
+      } else if (value("--set", v)) {
+        args.settings.push_back(v);
+      } else if (a.size() > 1 && a[0] == '-') {
+        return usageError("unknown option '" + std::string(a) + "'");
+      } else if (spec_seen) {
+        return usageError("more than one SPEC given ('" + args.spec + "', '" + std::string(a) +
+                          "')");
+      } else {
+        args.spec = a;
+        spec_seen = true;
+      }
+    } catch (const std::invalid_argument& e) {
+      return usageError(e.what());
+    }
+  }
+  if (!spec_seen) return usageError("no SPEC given");
+  if (args.out.empty()) return usageError("no output directory given (--out DIR)");
+
+  // ---- parse → validate → resolve; nothing is written before this succeeds
+  SpecParseOptions opts;
+  opts.require_scene = false;  // may come from --set
+  SpecParseResult parsed = parseSpecFile(args.spec, SceneSpec{}, opts);
+  std::vector<SpecError> errors = parsed.errors;
+  SpecParseResult set = applySettings(parsed.spec.value_or(SceneSpec{}), args.settings);
+  errors.insert(errors.end(), set.errors.begin(), set.errors.end());
+  if (errors.empty() && !parsed.scene_given && !set.scene_given)
+    errors.push_back({"scene", "missing: the spec must name its scene, " +
+                                   findField("scene")->range() +
+                                   " (scene = \"...\", or kind = \"...\" in [scene])"});
+  SceneSpec spec;
+  if (errors.empty()) {
+    SpecParseResult ready = validateAndResolve(*set.spec);
+    errors = ready.errors;
+    if (ready.spec) spec = *ready.spec;
+    // A valid spec this engine version cannot build yet is refused the same way, before any
+    // output is written.
+    if (errors.empty() && !sceneAvailable(spec.scene))
+      errors.push_back({"scene", "'" + std::string(toString(spec.scene)) +
+                                     "' is not available in this engine version (available: "
+                                     "cell, doublet)"});
+  }
+  if (!errors.empty()) {
+    for (const SpecError& e : errors) std::cerr << "foam-run: invalid spec: " << e.str() << "\n";
+    return kExitUsage;
+  }
+
+  // ---- the output folder
+  const fs::path dir = args.out;
+  if (std::string why = checkOutputDir(dir, args.force); !why.empty()) {
+    std::cerr << "foam-run: " << why << "\n";
+    return kExitUsage;
+  }
+  {
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) {
+      std::cerr << "foam-run: cannot create '" << dir.string() << "': " << ec.message() << "\n";
+      return kExitUsage;
+    }
+    if (args.force) {  // outputs of an earlier run must not mix with this one's
+      for (const char* name : {"spec.json", "samples.csv", "summary.json"})
+        fs::remove(dir / name, ec);
+      fs::remove_all(dir / "snapshots", ec);
+    }
+  }
+
+  RunOutput out(dir, spec);
+  out.start();
+  if (!out.error().empty()) {
+    std::cerr << "foam-run: " << out.error() << "\n";
+    return kExitRunFailed;
+  }
+
+  // ---- run
+  using Clock = std::chrono::steady_clock;
+  const auto t0 = Clock::now();
+  const std::string started = utcNow();
+  auto last_progress = t0;
+  bool output_failed = false;
+
+  RunObserver obs;
+  obs.cancel = &g_cancel;
+  auto checkOutput = [&] {
+    if (!out.error().empty() && !output_failed) {
+      output_failed = true;
+      g_cancel = true;  // no point in running on without a place to write to
+    }
+  };
+  obs.on_sample = [&](const Sample& s) {
+    out.onSample(s);
+    checkOutput();
+  };
+  obs.on_snapshot = [&](const Snapshot& s) {
+    out.onSnapshot(s);
+    checkOutput();
+  };
+  obs.on_progress = [&](double t_s, std::int64_t step) {
+    if (args.quiet) return;
+    const auto now = Clock::now();
+    if (now - last_progress < std::chrono::seconds(2)) return;
+    last_progress = now;
+    const double elapsed = std::chrono::duration<double>(now - t0).count();
+    const double f = spec.duration_s > 0 ? std::clamp(t_s / spec.duration_s, 0.0, 1.0) : 0.0;
+    const std::string eta = f > 0 ? formatDuration(elapsed * (1 - f) / f) : "?";
+    char line[256];
+    std::snprintf(line, sizeof line,
+                  "foam-run: %5.1f%%  t = %s / %s s  step %lld  elapsed %s  ETA %s\n", 100 * f,
+                  human(t_s).c_str(), human(spec.duration_s).c_str(), static_cast<long long>(step),
+                  formatDuration(elapsed).c_str(), eta.c_str());
+    std::cerr << line << std::flush;
+  };
+
+  RunSummary summary;
+  SummaryContext ctx;
+  ctx.started_utc = started;
+  try {
+    summary = runScene(spec, obs);
+  } catch (const std::exception& e) {
+    ctx.failure_override = "exception";
+    ctx.reason_override = std::string("engine error: ") + e.what();
+  }
+  if (output_failed) {
+    ctx.failure_override = "output_error";
+    ctx.reason_override = out.error();
+  }
+  ctx.samples_written = out.samplesWritten();
+  ctx.snapshots_written = out.snapshotsWritten();
+  ctx.runner_wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  ctx.finished_utc = utcNow();
+  out.writeSummary(summaryToJson(summary, spec, ctx));
+
+  if (!out.warning().empty()) std::cerr << "foam-run: warning: " << out.warning() << "\n";
+  if (!out.error().empty() && !output_failed)  // summary.json itself could not be written
+    std::cerr << "foam-run: " << out.error() << "\n";
+
+  if (!ctx.failure_override.empty()) {
+    std::cerr << "foam-run: run failed at t = " << human(summary.t_s)
+              << " s: " << ctx.failure_override << ": " << ctx.reason_override << "\n";
+    return kExitRunFailed;
+  }
+  if (summary.failure == FailureKind::Cancelled) {
+    std::cerr << "foam-run: interrupted at t = " << human(summary.t_s) << " s (step "
+              << summary.steps << "); partial output in " << dir.string() << "\n";
+    return kExitInterrupted;
+  }
+  if (!summary.ok()) {
+    std::cerr << "foam-run: run failed at t = " << human(summary.t_s) << " s (step "
+              << summary.steps << "): " << toString(summary.failure) << ": " << summary.reason
+              << "\n";
+    return kExitRunFailed;
+  }
+  if (!out.error().empty()) return kExitRunFailed;
+  if (!args.quiet)
+    std::cerr << "foam-run: done, t = " << human(summary.t_s) << " s, " << summary.steps
+              << " steps in " << formatDuration(ctx.runner_wall_s) << "\n";
+  return kExitOk;
+}

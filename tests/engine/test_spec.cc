@@ -1,0 +1,412 @@
+// The scene spec: defaults (DESIGN.md §3), the key table, set/get, validate, resolve.
+#include <cmath>
+#include <set>
+
+#include <gtest/gtest.h>
+
+#include "activefoam/spec.h"
+
+namespace activefoam {
+namespace {
+
+bool hasErrorFor(const std::vector<SpecError>& errors, const std::string& field) {
+  for (const SpecError& e : errors)
+    if (e.field == field) return true;
+  return false;
+}
+
+std::string joined(const std::vector<SpecError>& errors) {
+  std::string s;
+  for (const SpecError& e : errors) s += e.str() + "\n";
+  return s;
+}
+
+TEST(Spec, DefaultsAreTheDesignValues) {
+  const SceneSpec s;
+  EXPECT_EQ(s.scene, SceneKind::Fusion);
+  EXPECT_EQ(s.seed, 1u);
+  EXPECT_EQ(s.duration_s, 86400);
+  EXPECT_EQ(s.sample_every_s, 60);
+  EXPECT_EQ(s.snapshot_every_s, 600);
+  EXPECT_EQ(s.cells.radius_mean_um, 8.88);
+  EXPECT_EQ(s.cells.radius_gamma_k, 37);
+  EXPECT_EQ(s.cells.gamma, 0.5);
+  EXPECT_EQ(s.cells.eta, 5.0);
+  EXPECT_EQ(s.cells.eta_m, 0.4);
+  EXPECT_EQ(s.cells.bulk_modulus, 0.5);
+  EXPECT_EQ(s.cells.alpha, 0.4375);
+  EXPECT_EQ(s.cells.p_a, 0.0372);
+  EXPECT_EQ(s.cells.tau_p_s, 600);
+  EXPECT_EQ(s.cells.xi, 0.25);
+  EXPECT_EQ(s.cells.k_contact, 71.1);
+  EXPECT_EQ(s.cells.eps_n, 0.1);
+  EXPECT_FALSE(s.cells.tau_k_s);
+  EXPECT_FALSE(s.cells.tau_gamma_s);
+  EXPECT_FALSE(s.cells.pa_reduced);
+  EXPECT_FALSE(s.cells.l_eta_reduced);
+  EXPECT_EQ(s.numerics.dt_s, 0.1);
+  EXPECT_EQ(s.numerics.integrator, IntegratorKind::ContactImplicit);
+  EXPECT_EQ(s.numerics.cg_tol, 1e-3);
+  EXPECT_EQ(s.numerics.triangles_per_cell, 320);
+  EXPECT_FALSE(s.numerics.remesh_every_s);
+  EXPECT_DOUBLE_EQ(s.numerics.remesh_min_area_factor, 1.0 / 3.0);
+  EXPECT_EQ(s.numerics.remesh_max_area_factor, 3.0);
+  EXPECT_EQ(s.numerics.contact_quadrature, ContactQuadrature::Exact);
+  EXPECT_EQ(s.scene_params.n_cells, 100);
+  EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+}
+
+TEST(Spec, DerivedQuantitiesOfTheDefaults) {
+  const CellParams c;
+  EXPECT_NEAR(tauShell(c), 2.88675, 1e-5);  // η/(2√3 γ)
+  EXPECT_NEAR(adhesionW(c), 0.28125, 1e-12);
+  EXPECT_NEAR(contactRangeH0(c), std::sqrt(0.28125 / 71.1), 1e-12);     // ≈ 63 nm
+  EXPECT_NEAR(std::acos(c.alpha) * 180 / M_PI, 64.06, 0.01);            // θ_c
+  EXPECT_NEAR(c.p_a * c.radius_mean_um / (2 * c.gamma), 0.33, 0.001);   // Table 2
+  EXPECT_NEAR(std::sqrt(c.eta / c.xi) / c.radius_mean_um, 0.50, 0.01);  // L_η/r
+}
+
+TEST(Spec, ResolveFillsDerivedDefaults) {
+  const SceneSpec r = resolve(SceneSpec{});
+  ASSERT_TRUE(r.cells.tau_k_s);
+  EXPECT_NEAR(*r.cells.tau_k_s, 5.7735, 1e-4);  // 2 τ_shell
+  ASSERT_TRUE(r.numerics.remesh_every_s);
+  EXPECT_NEAR(*r.numerics.remesh_every_s, 14.43, 0.01);  // 5 τ_shell
+  ASSERT_TRUE(r.cells.xi_normal && r.cells.xi_tangential);
+  EXPECT_EQ(*r.cells.xi_normal, 0.25);
+  EXPECT_EQ(*r.cells.xi_tangential, 0.25);
+  EXPECT_TRUE(validate(r).empty()) << joined(validate(r));
+}
+
+TEST(Spec, ResolveKeepsExplicitValues) {
+  SceneSpec s;
+  s.cells.tau_k_s = 3.0;
+  s.numerics.remesh_every_s = 0.0;  // remeshing off stays off
+  s.cells.xi_normal = 1.0;
+  const SceneSpec r = resolve(s);
+  EXPECT_EQ(*r.cells.tau_k_s, 3.0);
+  EXPECT_EQ(*r.numerics.remesh_every_s, 0.0);
+  EXPECT_EQ(*r.cells.xi_normal, 1.0);
+  EXPECT_EQ(*r.cells.xi_tangential, 0.25);
+}
+
+TEST(Spec, ReducedParametersBecomeAbsolute) {
+  SceneSpec s;
+  s.cells.tau_gamma_s = 20.0;
+  s.cells.pa_reduced = 0.33;
+  s.cells.l_eta_reduced = 0.25;
+  ASSERT_TRUE(validate(s).empty()) << joined(validate(s));
+  const SceneSpec r = resolve(s);
+  EXPECT_DOUBLE_EQ(r.cells.eta, 20.0 * 0.5);
+  EXPECT_DOUBLE_EQ(r.cells.p_a, 0.33 * 2 * 0.5 / 8.88);
+  EXPECT_NEAR(r.cells.p_a, 0.0372, 1e-4);
+  EXPECT_DOUBLE_EQ(r.cells.xi, 10.0 / std::pow(0.25 * 8.88, 2));
+  // The result states absolute values only.
+  EXPECT_FALSE(r.cells.tau_gamma_s);
+  EXPECT_FALSE(r.cells.pa_reduced);
+  EXPECT_FALSE(r.cells.l_eta_reduced);
+  // Derived defaults use the resolved η.
+  EXPECT_NEAR(*r.cells.tau_k_s, 2 * 10.0 / (2 * std::sqrt(3.0) * 0.5), 1e-12);
+  EXPECT_EQ(*r.cells.xi_normal, r.cells.xi);
+}
+
+TEST(Spec, ReducedValuesWinOverAbsoluteOnes) {
+  SceneSpec s;
+  s.cells.p_a = 1.0;
+  s.cells.pa_reduced = 0.444;  // Table 1's 50 Pa
+  EXPECT_NEAR(resolve(s).cells.p_a, 0.05, 1e-4);
+}
+
+TEST(Spec, ResolveIsIdempotent) {
+  SceneSpec s;
+  s.scene = SceneKind::Doublet;
+  s.cells.tau_gamma_s = 12.0;
+  s.cells.pa_reduced = 0.5;
+  s.cells.l_eta_reduced = 0.7;
+  s.cells.xi_tangential = 0.1;
+  const SceneSpec once = resolve(s);
+  EXPECT_EQ(resolve(once), once);
+  EXPECT_EQ(resolve(SceneSpec{}), resolve(resolve(SceneSpec{})));
+}
+
+TEST(Spec, TableListsEveryKeyOnceInDesignOrder) {
+  const auto& fields = specFields();
+  ASSERT_GE(fields.size(), 38u);
+  EXPECT_EQ(fields[0].key, "scene");
+  EXPECT_EQ(fields[1].key, "seed");
+  EXPECT_EQ(fields[2].key, "duration_s");
+  EXPECT_EQ(fields[3].key, "sample_every_s");
+  EXPECT_EQ(fields[4].key, "snapshot_every_s");
+  EXPECT_EQ(fields[5].key, "cells.radius_mean_um");
+  std::set<std::string> keys;
+  std::string last_table;
+  std::set<std::string> tables_done;
+  for (const SpecField& f : fields) {
+    EXPECT_TRUE(keys.insert(f.key).second) << "duplicate " << f.key;
+    EXPECT_FALSE(f.help.empty()) << f.key;
+    EXPECT_EQ(findField(f.key), &f);
+    const auto dot = f.key.find('.');
+    const std::string table = dot == std::string::npos ? "" : f.key.substr(0, dot);
+    if (table != last_table) {  // tables are contiguous
+      EXPECT_TRUE(tables_done.insert(table).second) << f.key;
+      last_table = table;
+    }
+    if (f.type == FieldType::Choice) {
+      EXPECT_FALSE(f.choices.empty()) << f.key;
+    }
+  }
+  for (const char* k :
+       {"cells.gamma", "cells.tau_gamma_s", "cells.pa_reduced", "cells.l_eta_reduced",
+        "numerics.dt_s", "numerics.integrator", "numerics.triangles_per_cell",
+        "numerics.remesh_every_s", "numerics.contact_quadrature", "scene.axes_ratio",
+        "scene.gap_um", "scene.n_cells", "scene.n_cells_a", "scene.n_cells_b"})
+    EXPECT_TRUE(keys.count(k)) << k;
+  EXPECT_EQ(findField("scene.kind"), findField("scene"));
+  EXPECT_EQ(findField("cells.gama"), nullptr);
+}
+
+TEST(Spec, RangeText) {
+  EXPECT_EQ(findField("numerics.dt_s")->range(), "(0, 10]");
+  EXPECT_EQ(findField("cells.gamma")->range(), "(0, 100]");
+  EXPECT_EQ(findField("cells.alpha")->range(), "[0, 1)");
+  EXPECT_EQ(findField("scene")->range(), "one of cell|doublet|spheroid|fusion");
+  EXPECT_EQ(findField("numerics.triangles_per_cell")->range(), "one of 80|320|1280");
+}
+
+// A valid value of each key, different from the default where possible.
+SpecValue sampleValue(const SpecField& f, const SpecValue& current) {
+  if (f.type == FieldType::Choice)
+    return f.choices.back() == std::get<std::string>(current) ? f.choices.front()
+                                                              : f.choices.back();
+  if (!f.choices.empty()) return std::int64_t{80};
+  if (f.type == FieldType::Integer) {
+    const auto v = static_cast<std::int64_t>(f.lo) + 1;
+    return v;
+  }
+  return f.lo_open || f.lo == 0 ? f.lo + (f.hi - f.lo) * 0.01 + 0.125 : f.lo;
+}
+
+TEST(Spec, EveryFieldRoundTripsThroughSetAndGet) {
+  for (const SpecField& f : specFields()) {
+    SceneSpec s;
+    const std::optional<SpecValue> before = getField(s, f.key);
+    EXPECT_EQ(before.has_value(), !f.optional) << f.key;
+    const SpecValue v = sampleValue(f, before.value_or(SpecValue{0.0}));
+    ASSERT_EQ(setField(s, f.key, v), std::nullopt) << f.key;
+    const std::optional<SpecValue> after = getField(s, f.key);
+    ASSERT_TRUE(after) << f.key;
+    EXPECT_EQ(*after, v) << f.key;
+    // And the value written back gives the same spec.
+    SceneSpec again;
+    ASSERT_EQ(setField(again, f.key, *after), std::nullopt) << f.key;
+    EXPECT_EQ(again, s) << f.key;
+    if (f.optional) {
+      EXPECT_EQ(clearField(s, f.key), std::nullopt);
+      EXPECT_FALSE(getField(s, f.key)) << f.key;
+    } else {
+      EXPECT_NE(clearField(s, f.key), std::nullopt) << f.key;
+    }
+  }
+}
+
+TEST(Spec, SetFieldConvertsNumbers) {
+  SceneSpec s;
+  EXPECT_EQ(setField(s, "cells.gamma", std::int64_t{2}), std::nullopt);  // integer for Real
+  EXPECT_EQ(s.cells.gamma, 2.0);
+  EXPECT_EQ(setField(s, "scene.n_cells", 50.0), std::nullopt);  // integral double for Integer
+  EXPECT_EQ(s.scene_params.n_cells, 50);
+  EXPECT_EQ(setField(s, "seed", 9007199254740992.0), std::nullopt);  // 2^53
+  EXPECT_EQ(s.seed, 9007199254740992ull);
+  EXPECT_EQ(setField(s, "scene.kind", std::string("doublet")), std::nullopt);
+  EXPECT_EQ(s.scene, SceneKind::Doublet);
+  EXPECT_EQ(std::get<std::string>(*getField(s, "scene.kind")), "doublet");
+  EXPECT_EQ(setField(s, "numerics.preconditioner", std::string("block-jacobi")), std::nullopt);
+  EXPECT_EQ(s.numerics.preconditioner, PreconditionerKind::BlockJacobi);
+}
+
+TEST(Spec, SetFieldErrorsNameTheKey) {
+  SceneSpec s;
+  const SceneSpec untouched = s;
+  auto err = setField(s, "cells.gamma", 0.0);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->field, "cells.gamma");
+  EXPECT_EQ(err->str(), "cells.gamma: 0 is outside the allowed range (0, 100] nN/µm");
+
+  err = setField(s, "numerics.dt_s", -1.0);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->str(), "numerics.dt_s: -1 is outside the allowed range (0, 10] s");
+
+  err = setField(s, "cells.gama", 1.0);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->field, "cells.gama");
+  EXPECT_NE(err->message.find("unknown key 'cells.gama'"), std::string::npos);
+  EXPECT_NE(err->message.find("cells.gamma"), std::string::npos);  // the suggestion
+
+  err = setField(s, "gamma", 1.0);
+  ASSERT_TRUE(err);
+  EXPECT_NE(err->message.find("cells.gamma"), std::string::npos);
+
+  err = setField(s, "cells.eta", std::nan(""));
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->field, "cells.eta");
+  EXPECT_NE(err->message.find("finite"), std::string::npos);
+
+  err = setField(s, "duration_s", INFINITY);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->field, "duration_s");
+
+  err = setField(s, "scene.n_cells", 2.5);
+  ASSERT_TRUE(err);
+  EXPECT_NE(err->message.find("not an integer"), std::string::npos);
+
+  err = setField(s, "scene.n_cells", 1e9);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->str(), "scene.n_cells: 1e9 is outside the allowed range [1, 2000]");
+
+  err = setField(s, "numerics.triangles_per_cell", std::int64_t{100});
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->str(), "numerics.triangles_per_cell: 100 is not one of 80|320|1280");
+
+  err = setField(s, "scene", std::string("blob"));
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->str(), "scene: 'blob' is not one of cell|doublet|spheroid|fusion");
+
+  err = setField(s, "scene", 3.0);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->field, "scene");
+
+  err = setField(s, "seed", std::string("one"));
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->str(), "seed: expected an integer, got 'one'");
+
+  err = setField(s, "seed", -1.0);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->field, "seed");
+
+  err = setField(s, "cells.alpha", 1.0);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->str(), "cells.alpha: 1 is outside the allowed range [0, 1)");
+
+  err = setField(s, "cells.radius_gamma_k", 0.5);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->field, "cells.radius_gamma_k");
+
+  err = setField(s, "cells.xi", true);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->field, "cells.xi");
+
+  EXPECT_EQ(s, untouched);  // a failed set changes nothing
+}
+
+TEST(Spec, ValidateReportsEveryError) {
+  SceneSpec s;
+  s.numerics.dt_s = -1;
+  s.cells.gamma = 0;
+  s.cells.eta = std::nan("");
+  s.scene_params.n_cells = 100000;
+  const auto errors = validate(s);
+  EXPECT_TRUE(hasErrorFor(errors, "numerics.dt_s")) << joined(errors);
+  EXPECT_TRUE(hasErrorFor(errors, "cells.gamma")) << joined(errors);
+  EXPECT_TRUE(hasErrorFor(errors, "cells.eta")) << joined(errors);
+  EXPECT_TRUE(hasErrorFor(errors, "scene.n_cells")) << joined(errors);
+  EXPECT_EQ(errors.size(), 4u) << joined(errors);
+}
+
+TEST(Spec, CrossFieldRules) {
+  {
+    SceneSpec s;
+    s.duration_s = 30;  // sample_every_s = 60
+    EXPECT_TRUE(hasErrorFor(validate(s), "sample_every_s"));
+  }
+  {
+    SceneSpec s;
+    s.sample_every_s = 0.01;  // < dt
+    EXPECT_TRUE(hasErrorFor(validate(s), "sample_every_s"));
+  }
+  {
+    SceneSpec s;
+    s.snapshot_every_s = 0;  // none: fine
+    EXPECT_TRUE(validate(s).empty());
+    s.snapshot_every_s = 0.5;  // 172800 snapshots
+    EXPECT_TRUE(hasErrorFor(validate(s), "snapshot_every_s"));
+  }
+  {
+    SceneSpec s;
+    s.numerics.dt_s = 1e-6;  // 8.64e10 steps
+    EXPECT_TRUE(hasErrorFor(validate(s), "numerics.dt_s"));
+  }
+  {
+    SceneSpec s;
+    s.numerics.remesh_min_area_factor = 0.8;
+    s.numerics.remesh_max_area_factor = 1.5;
+    EXPECT_TRUE(hasErrorFor(validate(s), "numerics.remesh_max_area_factor"));
+  }
+  {
+    SceneSpec s;  // fusion: 2 × 2000 cells × 320 triangles = 1.28e6: allowed
+    s.scene_params.n_cells = 2000;
+    EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+    s.numerics.triangles_per_cell = 1280;  // 5.12e6 triangles
+    EXPECT_TRUE(hasErrorFor(validate(s), "scene.n_cells"));
+    s.scene = SceneKind::Cell;  // n_cells does not apply to one cell
+    EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+  }
+  {
+    SceneSpec s;
+    s.cells.tau_gamma_s = 1e5;
+    s.cells.gamma = 50;  // η = 5e6, beyond its range
+    EXPECT_TRUE(hasErrorFor(validate(s), "cells.tau_gamma_s"));
+  }
+  {
+    SceneSpec s;
+    s.cells.pa_reduced = 50;
+    s.cells.gamma = 100;
+    s.cells.radius_mean_um = 1;  // p_a = 1e4 kPa
+    EXPECT_TRUE(hasErrorFor(validate(s), "cells.pa_reduced"));
+  }
+  {
+    SceneSpec s;
+    s.cells.l_eta_reduced = 1e-3;  // ξ = 5/(0.00888)² ≈ 6.3e4
+    EXPECT_TRUE(hasErrorFor(validate(s), "cells.l_eta_reduced"));
+  }
+  {
+    SceneSpec s;
+    s.cells.eta = 1e4;
+    s.cells.gamma = 1e-3;  // τ_shell ≈ 2.9e6 s: default τ_K out of range
+    EXPECT_TRUE(hasErrorFor(validate(s), "cells.tau_k_s")) << joined(validate(s));
+    s.cells.tau_k_s = 10;
+    s.numerics.remesh_every_s = 100;
+    EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+  }
+}
+
+TEST(Spec, FormatNumber) {
+  EXPECT_EQ(formatNumber(0.1), "0.1");
+  EXPECT_EQ(formatNumber(86400), "86400");
+  EXPECT_EQ(formatNumber(1e7), "1e7");
+  EXPECT_EQ(formatNumber(1e-5), "1e-5");
+  EXPECT_EQ(formatNumber(-1), "-1");
+  EXPECT_EQ(formatNumber(std::nan("")), "nan");
+  EXPECT_EQ(formatNumber(1.0 / 3.0), "0.3333333333333333");
+  EXPECT_EQ(std::stod(formatNumber(0.0372)), 0.0372);
+}
+
+TEST(Spec, SceneCellCount) {
+  SceneSpec s;
+  EXPECT_EQ(sceneCellCount(s), 200);
+  s.scene_params.n_cells_a = 30;
+  EXPECT_EQ(sceneCellCount(s), 130);
+  s.scene = SceneKind::Spheroid;
+  EXPECT_EQ(sceneCellCount(s), 100);
+  s.scene = SceneKind::Doublet;
+  EXPECT_EQ(sceneCellCount(s), 2);
+}
+
+TEST(Spec, EnumNamesAreTheChoices) {
+  EXPECT_EQ(toString(SceneKind::Spheroid), "spheroid");
+  EXPECT_EQ(toString(IntegratorKind::SemiImplicit), "semi-implicit");
+  EXPECT_EQ(toString(PreconditionerKind::BlockJacobi), "block-jacobi");
+  EXPECT_EQ(toString(ContactQuadrature::Dunavant7), "dunavant7");
+}
+
+}  // namespace
+}  // namespace activefoam

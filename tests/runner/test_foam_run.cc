@@ -1,0 +1,346 @@
+// The foam-run binary: exit codes, messages, and what it leaves in the output folder.
+//
+// Tests that run the engine end to end are skipped when FOAM_RUN_NO_ENGINE is set.
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "activefoam/run.h"
+#include "activefoam/spec.h"
+#include "activefoam/spec_io.h"
+
+extern char** environ;
+
+namespace activefoam {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string readFile(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+void writeFile(const fs::path& p, const std::string& text) {
+  std::ofstream out(p, std::ios::binary);
+  out << text;
+}
+
+std::vector<std::string> lines(const std::string& text) {
+  std::vector<std::string> out;
+  std::istringstream in(text);
+  std::string l;
+  while (std::getline(in, l)) out.push_back(l);
+  return out;
+}
+
+std::string quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+struct Result {
+  int code = -1;
+  std::string out, err;
+};
+
+class FoamRun : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string tmpl = (fs::temp_directory_path() / "foam_run_test_XXXXXX").string();
+    ASSERT_NE(mkdtemp(tmpl.data()), nullptr);
+    dir_ = tmpl;
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+
+  // Runs foam-run with `args` (already quoted where needed); stdin from `input` if given.
+  Result run(const std::string& args, const std::string* input = nullptr) {
+    const fs::path out = dir_ / "stdout.txt", err = dir_ / "stderr.txt";
+    std::string cmd = quote(FOAM_RUN_EXE) + " " + args;
+    if (input) {
+      writeFile(dir_ / "stdin.txt", *input);
+      cmd += " < " + quote((dir_ / "stdin.txt").string());
+    }
+    cmd += " > " + quote(out.string()) + " 2> " + quote(err.string());
+    const int status = std::system(cmd.c_str());
+    Result r;
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    r.out = readFile(out);
+    r.err = readFile(err);
+    return r;
+  }
+
+  fs::path spec(const std::string& text, const std::string& name = "spec.toml") {
+    const fs::path p = dir_ / name;
+    writeFile(p, text);
+    return p;
+  }
+
+  fs::path dir_;
+};
+
+bool engineMissing() {
+  return std::getenv("FOAM_RUN_NO_ENGINE") != nullptr;
+}
+
+// ---- invalid input: exit 2, one line per error naming the key, nothing created --------------
+
+struct BadSpec {
+  const char* text;
+  const char* key;
+};
+
+const BadSpec kBad[] = {
+    {"scene = \"cell\"\n[numerics]\ndt_s = -1\n", "numerics.dt_s"},
+    {"scene = \"cell\"\n[cells]\ngamma = nan\n", "cells.gamma"},
+    {"scene = \"cell\"\n[cells]\ngama = 0.5\n", "cells.gama"},
+    {"scene = \"blob\"\n", "scene"},
+    {"seed = 2\n", "scene"},
+    {"[scene]\nkind = \"spheroid\"\nn_cells = 1e9\n", "scene.n_cells"},
+    {"scene = \"cell\"\nduration_s = 1e12\n", "duration_s"},
+    {"scene = \"cell\"\n[numerics]\ntriangles_per_cell = 100\n", "numerics.triangles_per_cell"},
+    {"scene = \"cell\"\n[mesh]\nx = 1\n", "mesh"},
+    {"scene = \"cell\"\nduration_s = 10\nsample_every_s = 60\n", "sample_every_s"},
+};
+
+TEST_F(FoamRun, InvalidSpecExits2NamingTheKeyAndWritesNothing) {
+  for (const BadSpec& b : kBad) {
+    const fs::path s = spec(b.text);
+    const fs::path out = dir_ / "out";
+    const Result r = run(quote(s.string()) + " --out " + quote(out.string()));
+    EXPECT_EQ(r.code, 2) << b.text << r.err;
+    const auto l = lines(r.err);
+    ASSERT_EQ(l.size(), 1u) << b.text << r.err;
+    EXPECT_EQ(l[0].rfind("foam-run: invalid spec: " + std::string(b.key) + ": ", 0), 0u) << l[0];
+    EXPECT_FALSE(fs::exists(out)) << b.text;
+  }
+}
+
+TEST_F(FoamRun, TheDesignExampleMessage) {
+  const fs::path s = spec("scene = \"cell\"\n[numerics]\ndt_s = -1\n");
+  const Result r = run(quote(s.string()) + " --out " + quote((dir_ / "o").string()));
+  EXPECT_EQ(r.err,
+            "foam-run: invalid spec: numerics.dt_s: -1 is outside the allowed range (0, 10] s\n");
+}
+
+TEST_F(FoamRun, EveryErrorGetsItsLine) {
+  const fs::path s =
+      spec("scene = \"cell\"\nseed = -1\n[cells]\ngamma = 0\n[numerics]\ndt_s = 0\n");
+  const Result r = run(quote(s.string()) + " --out " + quote((dir_ / "o").string()));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(lines(r.err).size(), 3u) << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "o"));
+}
+
+TEST_F(FoamRun, InvalidSetExits2) {
+  const fs::path s = spec("scene = \"cell\"\n");
+  const Result r =
+      run(quote(s.string()) + " --out " + quote((dir_ / "o").string()) + " --set cells.alpha=2");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("cells.alpha: 2 is outside the allowed range [0, 1)"), std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "o"));
+}
+
+TEST_F(FoamRun, MalformedSpecGivesLineAndColumn) {
+  const fs::path s = spec("scene = \"cell\"\n[cells\n");
+  const Result r = run(quote(s.string()) + " --out " + quote((dir_ / "o").string()));
+  EXPECT_EQ(r.code, 2);
+  ASSERT_EQ(lines(r.err).size(), 1u) << r.err;
+  EXPECT_NE(r.err.find("line 2"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "o"));
+}
+
+TEST_F(FoamRun, MissingSpecFile) {
+  const Result r =
+      run(quote((dir_ / "nope.toml").string()) + " --out " + quote((dir_ / "o").string()));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("nope.toml"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "o"));
+}
+
+TEST_F(FoamRun, UsageErrors) {
+  EXPECT_EQ(run("").code, 2);
+  const fs::path s = spec("scene = \"cell\"\n");
+  EXPECT_EQ(run(quote(s.string())).code, 2);  // no --out
+  EXPECT_EQ(run(quote(s.string()) + " --out").code, 2);
+  EXPECT_EQ(run(quote(s.string()) + " --out x --frobnicate").code, 2);
+  EXPECT_EQ(run(quote(s.string()) + " " + quote(s.string()) + " --out x").code, 2);
+  EXPECT_FALSE(fs::exists("x"));
+}
+
+TEST_F(FoamRun, HelpVersionKeys) {
+  Result r = run("--help");
+  EXPECT_EQ(r.code, 0);
+  EXPECT_NE(r.out.find("usage: foam-run"), std::string::npos);
+  r = run("--version");
+  EXPECT_EQ(r.code, 0);
+  EXPECT_EQ(r.out, std::string("foam-run ") + ACTIVEFOAM_VERSION + "\n");
+  r = run("--keys");
+  EXPECT_EQ(r.code, 0);
+  for (const SpecField& f : specFields()) EXPECT_NE(r.out.find(f.key + " = "), std::string::npos);
+}
+
+TEST_F(FoamRun, RefusesANonEmptyOutputDir) {
+  const fs::path out = dir_ / "o";
+  fs::create_directories(out);
+  writeFile(out / "keep.txt", "mine");
+  const fs::path s = spec("scene = \"cell\"\nduration_s = 5\nsample_every_s = 1\n");
+  const Result r = run(quote(s.string()) + " --out " + quote(out.string()));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("not empty"), std::string::npos) << r.err;
+  EXPECT_EQ(readFile(out / "keep.txt"), "mine");
+  EXPECT_FALSE(fs::exists(out / "spec.json"));
+}
+
+// ---- end to end (needs the engine's runScene) --------------------------------------------------
+
+constexpr const char* kCell =
+    "scene = \"cell\"\nduration_s = 5\nsample_every_s = 1\nsnapshot_every_s = 0\n"
+    "[numerics]\ntriangles_per_cell = 80\n";
+
+void expectCompleteOutput(const fs::path& out, SceneKind scene, std::size_t rows) {
+  ASSERT_TRUE(fs::exists(out / "spec.json"));
+  ASSERT_TRUE(fs::exists(out / "samples.csv"));
+  ASSERT_TRUE(fs::exists(out / "summary.json"));
+  const auto csv = lines(readFile(out / "samples.csv"));
+  ASSERT_EQ(csv.size(), rows + 1);
+  std::string header;
+  for (const std::string& c : sampleColumns(scene)) header += (header.empty() ? "" : ",") + c;
+  EXPECT_EQ(csv[0], header);
+  const std::size_t ncols = sampleColumns(scene).size();
+  for (std::size_t i = 1; i < csv.size(); ++i)
+    EXPECT_EQ(static_cast<std::size_t>(std::count(csv[i].begin(), csv[i].end(), ',')) + 1, ncols)
+        << csv[i];
+  const auto summary = nlohmann::json::parse(readFile(out / "summary.json"));
+  EXPECT_EQ(summary.at("ok"), true);
+  EXPECT_EQ(summary.at("engine_version"), ACTIVEFOAM_VERSION);
+  for (const char* k : {"failure", "reason", "t_s", "steps", "wall_s", "cg_iters_mean",
+                        "remesh_ops", "final_values", "phase_wall_s", "seed", "reduced"})
+    EXPECT_TRUE(summary.contains(k)) << k;
+  for (const char* k : {"tau_gamma_s", "pa_reduced", "alpha", "l_eta_reduced", "tau_p_s"})
+    EXPECT_TRUE(summary.at("reduced").contains(k)) << k;
+  EXPECT_TRUE(summary.at("final_values").is_object());
+  EXPECT_FALSE(fs::exists(out / "summary.json.tmp"));
+}
+
+TEST_F(FoamRun, CellSceneEndToEnd) {
+  if (engineMissing()) GTEST_SKIP() << "FOAM_RUN_NO_ENGINE is set";
+  const fs::path s = spec(kCell);
+  const fs::path out = dir_ / "out";
+  const Result r = run(quote(s.string()) + " --out " + quote(out.string()) + " --quiet");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err, "");  // --quiet
+  expectCompleteOutput(out, SceneKind::Cell, 6);
+  const auto summary = nlohmann::json::parse(readFile(out / "summary.json"));
+  EXPECT_NEAR(summary.at("t_s").get<double>(), 5.0, 1e-9);
+  EXPECT_EQ(summary.at("steps"), 50);
+  EXPECT_EQ(summary.at("seed"), 1);
+  // spec.json is the resolved spec and reads back to it.
+  const auto parsed = parseSpecText(readFile(out / "spec.json"));
+  ASSERT_TRUE(parsed.ok());
+  const auto expected = validateAndResolve(*parseSpecText(kCell).spec);
+  ASSERT_TRUE(expected.ok());
+  EXPECT_EQ(*parsed.spec, *expected.spec);
+  EXPECT_FALSE(fs::exists(out / "snapshots"));  // snapshot_every_s = 0
+}
+
+TEST_F(FoamRun, OverridesStdinAndSnapshots) {
+  if (engineMissing()) GTEST_SKIP() << "FOAM_RUN_NO_ENGINE is set";
+  const std::string text = "{\"scene\": \"cell\", \"duration_s\": 50}";
+  const fs::path out = dir_ / "out";
+  const Result r = run("- --out " + quote(out.string()) +
+                           " --quiet --set duration_s=2 --set sample_every_s=0.5"
+                           " --set snapshot_every_s=1 --set numerics.triangles_per_cell=80"
+                           " --set seed=7",
+                       &text);
+  ASSERT_EQ(r.code, 0) << r.err;
+  expectCompleteOutput(out, SceneKind::Cell, 5);
+  const auto spec_json = nlohmann::json::parse(readFile(out / "spec.json"));
+  EXPECT_EQ(spec_json.at("duration_s"), 2.0);
+  EXPECT_EQ(spec_json.at("seed"), 7);
+  // Snapshots at t = 0, 1, 2 and an index naming them.
+  for (const char* f : {"snap_000000.vtp", "snap_000001.vtp", "snap_000002.vtp", "series.pvd"})
+    EXPECT_TRUE(fs::exists(out / "snapshots" / f)) << f;
+  const std::string pvd = readFile(out / "snapshots" / "series.pvd");
+  EXPECT_NE(pvd.find("file=\"snap_000002.vtp\""), std::string::npos) << pvd;
+  const std::string vtp = readFile(out / "snapshots" / "snap_000000.vtp");
+  EXPECT_NE(vtp.find("<VTKFile type=\"PolyData\""), std::string::npos);
+  EXPECT_NE(vtp.find("NumberOfPolys=\"80\""), std::string::npos);
+}
+
+TEST_F(FoamRun, ForceReplacesAnEarlierRun) {
+  if (engineMissing()) GTEST_SKIP() << "FOAM_RUN_NO_ENGINE is set";
+  const fs::path s = spec(kCell);
+  const fs::path out = dir_ / "out";
+  ASSERT_EQ(run(quote(s.string()) + " --out " + quote(out.string()) + " -q").code, 0);
+  EXPECT_EQ(run(quote(s.string()) + " --out " + quote(out.string()) + " -q").code, 2);
+  const Result r =
+      run(quote(s.string()) + " --out " + quote(out.string()) + " -q --force --set duration_s=3");
+  ASSERT_EQ(r.code, 0) << r.err;
+  expectCompleteOutput(out, SceneKind::Cell, 4);
+}
+
+TEST_F(FoamRun, SigintCancelsWithExit130AndASummary) {
+  if (engineMissing()) GTEST_SKIP() << "FOAM_RUN_NO_ENGINE is set";
+  const fs::path s = spec(
+      "scene = \"cell\"\nduration_s = 1e6\nsample_every_s = 1\nsnapshot_every_s = 0\n"
+      "[numerics]\ntriangles_per_cell = 80\n");
+  const fs::path out = dir_ / "out";
+  const std::string exe = FOAM_RUN_EXE, spec_path = s.string(), out_path = out.string();
+  std::vector<char*> argv{const_cast<char*>(exe.c_str()), const_cast<char*>(spec_path.c_str()),
+                          const_cast<char*>("--out"),     const_cast<char*>(out_path.c_str()),
+                          const_cast<char*>("--quiet"),   nullptr};
+  pid_t pid = 0;
+  ASSERT_EQ(posix_spawn(&pid, exe.c_str(), nullptr, nullptr, argv.data(), environ), 0);
+  // Wait until it is running (the header of samples.csv is written before the engine starts).
+  const auto t0 = std::chrono::steady_clock::now();
+  while (!fs::exists(out / "samples.csv") &&
+         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(30))
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  kill(pid, SIGINT);
+  int status = 0;
+  const auto t1 = std::chrono::steady_clock::now();
+  while (waitpid(pid, &status, WNOHANG) == 0) {
+    if (std::chrono::steady_clock::now() - t1 > std::chrono::seconds(30)) {
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+      FAIL() << "foam-run did not stop within 30 s of SIGINT";
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  const auto summary = nlohmann::json::parse(readFile(out / "summary.json"));
+  EXPECT_EQ(summary.at("ok"), false);
+  EXPECT_EQ(summary.at("cancelled"), true);
+  EXPECT_LT(summary.at("t_s").get<double>(), 1e6);
+  // Every row is complete.
+  const auto csv = lines(readFile(out / "samples.csv"));
+  for (std::size_t i = 1; i < csv.size(); ++i)
+    EXPECT_EQ(static_cast<std::size_t>(std::count(csv[i].begin(), csv[i].end(), ',')) + 1,
+              sampleColumns(SceneKind::Cell).size());
+}
+
+}  // namespace
+}  // namespace activefoam
