@@ -4,10 +4,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/build.sh release
-out="out/demo-cell"
+out="out/demo-doublet"
 rm -rf "$out"
-echo "== foam-run examples/cell.toml --out $out"
-./build/release/runner/foam-run examples/cell.toml --out "$out"
+echo "== foam-run examples/doublet.toml --out $out"
+./build/release/runner/foam-run examples/doublet.toml --out "$out"
 echo
 echo "== samples ($out/samples.csv)"
 column -s, -t < "$out/samples.csv"

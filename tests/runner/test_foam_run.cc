@@ -264,6 +264,31 @@ TEST_F(FoamRun, CellSceneEndToEnd) {
   EXPECT_FALSE(fs::exists(out / "snapshots"));  // snapshot_every_s = 0
 }
 
+TEST_F(FoamRun, DoubletReportsContactAnglePerSample) {
+  if (engineMissing()) GTEST_SKIP() << "FOAM_RUN_NO_ENGINE is set";
+  const std::string text =
+      "scene = \"doublet\"\nduration_s = 300\nsample_every_s = 50\n"
+      "[cells]\nradius_gamma_k = 0\n";
+  const fs::path out = dir_ / "out";
+  const Result r = run("- --out " + quote(out.string()) + " --quiet", &text);
+  ASSERT_EQ(r.code, 0) << r.err;
+  expectCompleteOutput(out, SceneKind::Doublet, 7);
+  const auto rows = lines(readFile(out / "samples.csv"));
+  const auto cols = sampleColumns(SceneKind::Doublet);
+  const auto at = std::find(cols.begin(), cols.end(), "contact_angle_deg") - cols.begin();
+  ASSERT_LT(at, static_cast<long>(cols.size()));
+  // The angle starts at 0 (cells apart) and has opened towards arccos α = 64° by t = 300 s.
+  auto angle = [&](const std::string& row) {
+    std::stringstream ss(row);
+    std::string cell;
+    for (long k = 0; k <= at; ++k) std::getline(ss, cell, ',');
+    return std::stod(cell);
+  };
+  EXPECT_EQ(angle(rows[1]), 0.0);
+  EXPECT_GT(angle(rows.back()), 30.0);
+  EXPECT_LT(angle(rows.back()), 70.0);
+}
+
 TEST_F(FoamRun, OverridesStdinAndSnapshots) {
   if (engineMissing()) GTEST_SKIP() << "FOAM_RUN_NO_ENGINE is set";
   const std::string text = "{\"scene\": \"cell\", \"duration_s\": 50}";

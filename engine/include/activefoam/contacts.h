@@ -16,8 +16,8 @@ struct ContactPair {
 };
 
 struct ContactList {
-  std::vector<ContactPair> pairs;          // active pairs this step
-  std::vector<double> tri_contact_area;    // Σ S_AB over the pairs a triangle takes part in
+  std::vector<ContactPair> pairs;            // active pairs this step
+  std::vector<double> tri_contact_area;      // Σ S_AB over the pairs a triangle takes part in
   std::vector<double> tri_contact_fraction;  // f_A = min(1, contact area / S_A)
   std::vector<double> vertex_contact_area;   // S_i^c = Σ_{A∋i} f_A S_A / 3
   std::vector<double> cell_contact_area;     // S_c,l = Σ_{A∈l} f_A S_A

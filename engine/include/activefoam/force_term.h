@@ -20,8 +20,8 @@ struct StepContext {
   const CellSet& cells;
   const Geometry& geo;
   const Topology& topo;
-  double dt;  // s
-  double t;   // s, time at the start of the step
+  double dt;                              // s
+  double t;                               // s, time at the start of the step
   const ContactList* contacts = nullptr;  // this step's contacts; null in single-cell scenes
 };
 

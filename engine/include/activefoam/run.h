@@ -42,6 +42,7 @@ enum class FailureKind {
   InvertedTriangle,
   VolumeDrift,
   Interpenetration,
+  ContactOscillation,
   Cancelled
 };
 std::string_view toString(FailureKind);

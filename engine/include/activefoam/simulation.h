@@ -77,6 +77,9 @@ class Simulation {
     return {cells_, geo_, topo_, spec_.numerics.dt_s, t_, with_contacts_ ? &contacts_ : nullptr};
   }
   bool patternCoversContacts() const;
+  // Whether contacting vertices that move by a noticeable fraction of h0 per step mostly
+  // reverse their velocity from the last step to `v`.
+  bool contactVelocitiesReverse(const Eigen::VectorXd& v) const;
   void rebuildPattern();
 
   SceneSpec spec_;
@@ -99,6 +102,7 @@ class Simulation {
   std::int64_t steps_ = 0;
   std::int64_t remesh_interval_steps_ = 0;  // 0: never
   std::int64_t remesh_ops_ = 0;
+  std::int64_t oscillating_steps_ = 0;  // consecutive steps with reversing contact velocities
   PhaseTimes times_;
 };
 

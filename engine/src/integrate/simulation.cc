@@ -114,6 +114,21 @@ const SpMat& Simulation::assembleFriction() {
   return gamma_.matrix();
 }
 
+bool Simulation::contactVelocitiesReverse(const Eigen::VectorXd& v) const {
+  const double floor = 0.1 * law_.h0 / spec_.numerics.dt_s;  // µm/s
+  double dot = 0, norms = 0;
+  int moving = 0;
+  for (int i = 0; i < cells_.numVertices(); ++i) {
+    if (contacts_.vertex_contact_area[i] <= 0) continue;
+    const Vec3 now = v.segment<3>(3 * i), before = cells_.v.col(i);
+    if (now.norm() < floor || before.norm() < floor) continue;
+    ++moving;
+    dot += now.dot(before);
+    norms += now.norm() * before.norm();
+  }
+  return moving > 0 && dot < -0.5 * norms;
+}
+
 StepReport Simulation::step() {
   StepReport rep;
   const double dt = spec_.numerics.dt_s;
@@ -148,6 +163,19 @@ StepReport Simulation::step() {
     return rep;
   }
 
+  if (with_contacts_) {
+    oscillating_steps_ = contactVelocitiesReverse(v) ? oscillating_steps_ + 1 : 0;
+    if (oscillating_steps_ >= spec_.numerics.max_oscillating_steps) {
+      rep.failure = FailureKind::ContactOscillation;
+      why << "contact velocities reversed in " << oscillating_steps_
+          << " consecutive steps at t=" << t_
+          << " s: the contact springs are too stiff for dt = " << dt << " s with the "
+          << toString(spec_.numerics.integrator)
+          << " integrator (use contact-implicit or a smaller dt)";
+      rep.reason = why.str();
+      return rep;
+    }
+  }
   cells_.v = Eigen::Map<const Eigen::Matrix3Xd>(v.data(), 3, cells_.numVertices());
   cells_.x += dt * cells_.v;
   {
@@ -187,14 +215,13 @@ StepReport Simulation::step() {
   }
 
   if (with_contacts_) {
-    const double limit = -spec_.numerics.max_penetration_h0 * law_.h0;
+    const double limit = -spec_.numerics.max_penetration_um;
     for (const ContactPair& p : contacts_.pairs) {
       if (p.c.mean_gap < limit) {
         rep.failure = FailureKind::Interpenetration;
         why << "cells " << cells_.tri_cell[p.ta] << " and " << cells_.tri_cell[p.tb]
-            << " interpenetrate by " << -p.c.mean_gap << " µm > numerics.max_penetration_h0 × h0 = "
-            << -limit << " µm at t=" << t_ << " s (contact forces too stiff for dt with the "
-            << toString(spec_.numerics.integrator) << " integrator?)";
+            << " interpenetrate by " << -p.c.mean_gap
+            << " µm > numerics.max_penetration_um = " << -limit << " µm at t=" << t_ << " s";
         rep.reason = why.str();
         return rep;
       }

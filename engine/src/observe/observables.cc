@@ -58,15 +58,16 @@ double doubletContactAngleDeg(const CellSet& cells, const ContactList& contacts)
       }
     }
     Eigen::Matrix3Xd pts(3, static_cast<Eigen::Index>(free.size()));
-    for (size_t k = 0; k < free.size(); ++k) pts.col(static_cast<Eigen::Index>(k)) = cells.x.col(free[k]);
+    for (size_t k = 0; k < free.size(); ++k)
+      pts.col(static_cast<Eigen::Index>(k)) = cells.x.col(free[k]);
     fit[c] = fitSphere(pts);
     if (!fit[c].ok) return 0;
   }
   if (contact_n == 0) return 0;
   const Vec3 p = contact_sum / contact_n;
   const Vec3 axis = (fit[1].centre - fit[0].centre).normalized();
-  const double h0 = (p - fit[0].centre).dot(axis);   // towards cell 1
-  const double h1 = (fit[1].centre - p).dot(axis);   // towards cell 0
+  const double h0 = (p - fit[0].centre).dot(axis);  // towards cell 1
+  const double h1 = (fit[1].centre - p).dot(axis);  // towards cell 0
   auto angle = [](double h, double r) { return std::acos(std::clamp(h / r, -1.0, 1.0)); };
   return 0.5 * (angle(h0, fit[0].radius) + angle(h1, fit[1].radius)) * 180.0 / M_PI;
 }

@@ -3,7 +3,6 @@
 #include <chrono>
 #include <cmath>
 
-
 #include "activefoam/observables.h"
 #include "activefoam/simulation.h"
 
@@ -75,6 +74,8 @@ std::string_view toString(FailureKind k) {
       return "volume-drift";
     case FailureKind::Interpenetration:
       return "interpenetration";
+    case FailureKind::ContactOscillation:
+      return "contact-oscillation";
     case FailureKind::Cancelled:
       return "cancelled";
   }
@@ -162,12 +163,8 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs) {
   sum.final_values = sceneObservables(sim);
   sum.final_values.emplace_back("volume_error_max", maxVolumeError(sim));
   const PhaseTimes& pt = sim.phaseTimes();
-  sum.phase_wall_s = {{"geometry", pt.geometry},
-                      {"contacts", pt.contacts},
-                      {"forces", pt.forces},
-                      {"matrix", pt.matrix},
-                      {"solve", pt.solve},
-                      {"remesh", pt.remesh}};
+  sum.phase_wall_s = {{"geometry", pt.geometry}, {"contacts", pt.contacts}, {"forces", pt.forces},
+                      {"matrix", pt.matrix},     {"solve", pt.solve},       {"remesh", pt.remesh}};
   if (obs.on_progress) obs.on_progress(sim.time(), sim.steps());
   return sum;
 }

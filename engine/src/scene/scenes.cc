@@ -57,8 +57,9 @@ CellSet buildScene(const SceneSpec& spec) {
       return cells;
     }
     default:
-      throw std::invalid_argument("scene '" + std::string(toString(spec.scene)) +
-                                  "' is not available in this engine version (available: cell, doublet)");
+      throw std::invalid_argument(
+          "scene '" + std::string(toString(spec.scene)) +
+          "' is not available in this engine version (available: cell, doublet)");
   }
 }
 

@@ -163,10 +163,13 @@ const std::vector<Entry>& entries() {
     t.push_back({real("numerics.max_volume_error", kOpen, 0, 1, kClosed, "",
                       "relative cell volume error |V − V*|/V* that stops the run as failed"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.max_volume_error; }});
-    t.push_back({real("numerics.max_penetration_h0", kOpen, 0, 1e4, kClosed, "",
-                      "mean interpenetration of a contact pair, in units of h0, that stops the "
-                      "run as failed"),
-                 [](SceneSpec& s) -> Slot { return &s.numerics.max_penetration_h0; }});
+    t.push_back({real("numerics.max_penetration_um", kOpen, 0, 100, kClosed, "µm",
+                      "mean interpenetration of a contact pair that stops the run as failed"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.max_penetration_um; }});
+    t.push_back({integer("numerics.max_oscillating_steps", 1, 1e6,
+                         "consecutive steps of reversing contact velocities (explicit-scheme "
+                         "instability) that stop the run as failed"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.max_oscillating_steps; }});
     // ---- [scene]
     t.push_back({real("scene.axes_ratio", kClosed, 0.2, 5, kClosed, "",
                       "cell: start as an ellipsoid (q r, r, r/q) of equal volume; 1 = sphere"),
