@@ -1,6 +1,9 @@
 // Step cost of the single-cell engine and its split by phase, for 1 cell and for 200 separate
 // cells (no contacts) at 320 triangles per cell. Run: build/release/bench/bench_step
 // Cells start as 1.3 ellipsoids so the solver works on a relaxing, not a resting, state.
+#include <algorithm>
+#include <cmath>
+
 #include <benchmark/benchmark.h>
 
 #include "activefoam/simulation.h"
@@ -74,6 +77,69 @@ void BM_Remesh(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(sim.remeshAll().remesh_ops);
 }
 BENCHMARK(BM_Remesh)->Arg(1)->Arg(200)->Unit(benchmark::kMicrosecond);
+
+// A 100-cell aggregate packed at contact: cells on FCC sites inside a ball, neighbours 0.99·2r
+// apart (slightly pressed together), relaxed 30 s with contacts before timing, so every cell has
+// flattened contacts with its ~12 neighbours (issue 3's "cells packed at contact").
+CellSet packedAggregate(int n, int triangles) {
+  const double r = 8.88, a = 0.99 * 2 * r * std::sqrt(2.0);  // FCC cube edge: neighbours a/√2
+  std::vector<Vec3> sites;
+  const Vec3 basis[4] = {{0, 0, 0}, {0.5, 0.5, 0}, {0.5, 0, 0.5}, {0, 0.5, 0.5}};
+  for (int i = -4; i <= 4; ++i)
+    for (int j = -4; j <= 4; ++j)
+      for (int k = -4; k <= 4; ++k)
+        for (const Vec3& b : basis) sites.push_back(a * (Vec3(i, j, k) + b));
+  std::sort(sites.begin(), sites.end(), [](const Vec3& p, const Vec3& q) {
+    return p.squaredNorm() < q.squaredNorm() ||
+           (p.squaredNorm() == q.squaredNorm() &&
+            std::lexicographical_compare(p.data(), p.data() + 3, q.data(), q.data() + 3));
+  });
+  CellSet cells;
+  for (int c = 0; c < n; ++c) cells.addCell(ellipsoidCell(r, 1.0, triangles, sites[c]), r);
+  return cells;
+}
+
+void BM_StepAggregate(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  SceneSpec spec = benchSpec(320);
+  spec.scene = SceneKind::Doublet;  // any multi-cell scene: contacts on
+  spec.numerics.integrator =
+      state.range(1) ? IntegratorKind::ContactImplicit : IntegratorKind::SemiImplicit;
+  if (!state.range(1)) spec.numerics.dt_s = 0.002;  // within the explicit scheme's limit
+  Simulation sim(spec, packedAggregate(n, 320));
+  const int warm = static_cast<int>(std::lround(30.0 / spec.numerics.dt_s));
+  for (int k = 0; k < warm; ++k)
+    if (const StepReport r = sim.step(); !r.ok()) {
+      state.SkipWithError(r.reason.c_str());
+      return;
+    }
+  const PhaseTimes t0 = sim.phaseTimes();
+  double iters = 0, pairs = 0;
+  std::int64_t steps = 0;
+  for (auto _ : state) {
+    const StepReport r = sim.step();
+    if (!r.ok()) state.SkipWithError(r.reason.c_str());
+    iters += r.cg.iterations;
+    pairs += r.contacts;
+    ++steps;
+  }
+  const PhaseTimes& t = sim.phaseTimes();
+  const double per = 1e3 / static_cast<double>(steps);
+  const double contacts_ms = (t.contacts - t0.contacts) * per;
+  const double total_ms =
+      (t.geometry + t.contacts + t.forces + t.matrix + t.solve + t.remesh - t0.geometry -
+       t0.contacts - t0.forces - t0.matrix - t0.solve - t0.remesh) *
+      per;
+  state.counters["cg_iters"] = iters / steps;
+  state.counters["pairs"] = pairs / steps;
+  state.counters["contacts_ms"] = contacts_ms;
+  state.counters["ns_per_pair"] = 1e6 * contacts_ms / (pairs / steps);
+  state.counters["contact_share"] = contacts_ms / total_ms;
+  state.counters["forces_ms"] = (t.forces - t0.forces) * per;
+  state.counters["matrix_ms"] = (t.matrix - t0.matrix) * per;
+  state.counters["solve_ms"] = (t.solve - t0.solve) * per;
+}
+BENCHMARK(BM_StepAggregate)->Args({100, 1})->Unit(benchmark::kMillisecond)->Iterations(50);
 
 }  // namespace
 

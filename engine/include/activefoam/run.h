@@ -70,7 +70,10 @@ struct RunObserver {
 };
 
 // Runs a resolved, valid spec (see resolve/validate in spec.h) to duration_s or to its first
-// failure. Samples are emitted at t = 0 and every sample_every_s; snapshots likewise.
-RunSummary runScene(const SceneSpec& spec, const RunObserver& observer);
+// failure. Samples are emitted at t = 0 and every sample_every_s; snapshots likewise. With
+// `resume` (a checkpoint of the same spec) the run continues from it and emits only what comes
+// after; throws std::invalid_argument if the checkpoint is malformed or of another spec.
+RunSummary runScene(const SceneSpec& spec, const RunObserver& observer,
+                    const std::string* resume = nullptr);
 
 }  // namespace activefoam

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
 
 #include "activefoam/observables.h"
 #include "activefoam/simulation.h"
@@ -98,7 +99,8 @@ std::vector<std::string> sampleColumns(SceneKind scene) {
   return cols;
 }
 
-RunSummary runScene(const SceneSpec& spec, const RunObserver& obs) {
+RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::string* resume) {
+  if (resume) throw std::invalid_argument("resuming from a checkpoint is not implemented yet");
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
   auto wall = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };

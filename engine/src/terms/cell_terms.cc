@@ -64,6 +64,7 @@ void CortexViscosity::addFriction(const StepContext& ctx, BlockMatrix& gamma) co
   for (const Edge& e : ctx.topo.edges) {
     const Vec3 n = (ctx.cells.x.col(e.j) - ctx.cells.x.col(e.i)).normalized();
     Vec3 b = ctx.geo.tri_normal[e.ta] + ctx.geo.tri_normal[e.tb];
+    b -= b.dot(n) * n;  // exactly orthogonal to the edge (both normals are, up to roundoff)
     const double bn = b.norm();
     // A fully folded edge has no defined bisector: fall back to isotropic coupling, still SPD.
     if (bn < 1e-12) {
@@ -71,10 +72,9 @@ void CortexViscosity::addFriction(const StepContext& ctx, BlockMatrix& gamma) co
       continue;
     }
     b /= bn;
-    b = (b - b.dot(n) * n).normalized();  // exactly orthogonal to the edge
-    const Vec3 t = b.cross(n);
+    // (n̂, t̂ = b̂ × n̂, b̂) is orthonormal: n̂n̂ᵀ + t̂t̂ᵀ + ε b̂b̂ᵀ = I − (1 − ε) b̂b̂ᵀ.
     const Eigen::Matrix3d m =
-        g * (n * n.transpose() + t * t.transpose() + eps_n_ * b * b.transpose());
+        g * (Eigen::Matrix3d::Identity() - (1 - eps_n_) * b * b.transpose());
     gamma.addCoupling(e.i, e.j, m);
   }
 }
