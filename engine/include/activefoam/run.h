@@ -67,6 +67,12 @@ struct RunObserver {
   std::function<void(const Snapshot&)> on_snapshot;
   std::function<void(double t_s, std::int64_t step)> on_progress;  // at most every ~1% / 1 s
   const std::atomic<bool>* cancel = nullptr;                       // polled every step
+  // Checkpoints: the complete run state as an opaque, versioned byte string, emitted right after
+  // a sample at least every checkpoint_every_s of simulated time (0 = never) and when the run is
+  // cancelled. Resuming from it (runScene's `resume`) continues bit-identically: the samples
+  // after the checkpoint equal those of an uninterrupted run (the wall-clock column aside).
+  double checkpoint_every_s = 0;
+  std::function<void(const std::string& state)> on_checkpoint;
 };
 
 // Runs a resolved, valid spec (see resolve/validate in spec.h) to duration_s or to its first

@@ -71,6 +71,14 @@ class Simulation {
   // Replaces positions (tests: finite differences, perturbations) and refreshes geometry.
   void setPositions(const Eigen::Matrix3Xd& x);
 
+  // The complete dynamic state (cells, time, step count, counters) as a versioned byte string,
+  // and its inverse: a simulation of the same spec restored from it continues bit-identically.
+  // `extra` carries the caller's own state (runScene's accumulators) through the checkpoint.
+  std::string saveState(const std::string& extra = {}) const;
+  // Returns `extra`. Throws std::invalid_argument if the bytes are malformed, of another format
+  // version, or of a different spec.
+  std::string loadState(const std::string& bytes);
+
  private:
   void init();
   StepContext context() const {

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <stdexcept>
 
 #include "activefoam/observables.h"
@@ -100,7 +101,6 @@ std::vector<std::string> sampleColumns(SceneKind scene) {
 }
 
 RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::string* resume) {
-  if (resume) throw std::invalid_argument("resuming from a checkpoint is not implemented yet");
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
   auto wall = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
@@ -115,8 +115,30 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
       spec.snapshot_every_s > 0
           ? std::max<std::int64_t>(1, std::llround(spec.snapshot_every_s / dt))
           : 0;
-  double window_iters = 0, window_vol = maxVolumeError(sim), all_iters = 0;
-  std::int64_t window_steps = 0;
+  // The loop's own state, carried through checkpoints so that a resumed run emits exactly the
+  // samples an uninterrupted one would (wall-clock columns aside).
+  struct Accumulators {
+    double window_iters = 0, window_vol = 0, all_iters = 0, wall_before = 0, last_checkpoint_t = 0;
+    std::int64_t window_steps = 0;
+  } acc;
+  double& window_iters = acc.window_iters;
+  double& window_vol = acc.window_vol;
+  double& all_iters = acc.all_iters;
+  std::int64_t& window_steps = acc.window_steps;
+  window_vol = maxVolumeError(sim);
+  if (resume) {
+    const std::string extra = sim.loadState(*resume);
+    if (extra.size() != sizeof acc)
+      throw std::invalid_argument("checkpoint: not written by runScene of this engine version");
+    std::memcpy(&acc, extra.data(), sizeof acc);
+  }
+  const double wall_before = acc.wall_before;
+  auto checkpoint = [&] {
+    if (!obs.on_checkpoint) return;
+    acc.wall_before = wall_before + wall();
+    acc.last_checkpoint_t = sim.time();
+    obs.on_checkpoint(sim.saveState(std::string(reinterpret_cast<const char*>(&acc), sizeof acc)));
+  };
 
   auto emitSample = [&] {
     if (!obs.on_sample) return;
@@ -129,14 +151,17 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
     window_steps = 0;
     window_vol = maxVolumeError(sim);
   };
-  emitSample();
-  if (snap_every && obs.on_snapshot) obs.on_snapshot(makeSnapshot(sim));
+  if (!resume) {
+    emitSample();
+    if (snap_every && obs.on_snapshot) obs.on_snapshot(makeSnapshot(sim));
+  }
 
   double last_progress = 0;
-  for (std::int64_t k = 0; k < total; ++k) {
+  while (sim.steps() < total) {
     if (obs.cancel && obs.cancel->load(std::memory_order_relaxed)) {
       sum.failure = FailureKind::Cancelled;
       sum.reason = "cancelled at t=" + std::to_string(sim.time()) + " s";
+      checkpoint();
       break;
     }
     const StepReport r = sim.step();
@@ -149,7 +174,12 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
     all_iters += r.cg.iterations;
     ++window_steps;
     window_vol = std::max(window_vol, maxVolumeError(sim));
-    if (sim.steps() % sample_every == 0) emitSample();
+    if (sim.steps() % sample_every == 0) {
+      emitSample();
+      if (obs.checkpoint_every_s > 0 &&
+          sim.time() - acc.last_checkpoint_t >= obs.checkpoint_every_s - 0.5 * dt)
+        checkpoint();
+    }
     if (snap_every && sim.steps() % snap_every == 0 && obs.on_snapshot)
       obs.on_snapshot(makeSnapshot(sim));
     if (obs.on_progress && wall() - last_progress > 1.0) {
@@ -159,7 +189,7 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
   }
   sum.t_s = sim.time();
   sum.steps = sim.steps();
-  sum.wall_s = wall();
+  sum.wall_s = wall_before + wall();
   sum.cg_iters_mean = sim.steps() ? all_iters / sim.steps() : 0;
   sum.remesh_ops = sim.remeshOps();
   sum.final_values = sceneObservables(sim);

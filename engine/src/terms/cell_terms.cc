@@ -73,8 +73,7 @@ void CortexViscosity::addFriction(const StepContext& ctx, BlockMatrix& gamma) co
     }
     b /= bn;
     // (n̂, t̂ = b̂ × n̂, b̂) is orthonormal: n̂n̂ᵀ + t̂t̂ᵀ + ε b̂b̂ᵀ = I − (1 − ε) b̂b̂ᵀ.
-    const Eigen::Matrix3d m =
-        g * (Eigen::Matrix3d::Identity() - (1 - eps_n_) * b * b.transpose());
+    const Eigen::Matrix3d m = g * (Eigen::Matrix3d::Identity() - (1 - eps_n_) * b * b.transpose());
     gamma.addCoupling(e.i, e.j, m);
   }
 }
