@@ -6,11 +6,13 @@
 
 namespace activefoam::testing {
 
-// A resolved `cell` spec with a fixed radius r (no Gamma spread) and the Table 1 defaults.
+// A resolved `cell` spec with a fixed radius r (no Gamma spread), no motility (p_a = 0: passive
+// mechanics, so contact angles are the Young–Dupré ones) and the other Table 1 defaults.
 inline SceneSpec cellSpec(double axes_ratio = 1.0, int triangles = 320) {
   SceneSpec s;
   s.scene = SceneKind::Cell;
   s.cells.radius_gamma_k = 0;
+  s.cells.p_a = 0;
   s.scene_params.axes_ratio = axes_ratio;
   s.numerics.triangles_per_cell = triangles;
   s.cells.tau_k_s = 2 * tauShell(s.cells);

@@ -268,7 +268,7 @@ TEST_F(FoamRun, DoubletReportsContactAnglePerSample) {
   if (engineMissing()) GTEST_SKIP() << "FOAM_RUN_NO_ENGINE is set";
   const std::string text =
       "scene = \"doublet\"\nduration_s = 300\nsample_every_s = 50\n"
-      "[cells]\nradius_gamma_k = 0\n";
+      "[cells]\nradius_gamma_k = 0\np_a = 0\n";
   const fs::path out = dir_ / "out";
   const Result r = run("- --out " + quote(out.string()) + " --quiet", &text);
   ASSERT_EQ(r.code, 0) << r.err;

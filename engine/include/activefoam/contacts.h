@@ -52,4 +52,25 @@ class ContactFriction : public ForceTerm {
   double xi_n_, xi_t_, k_, implicit_dt_;
 };
 
+// S8–S11: active migration. P_i^a = p_a (S_c,l/S_l) ((x_i − x_c,l)/‖x_i − x_c,l‖)·p̂_l acts as a
+// pressure on the nodal area, F_i^act = P_i^a S_i n̂_i; the reaction −(S_i^c/S_c,l) Σ_j F_j^act on
+// contacting nodes makes every cell's internal force sum exactly zero (DESIGN.md §9). After the
+// step, p̂_l diffuses on the sphere with D_r = 1/τ_p (S10) using a random stream that is a pure
+// function of (seed, cell, step): reproducible for any thread count, nothing to checkpoint.
+class ActiveMigration : public ForceTerm {
+ public:
+  ActiveMigration(const CellParams& p, std::uint64_t seed)
+      : p_a_(p.p_a), d_r_(1.0 / p.tau_p_s), seed_(seed) {}
+  std::string_view name() const override { return "active_migration"; }
+  double addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) const override;
+  void endStep(const StepContext& ctx, CellSet& cells) const override;
+  // One rotational-diffusion step of a unit vector (exactly unit afterwards).
+  static Vec3 diffuse(const Vec3& p, double d_r, double dt, std::uint64_t seed, int cell,
+                      std::int64_t step);
+
+ private:
+  double p_a_, d_r_;
+  std::uint64_t seed_;
+};
+
 }  // namespace activefoam

@@ -3,6 +3,7 @@
 // after the position update. Terms are listed explicitly in Simulation, not registered by macros.
 #pragma once
 
+#include <cstdint>
 #include <string_view>
 
 #include <Eigen/Core>
@@ -23,6 +24,7 @@ struct StepContext {
   double dt;                              // s
   double t;                               // s, time at the start of the step
   const ContactList* contacts = nullptr;  // this step's contacts; null in single-cell scenes
+  std::int64_t step = 0;                  // steps taken before this one (keys the random streams)
 };
 
 class ForceTerm {

@@ -82,7 +82,8 @@ class Simulation {
  private:
   void init();
   StepContext context() const {
-    return {cells_, geo_, topo_, spec_.numerics.dt_s, t_, with_contacts_ ? &contacts_ : nullptr};
+    return {cells_, geo_, topo_, spec_.numerics.dt_s, t_, with_contacts_ ? &contacts_ : nullptr,
+            steps_};
   }
   bool patternCoversContacts() const;
   // Whether contacting vertices that move by a noticeable fraction of h0 per step mostly

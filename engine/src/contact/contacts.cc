@@ -1,6 +1,9 @@
 #include "activefoam/contacts.h"
 
 #include <algorithm>
+#include <cmath>
+
+#include "activefoam/rng.h"
 
 namespace activefoam {
 
@@ -65,6 +68,51 @@ void ContactFriction::addFriction(const StepContext& ctx, BlockMatrix& gamma) co
         if (w > 0) gamma.addCoupling(a[i], b[k], w * g);
       }
   }
+}
+
+double ActiveMigration::addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) const {
+  if (!ctx.contacts || p_a_ == 0) return 0;
+  const CellSet& cells = ctx.cells;
+  const ContactList& con = *ctx.contacts;
+  for (int c = 0; c < cells.numCells(); ++c) {
+    const double sc = con.cell_contact_area[c];
+    if (sc <= 0) continue;  // migration needs a substrate: no contact, no traction
+    const double scale = p_a_ * sc / ctx.geo.cell_area[c];
+    const Vec3& p = cells.polarity[c];
+    const Vec3& xc = ctx.geo.cell_centroid[c];
+    Vec3 total = Vec3::Zero();
+    const int v0 = cells.cell_vertex_begin[c], v1 = cells.cell_vertex_begin[c + 1];
+    for (int i = v0; i < v1; ++i) {
+      const Vec3 r = cells.x.col(i) - xc;
+      const double rn = r.norm();
+      if (rn == 0) continue;
+      const Vec3 fi = scale * (r.dot(p) / rn) * ctx.geo.vertex_area[i] * ctx.geo.vertex_normal[i];
+      f.col(i) += fi;
+      total += fi;
+    }
+    for (int i = v0; i < v1; ++i)
+      if (con.vertex_contact_area[i] > 0) f.col(i) -= con.vertex_contact_area[i] / sc * total;
+  }
+  return 0;
+}
+
+Vec3 ActiveMigration::diffuse(const Vec3& p, double d_r, double dt, std::uint64_t seed, int cell,
+                              std::int64_t step) {
+  // Stream 0 builds scenes; polarity streams are keyed by (cell, step).
+  Rng rng(seed, (static_cast<std::uint64_t>(step) << 24) ^ static_cast<std::uint64_t>(cell + 1));
+  // Tangent basis (e1, e2) ⟂ p; rotation vector ω = √(2 D_r dt) (ξ1 e1 + ξ2 e2), so that
+  // ⟨p(t)·p(0)⟩ = exp(−2 D_r t) (to O((D_r dt)²)).
+  const Vec3 e1 = p.unitOrthogonal(), e2 = p.cross(e1);
+  const double s = std::sqrt(2 * d_r * dt);
+  const Vec3 w = s * (rng.normal() * e1 + rng.normal() * e2);
+  const double angle = w.norm();
+  if (angle == 0) return p;
+  return (std::cos(angle) * p + std::sin(angle) * (w / angle)).normalized();
+}
+
+void ActiveMigration::endStep(const StepContext& ctx, CellSet& cells) const {
+  for (int c = 0; c < cells.numCells(); ++c)
+    cells.polarity[c] = diffuse(cells.polarity[c], d_r_, ctx.dt, seed_, c, ctx.step);
 }
 
 }  // namespace activefoam

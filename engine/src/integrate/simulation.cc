@@ -45,6 +45,8 @@ void Simulation::init() {
     terms_.push_back(std::make_unique<ContactAdhesion>());
     const bool implicit = spec_.numerics.integrator == IntegratorKind::ContactImplicit;
     terms_.push_back(std::make_unique<ContactFriction>(p, implicit ? spec_.numerics.dt_s : 0.0));
+    // Terms whose parameters vanish are not built (no per-step cost).
+    if (p.p_a > 0) terms_.push_back(std::make_unique<ActiveMigration>(p, spec_.seed));
   }
 
   const double every = spec_.numerics.remesh_every_s.value_or(5 * tauShell(p));

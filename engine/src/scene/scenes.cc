@@ -15,6 +15,13 @@ double drawRadius(const CellParams& p, Rng& rng) {
   return rng.gamma(p.radius_gamma_k) * p.radius_mean_um / p.radius_gamma_k;
 }
 
+// Uniform on the unit sphere.
+Vec3 randomUnitVector(Rng& rng) {
+  const double z = 2 * rng.uniform() - 1, phi = 2 * M_PI * rng.uniform();
+  const double s = std::sqrt(1 - z * z);
+  return {s * std::cos(phi), s * std::sin(phi), z};
+}
+
 }  // namespace
 
 TriMesh ellipsoidCell(double radius, double axes_ratio, int triangles, const Vec3& centre) {
@@ -54,6 +61,7 @@ CellSet buildScene(const SceneSpec& spec) {
       b.x.row(0).array() += shift;
       cells.addCell(a, ra);
       cells.addCell(b, rb);
+      for (Vec3& p : cells.polarity) p = randomUnitVector(rng);
       return cells;
     }
     default:

@@ -1,0 +1,112 @@
+// Active migration (S8–S11) and polarity diffusion (S10).
+#include <cmath>
+#include <iostream>
+
+#include <gtest/gtest.h>
+
+#include "activefoam/contacts.h"
+#include "test_support.h"
+
+using namespace activefoam;
+using activefoam::testing::cellSpec;
+
+TEST(ActiveMigration, ActionPlusReactionSumsToZeroPerCell) {
+  SceneSpec s = cellSpec(1.0, 320);
+  s.scene = SceneKind::Doublet;
+  s.cells.p_a = 0.2;  // strong, so the forces are far from roundoff
+  Simulation sim(s);
+  for (int k = 0; k < 800; ++k) ASSERT_TRUE(sim.step().ok());
+  ASSERT_GT(sim.contacts().cell_contact_area[0], 10.0);
+  CellSet cells = sim.cells();
+  cells.polarity[0] = Vec3(0.3, -0.8, 0.5).normalized();
+  cells.polarity[1] = Vec3(-0.9, 0.1, 0.4).normalized();
+  const ActiveMigration term(s.cells, s.seed);
+  const StepContext ctx{cells, sim.geometry(), Topology{}, 0.1, 0.0, &sim.contacts(), 0};
+  Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, cells.numVertices());
+  term.addForces(ctx, f);
+  for (int c = 0; c < 2; ++c) {
+    Vec3 sum = Vec3::Zero();
+    double scale = 0;
+    for (int i = cells.cell_vertex_begin[c]; i < cells.cell_vertex_begin[c + 1]; ++i) {
+      sum += f.col(i);
+      scale += f.col(i).norm();
+    }
+    ASSERT_GT(scale, 0.1);  // nN: the term acts
+    EXPECT_LT(sum.norm(), 1e-10 * scale) << "cell " << c;
+  }
+}
+
+TEST(ActiveMigration, NoContactNoTraction) {
+  SceneSpec s = cellSpec(1.0, 80);
+  s.scene = SceneKind::Doublet;
+  s.scene_params.gap_um = 2.0;  // far apart
+  s.cells.p_a = 0.2;
+  Simulation sim(s);
+  ASSERT_EQ(sim.contacts().pairs.size(), 0u);
+  const ActiveMigration term(s.cells, s.seed);
+  const StepContext ctx{sim.cells(), sim.geometry(), Topology{}, 0.1, 0.0, &sim.contacts(), 0};
+  Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, sim.cells().numVertices());
+  term.addForces(ctx, f);
+  EXPECT_EQ(f.norm(), 0.0);
+}
+
+TEST(Polarity, DecorrelatesAsExpMinusTwoTOverTauP) {
+  // N independent cells; ⟨p̂(t)·p̂(0)⟩ against exp(−2 D_r t), D_r = 1/τ_p (3D rotational
+  // diffusion), at several times, within 3 standard errors of the sample mean.
+  const int n = 4000;
+  const double tau_p = 600, dt = 1.0;
+  std::vector<Vec3> p0(n), p(n);
+  Rng init(5, 0);
+  for (int c = 0; c < n; ++c) {
+    const double z = 2 * init.uniform() - 1, phi = 2 * M_PI * init.uniform();
+    p0[c] = p[c] =
+        Vec3(std::sqrt(1 - z * z) * std::cos(phi), std::sqrt(1 - z * z) * std::sin(phi), z);
+  }
+  std::int64_t step = 0;
+  for (double t_check : {60.0, 300.0, 600.0, 1200.0}) {
+    while (step * dt < t_check) {
+      for (int c = 0; c < n; ++c) p[c] = ActiveMigration::diffuse(p[c], 1 / tau_p, dt, 9, c, step);
+      ++step;
+    }
+    double mean = 0, sq = 0, worst_norm = 0;
+    for (int c = 0; c < n; ++c) {
+      const double d = p[c].dot(p0[c]);
+      mean += d;
+      sq += d * d;
+      worst_norm = std::max(worst_norm, std::abs(p[c].norm() - 1));
+    }
+    mean /= n;
+    const double se = std::sqrt((sq / n - mean * mean) / n);
+    const double expected = std::exp(-2 * t_check / tau_p);
+    std::cout << "[ polarity ] t = " << t_check << " s: ⟨p·p0⟩ = " << mean << " ± " << se
+              << ", exp(−2t/τ_p) = " << expected << "\n";
+    EXPECT_NEAR(mean, expected, 3 * se + 1e-3);
+    EXPECT_LT(worst_norm, 1e-14);  // ‖p̂‖ = 1 exactly (to roundoff)
+  }
+}
+
+TEST(Polarity, StreamIsAPureFunctionOfSeedCellAndStep) {
+  const Vec3 p = Vec3(1, 2, 3).normalized();
+  const Vec3 a = ActiveMigration::diffuse(p, 1.0 / 600, 0.1, 7, 3, 1000);
+  EXPECT_EQ(a, ActiveMigration::diffuse(p, 1.0 / 600, 0.1, 7, 3, 1000));  // any order, any thread
+  EXPECT_NE(a, ActiveMigration::diffuse(p, 1.0 / 600, 0.1, 7, 4, 1000));  // another cell
+  EXPECT_NE(a, ActiveMigration::diffuse(p, 1.0 / 600, 0.1, 8, 3, 1000));  // another seed
+  EXPECT_NE(a, ActiveMigration::diffuse(p, 1.0 / 600, 0.1, 7, 3, 1001));  // another step
+}
+
+TEST(ActiveMigration, MotileDoubletIsReproducibleFromItsSeed) {
+  SceneSpec s = cellSpec(1.0, 80);
+  s.scene = SceneKind::Doublet;
+  s.cells.p_a = 0.1;
+  s.cells.radius_gamma_k = 37;
+  auto run = [](const SceneSpec& spec) {
+    Simulation sim(spec);
+    for (int k = 0; k < 1500; ++k) EXPECT_TRUE(sim.step().ok());
+    return sim.cells().x;
+  };
+  const Eigen::Matrix3Xd a = run(s), b = run(s);
+  EXPECT_TRUE(a.cwiseEqual(b).all());
+  s.seed = 2;
+  const Eigen::Matrix3Xd c = run(s);
+  EXPECT_FALSE(c.size() == a.size() && c.cwiseEqual(a).all());
+}
