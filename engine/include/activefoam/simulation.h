@@ -42,6 +42,12 @@ CellSet buildScene(const SceneSpec& spec);
 // stretched to semi-axes (q, 1, 1/q)·r_eff (volume-preserving), centred at `centre`.
 TriMesh ellipsoidCell(double radius, double axes_ratio, int triangles, const Vec3& centre);
 
+// Centres for N spheres of the given radii packed into a compact ball without overlap: random
+// start, then an overdamped soft-sphere relaxation with a weak pull towards the centre, then the
+// pull is switched off until no pair overlaps by more than 1e-3 of the mean radius. Neighbours
+// end up touching. Deterministic in (radii, seed).
+std::vector<Vec3> packSpheres(const std::vector<double>& radii, std::uint64_t seed);
+
 class Simulation {
  public:
   // `spec` must be validated and resolved.

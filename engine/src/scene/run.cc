@@ -33,6 +33,25 @@ std::vector<std::pair<std::string, double>> sceneObservables(const Simulation& s
                        (sim.geometry().cell_centroid[1] - sim.geometry().cell_centroid[0]).norm());
       break;
     }
+    case SceneKind::Spheroid: {
+      const Geometry& g = sim.geometry();
+      const int n = sim.cells().numCells();
+      double vol = 0, si = 0;
+      Vec3 centre = Vec3::Zero();
+      for (int c = 0; c < n; ++c) {
+        vol += g.cell_volume[c];
+        centre += g.cell_volume[c] * g.cell_centroid[c];
+        si += g.cell_area[c] / std::cbrt(g.cell_volume[c] * g.cell_volume[c]) / n;
+      }
+      centre /= vol;
+      double rg2 = 0;
+      for (int c = 0; c < n; ++c)
+        rg2 += g.cell_volume[c] * (g.cell_centroid[c] - centre).squaredNorm();
+      out.emplace_back("radius_gyration_um", std::sqrt(rg2 / vol));
+      out.emplace_back("shape_index_mean", si);
+      out.emplace_back("contact_pairs", static_cast<double>(sim.contacts().pairs.size()));
+      break;
+    }
     default:
       break;
   }
@@ -93,6 +112,9 @@ std::vector<std::string> sampleColumns(SceneKind scene) {
     case SceneKind::Doublet:
       cols.insert(cols.end(),
                   {"contact_angle_deg", "contact_area_um2", "contact_pairs", "distance_um"});
+      break;
+    case SceneKind::Spheroid:
+      cols.insert(cols.end(), {"radius_gyration_um", "shape_index_mean", "contact_pairs"});
       break;
     default:
       break;

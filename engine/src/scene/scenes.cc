@@ -42,6 +42,51 @@ bool sceneAvailable(SceneKind scene) {
   return scene == SceneKind::Cell || scene == SceneKind::Doublet;
 }
 
+std::vector<Vec3> packSpheres(const std::vector<double>& radii, std::uint64_t seed) {
+  const int n = static_cast<int>(radii.size());
+  double mean = 0;
+  for (double r : radii) mean += r / n;
+  Rng rng(seed, 0x5053ULL);  // its own stream: scene stream 0 draws radii and polarities
+  // Start loose: uniform in a ball at packing fraction ~0.2.
+  const double r0 = mean * std::cbrt(n / 0.2);
+  std::vector<Vec3> x(n);
+  for (Vec3& p : x) {
+    do p = Vec3(2 * rng.uniform() - 1, 2 * rng.uniform() - 1, 2 * rng.uniform() - 1);
+    while (p.squaredNorm() > 1);
+    p *= r0;
+  }
+  std::vector<Vec3> f(n);
+  // pull: a constant-magnitude step towards the centre (gravity-like: overlaps stay small
+  // everywhere, unlike a spring pull that crushes the core).
+  auto relax = [&](double pull, int iterations, double tol) {
+    for (int it = 0; it < iterations; ++it) {
+      Vec3 c = Vec3::Zero();
+      for (const Vec3& p : x) c += p / n;
+      for (int i = 0; i < n; ++i) {
+        const Vec3 d = c - x[i];
+        const double dn = d.norm();
+        f[i] = dn > pull ? Vec3(pull * d / dn) : Vec3::Zero();
+      }
+      double worst = 0;
+      for (int i = 0; i < n; ++i)
+        for (int j = i + 1; j < n; ++j) {
+          const Vec3 d = x[j] - x[i];
+          const double dist = d.norm(), overlap = radii[i] + radii[j] - dist;
+          if (overlap <= 0 || dist == 0) continue;
+          worst = std::max(worst, overlap);
+          const Vec3 push = 0.25 * overlap * d / dist;
+          f[i] -= push;
+          f[j] += push;
+        }
+      if (pull == 0 && worst < tol) return;
+      for (int i = 0; i < n; ++i) x[i] += f[i];
+    }
+  };
+  relax(0.01 * mean, 5000, 0);      // compact
+  relax(0.0, 200000, 1e-3 * mean);  // remove the overlaps the pull held
+  return x;
+}
+
 CellSet buildScene(const SceneSpec& spec) {
   CellSet cells;
   Rng rng(spec.seed, 0);
@@ -61,6 +106,16 @@ CellSet buildScene(const SceneSpec& spec) {
       b.x.row(0).array() += shift;
       cells.addCell(a, ra);
       cells.addCell(b, rb);
+      for (Vec3& p : cells.polarity) p = randomUnitVector(rng);
+      return cells;
+    }
+    case SceneKind::Spheroid: {
+      const int n = static_cast<int>(spec.scene_params.n_cells);
+      std::vector<double> radii(n);
+      for (double& r : radii) r = drawRadius(spec.cells, rng);
+      const std::vector<Vec3> centres = packSpheres(radii, spec.seed);
+      for (int c = 0; c < n; ++c)
+        cells.addCell(ellipsoidCell(radii[c], 1.0, tris, centres[c]), radii[c]);
       for (Vec3& p : cells.polarity) p = randomUnitVector(rng);
       return cells;
     }
