@@ -1,17 +1,28 @@
 #!/usr/bin/env bash
-# The main job of the README: install, build, and run a small job with the engine's batch runner,
-# then show its results. (Until the server lands, the job runs through foam-run directly.)
+# The main job of the README: install, build, start foamd on a fresh database, submit a small job
+# with foam, watch it to the end, print its results, stop foamd.
+# (The fusion scene is not in the engine yet: the job is the doublet, the most complete scene.)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/build.sh release
-out="out/demo-doublet"
-rm -rf "$out"
-echo "== foam-run examples/doublet.toml --out $out"
-./build/release/runner/foam-run examples/doublet.toml --out "$out"
+bin=build/release
+work="$(mktemp -d)"
+port="$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')"
+echo "== foamd --listen 127.0.0.1:$port --db $work/foamd.db   (log: $work/foamd.log)"
+"$bin/server/foamd" --listen "127.0.0.1:$port" --db "$work/foamd.db" --workers 1 \
+  >"$work/foamd.log" 2>&1 &
+foamd_pid=$!
+trap 'kill -TERM $foamd_pid 2>/dev/null || true; wait $foamd_pid 2>/dev/null || true' EXIT
+export FOAM_SERVER="127.0.0.1:$port"
+for _ in $(seq 50); do "$bin/client/foam" list >/dev/null 2>&1 && break; sleep 0.1; done
+echo "== foam submit examples/doublet.toml --wait"
+id="$("$bin/client/foam" submit examples/doublet.toml --wait | head -1)"
 echo
-echo "== samples ($out/samples.csv)"
-column -s, -t < "$out/samples.csv"
+echo "== foam show $id"
+"$bin/client/foam" show "$id"
 echo
-echo "== summary ($out/summary.json)"
-cat "$out/summary.json"
+echo "== foam results $id"
+"$bin/client/foam" results "$id"
 echo
+echo "== foam results $id --csv (samples)"
+"$bin/client/foam" results "$id" --csv | column -s, -t

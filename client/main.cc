@@ -1,0 +1,465 @@
+// foam: the activefoam command-line client (DESIGN.md §8). Does not link the engine: specs go
+// to the server as text (TOML/JSON) plus key=value settings, and the server validates them.
+//
+//   foam [--server HOST:PORT] [--token-file F] COMMAND ...      (also FOAM_SERVER, FOAM_TOKEN)
+//
+// Exit codes: 0 success (with --wait / watch: the job succeeded); 1 the job failed or was
+// cancelled; 2 usage error or invalid spec (INVALID_ARGUMENT); 3 server unreachable or another
+// RPC error; 4 authentication failed (UNAUTHENTICATED); 5 not found.
+#include <grpcpp/grpcpp.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <thread>
+
+#include <google/protobuf/util/json_util.h>
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "activefoam/v1/service.grpc.pb.h"
+
+namespace v1 = activefoam::v1;
+
+namespace {
+
+constexpr int kOk = 0, kJobNotOk = 1, kUsage = 2, kRpc = 3, kAuth = 4, kNotFound = 5;
+
+struct Conn {
+  std::string server = "127.0.0.1:50051";
+  std::string token;
+  std::unique_ptr<v1::Foam::Stub> stub;
+
+  bool loopback() const {
+    const std::string host = server.substr(0, server.rfind(':'));
+    return host == "localhost" || host == "[::1]" || host.rfind("127.", 0) == 0;
+  }
+  void connect() {
+    // With a token the server wants local credentials (loopback) — see foamd --token-file.
+    auto creds = !token.empty() && loopback() ? grpc::experimental::LocalCredentials(LOCAL_TCP)
+                                              : grpc::InsecureChannelCredentials();
+    stub = v1::Foam::NewStub(grpc::CreateChannel(server, creds));
+  }
+  std::unique_ptr<grpc::ClientContext> ctx(double deadline_s = 30) const {
+    auto c = std::make_unique<grpc::ClientContext>();
+    if (!token.empty()) c->AddMetadata("authorization", "Bearer " + token);
+    if (deadline_s > 0)
+      c->set_deadline(std::chrono::system_clock::now() +
+                      std::chrono::milliseconds(static_cast<long>(deadline_s * 1000)));
+    return c;
+  }
+};
+
+int rpcError(const grpc::Status& s, const std::string& what) {
+  std::cerr << "foam: " << what << ": " << s.error_message() << " (" << s.error_code() << ")\n";
+  switch (s.error_code()) {
+    case grpc::StatusCode::INVALID_ARGUMENT:
+    case grpc::StatusCode::FAILED_PRECONDITION:
+      return kUsage;
+    case grpc::StatusCode::UNAUTHENTICATED:
+      return kAuth;
+    case grpc::StatusCode::NOT_FOUND:
+      return kNotFound;
+    default:
+      return kRpc;
+  }
+}
+
+std::string stateName(v1::JobState s) {
+  std::string n = v1::JobState_Name(s);
+  n = n.substr(std::string("JOB_STATE_").size());
+  for (char& c : n) c = static_cast<char>(std::tolower(c));
+  return n;
+}
+
+std::string readFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot read '" + path + "'");
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::string fmtDuration(double s) {
+  char b[64];
+  if (s < 0)
+    return "?";
+  else if (s < 60)
+    std::snprintf(b, sizeof b, "%.1fs", s);
+  else if (s < 3600)
+    std::snprintf(b, sizeof b, "%dm%02ds", static_cast<int>(s / 60), static_cast<int>(s) % 60);
+  else
+    std::snprintf(b, sizeof b, "%dh%02dm", static_cast<int>(s / 3600),
+                  static_cast<int>(s / 60) % 60);
+  return b;
+}
+
+std::string toJsonText(const google::protobuf::Message& m) {
+  std::string s;
+  google::protobuf::util::JsonPrintOptions o;
+  o.preserve_proto_field_names = true;
+  (void)google::protobuf::util::MessageToJsonString(m, &s, o);
+  return s;
+}
+
+// Follows a job's events to its end, reconnecting (from the last sequence number seen) when the
+// stream breaks. Progress on stderr. Returns the final job, or nullopt on a non-retryable error.
+std::optional<v1::Job> watch(Conn& conn, const std::string& id, bool quiet, int& rc) {
+  std::int64_t last = 0;
+  std::vector<std::string> columns;
+  std::string latest;  // latest observable, "name = value"
+  std::optional<v1::Job> final;
+  int failures = 0;
+  const bool tty = isatty(2);
+  for (;;) {
+    v1::WatchJobRequest req;
+    req.set_job_id(id);
+    req.set_from_seq(last);
+    req.set_follow(true);
+    auto ctx = conn.ctx(0);
+    auto reader = conn.stub->WatchJob(ctx.get(), req);
+    v1::JobEvent ev;
+    while (reader->Read(&ev)) {
+      failures = 0;
+      last = ev.seq();
+      if (ev.has_state()) {
+        if (!quiet)
+          std::cerr << (tty ? "\r\033[K" : "") << "foam: " << id << " "
+                    << stateName(ev.state().state())
+                    << (ev.state().reason().empty() ? "" : ": " + ev.state().reason()) << "\n";
+        if (activefoam::v1::JobState s = ev.state().state(); s == v1::JOB_STATE_SUCCEEDED ||
+                                                             s == v1::JOB_STATE_FAILED ||
+                                                             s == v1::JOB_STATE_CANCELLED)
+          final = ev.state();
+      } else if (ev.has_sample()) {
+        if (ev.columns_size() > 0) columns.assign(ev.columns().begin(), ev.columns().end());
+        const auto& v = ev.sample().values();
+        if (v.size() > 5 && columns.size() > 5) {
+          char b[128];
+          std::snprintf(b, sizeof b, "%s = %.4g", columns[5].c_str(), v[5]);
+          latest = b;
+        }
+      } else if (ev.has_progress() && !quiet) {
+        const auto& p = ev.progress();
+        const int width = 30;
+        const int filled = static_cast<int>(std::lround(p.fraction() * width));
+        std::string bar(static_cast<std::size_t>(filled), '#');
+        bar.resize(width, '.');
+        char b[256];
+        std::snprintf(b, sizeof b, "[%s] %5.1f%%  t = %.4g s  ETA %s  %s", bar.c_str(),
+                      100 * p.fraction(), p.t_s(), fmtDuration(p.eta_s()).c_str(), latest.c_str());
+        std::cerr << (tty ? "\r\033[K" : "") << b << (tty ? "" : "\n") << std::flush;
+      }
+    }
+    const grpc::Status st = reader->Finish();
+    if (final) return final;
+    if (st.ok()) {  // stream ended without a terminal state (server going down): follow again
+    } else if (st.error_code() != grpc::StatusCode::UNAVAILABLE &&
+               st.error_code() != grpc::StatusCode::CANCELLED) {
+      rc = rpcError(st, "watch " + id);
+      return std::nullopt;
+    }
+    if (++failures > 600) {
+      rc = rpcError(st, "watch " + id + " (gave up reconnecting)");
+      return std::nullopt;
+    }
+    if (!quiet && failures == 1)
+      std::cerr << "\nfoam: connection lost; reconnecting and resuming after event " << last
+                << "\n";
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  }
+}
+
+int jobExit(const v1::Job& j) {
+  return j.state() == v1::JOB_STATE_SUCCEEDED ? kOk : kJobNotOk;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"foam: activefoam client (submit, watch, list, show, cancel, results, sweep)"};
+  app.footer(
+      "exit status: 0 ok (job succeeded for --wait/watch), 1 job failed or cancelled, 2 usage or "
+      "invalid spec, 3 server unreachable / RPC error, 4 unauthenticated, 5 not found");
+  app.require_subcommand(1);
+  Conn conn;
+  if (const char* s = std::getenv("FOAM_SERVER"); s && *s) conn.server = s;
+  if (const char* t = std::getenv("FOAM_TOKEN"); t && *t) conn.token = t;
+  std::string token_file;
+  app.add_option("--server", conn.server, "server HOST:PORT (env FOAM_SERVER)");
+  app.add_option("--token-file", token_file, "file holding the bearer token (env FOAM_TOKEN)");
+  app.set_config("--config", "", "TOML config file (server = ..., token-file = ...)");
+
+  // submit
+  auto* submit = app.add_subcommand("submit", "submit a job; prints its id on the first line");
+  std::string spec_file, scene, tag, idem;
+  std::vector<std::string> settings;
+  int priority = 0;
+  bool wait = false, quiet = false;
+  submit->add_option("SPEC", spec_file, "spec file (TOML or JSON, DESIGN.md §10; - = stdin)");
+  submit->add_option("--scene", scene, "scene (cell|doublet|spheroid|fusion) instead of a file");
+  submit->add_option("--set", settings, "override a key: --set cells.alpha=0.5 (repeatable)");
+  submit->add_option("--priority", priority, "higher runs first");
+  submit->add_option("--tag", tag, "free text to filter on");
+  submit->add_option("--idempotency-key", idem,
+                     "resubmitting with the same key returns the same job");
+  submit->add_flag("--wait", wait, "follow the job; exit 0 only if it succeeded");
+  submit->add_flag("--quiet,-q", quiet, "no progress on stderr");
+
+  auto* watchc = app.add_subcommand("watch", "follow a job: progress, ETA, latest observable");
+  std::string id;
+  watchc->add_option("ID", id)->required();
+  watchc->add_flag("--quiet,-q", quiet);
+
+  auto* list = app.add_subcommand("list", "list jobs, newest first");
+  std::vector<std::string> states;
+  std::string sweep_filter;
+  int limit = 50;
+  bool json = false, csv = false;
+  list->add_option("--state", states, "queued|running|succeeded|failed|cancelled");
+  list->add_option("--tag", tag);
+  list->add_option("--sweep", sweep_filter);
+  list->add_option("--limit", limit, "page size")->check(CLI::Range(1, 1000));
+  list->add_flag("--json", json);
+
+  auto* show = app.add_subcommand("show", "print a job's state (first line), then its details");
+  show->add_option("ID", id)->required();
+  show->add_flag("--json", json);
+
+  auto* cancel = app.add_subcommand("cancel", "cancel a queued or running job");
+  cancel->add_option("ID", id)->required();
+
+  auto* results = app.add_subcommand("results", "a job's results and samples");
+  results->add_option("ID", id)->required();
+  results->add_flag("--json", json, "JSON for scripts");
+  results->add_flag("--csv", csv, "samples as CSV");
+
+  auto* sweep = app.add_subcommand("sweep", "submit a grid sweep; prints the sweep id");
+  std::vector<std::string> grid;
+  std::vector<std::uint64_t> seeds;
+  sweep->add_option("SPEC", spec_file, "base spec file");
+  sweep->add_option("--scene", scene);
+  sweep->add_option("--set", settings);
+  sweep->add_option("--grid", grid, "key=v1,v2,... (repeatable; cartesian product)");
+  sweep->add_option("--seeds", seeds, "seeds (each parameter set runs once per seed)")
+      ->delimiter(',');
+  sweep->add_option("--tag", tag);
+  sweep->add_flag("--wait", wait, "follow every job; exit 0 only if all succeeded");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? kOk : kUsage;
+  }
+  try {
+    if (!token_file.empty()) {
+      conn.token = readFile(token_file);
+      while (!conn.token.empty() && std::isspace(static_cast<unsigned char>(conn.token.back())))
+        conn.token.pop_back();
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "foam: " << e.what() << "\n";
+    return kUsage;
+  }
+  conn.connect();
+
+  auto specText = [&]() -> std::string {
+    if (spec_file.empty()) return "";
+    if (spec_file == "-") {
+      std::ostringstream s;
+      s << std::cin.rdbuf();
+      return s.str();
+    }
+    return readFile(spec_file);
+  };
+
+  try {
+    if (*submit) {
+      if (spec_file.empty() && scene.empty()) {
+        std::cerr << "foam: submit needs SPEC or --scene\n";
+        return kUsage;
+      }
+      v1::SubmitJobRequest req;
+      req.set_spec_text(specText());
+      if (!scene.empty()) req.add_settings("scene=" + scene);
+      for (const auto& s : settings) req.add_settings(s);
+      req.set_priority(priority);
+      req.set_tag(tag);
+      req.set_idempotency_key(idem);
+      v1::SubmitJobResponse resp;
+      auto ctx = conn.ctx();
+      const grpc::Status st = conn.stub->SubmitJob(ctx.get(), req, &resp);
+      if (!st.ok()) return rpcError(st, "submit");
+      std::cout << resp.job_id() << std::endl;
+      if (!resp.created()) std::cerr << "foam: already submitted (same idempotency key)\n";
+      if (!wait) return kOk;
+      int rc = kRpc;
+      auto final = watch(conn, resp.job_id(), quiet, rc);
+      return final ? jobExit(*final) : rc;
+    }
+    if (*watchc) {
+      int rc = kRpc;
+      auto final = watch(conn, id, quiet, rc);
+      if (!final) return rc;
+      std::cout << stateName(final->state()) << "\n";
+      return jobExit(*final);
+    }
+    if (*list) {
+      v1::ListJobsRequest req;
+      for (const auto& s : states) {
+        v1::JobState st;
+        std::string u = "JOB_STATE_";
+        for (char c : s) u += static_cast<char>(std::toupper(c));
+        if (!v1::JobState_Parse(u, &st)) {
+          std::cerr << "foam: --state: unknown state '" << s << "'\n";
+          return kUsage;
+        }
+        req.add_states(st);
+      }
+      req.set_tag(tag);
+      req.set_sweep_id(sweep_filter);
+      req.set_page_size(limit);
+      v1::ListJobsResponse resp;
+      auto ctx = conn.ctx();
+      const grpc::Status st = conn.stub->ListJobs(ctx.get(), req, &resp);
+      if (!st.ok()) return rpcError(st, "list");
+      if (json) {
+        std::cout << toJsonText(resp) << "\n";
+        return kOk;
+      }
+      std::printf("%-16s %-10s %-8s %6s %7s %-24s %s\n", "ID", "STATE", "SCENE", "SEED", "PROG",
+                  "CREATED", "TAG");
+      for (const auto& j : resp.jobs())
+        std::printf("%-16s %-10s %-8s %6llu %6.1f%% %-24s %s\n", j.id().c_str(),
+                    stateName(j.state()).c_str(), j.scene().c_str(),
+                    static_cast<unsigned long long>(j.seed()), 100 * j.progress(),
+                    j.created_utc().c_str(), j.tag().c_str());
+      if (resp.total() > resp.jobs_size())
+        std::cerr << "foam: " << resp.jobs_size() << " of " << resp.total() << " jobs shown\n";
+      return kOk;
+    }
+    if (*show) {
+      v1::GetJobRequest req;
+      req.set_job_id(id);
+      v1::Job j;
+      auto ctx = conn.ctx();
+      const grpc::Status st = conn.stub->GetJob(ctx.get(), req, &j);
+      if (!st.ok()) return rpcError(st, "show " + id);
+      if (json) {
+        std::cout << toJsonText(j) << "\n";
+        return kOk;
+      }
+      std::cout << stateName(j.state()) << "\n"
+                << "id:        " << j.id() << "\n"
+                << "scene:     " << j.scene() << " (seed " << j.seed() << ")\n"
+                << "progress:  " << 100 * j.progress() << " % (t = " << j.t_s() << " s, "
+                << j.steps() << " steps)\n"
+                << "created:   " << j.created_utc() << "\n"
+                << "started:   " << j.started_utc() << "\n"
+                << "finished:  " << j.finished_utc() << "\n"
+                << "attempts:  " << j.attempts() << "\n"
+                << "engine:    " << j.engine_version() << "\n";
+      if (!j.reason().empty()) std::cout << "reason:    " << j.reason() << "\n";
+      if (!j.tag().empty()) std::cout << "tag:       " << j.tag() << "\n";
+      if (!j.sweep_id().empty()) std::cout << "sweep:     " << j.sweep_id() << "\n";
+      return kOk;
+    }
+    if (*cancel) {
+      v1::CancelJobRequest req;
+      req.set_job_id(id);
+      req.set_reason("cancelled with foam cancel");
+      v1::Job j;
+      auto ctx = conn.ctx();
+      const grpc::Status st = conn.stub->CancelJob(ctx.get(), req, &j);
+      if (!st.ok()) return rpcError(st, "cancel " + id);
+      std::cout << stateName(j.state()) << "\n";
+      return kOk;
+    }
+    if (*results) {
+      v1::GetResultsRequest req;
+      req.set_job_id(id);
+      req.set_with_samples(json || csv);
+      v1::JobResults r;
+      auto ctx = conn.ctx();
+      const grpc::Status st = conn.stub->GetResults(ctx.get(), req, &r);
+      if (!st.ok()) return rpcError(st, "results " + id);
+      if (csv) {
+        for (int i = 0; i < r.columns_size(); ++i) std::cout << (i ? "," : "") << r.columns(i);
+        std::cout << "\n";
+        for (const auto& s : r.samples()) {
+          for (int i = 0; i < s.values_size(); ++i) {
+            char b[32];
+            std::snprintf(b, sizeof b, "%.17g", s.values(i));
+            std::cout << (i ? "," : "") << b;
+          }
+          std::cout << "\n";
+        }
+        return kOk;
+      }
+      if (json) {
+        nlohmann::json j;
+        j["id"] = r.job().id();
+        j["state"] = stateName(r.job().state());
+        j["reason"] = r.job().reason();
+        j["scene"] = r.job().scene();
+        j["seed"] = r.job().seed();
+        j["spec"] = nlohmann::json::parse(r.job().spec_json());
+        j["results"] = nlohmann::json::object();
+        for (const auto& x : r.results()) j["results"][x.name()] = x.value();
+        j["columns"] = r.columns();
+        j["samples"] = nlohmann::json::array();
+        for (const auto& s : r.samples()) j["samples"].push_back(s.values());
+        j["snapshots"] = r.snapshots_size();
+        std::cout << j.dump(2) << "\n";
+        return kOk;
+      }
+      std::cout << "job " << r.job().id() << ": " << stateName(r.job().state())
+                << (r.job().reason().empty() ? "" : " (" + r.job().reason() + ")") << "\n";
+      for (const auto& x : r.results()) std::printf("  %-24s %.6g\n", x.name().c_str(), x.value());
+      return kOk;
+    }
+    if (*sweep) {
+      v1::SubmitSweepRequest req;
+      req.set_spec_text(specText());
+      if (!scene.empty()) req.add_settings("scene=" + scene);
+      for (const auto& s : settings) req.add_settings(s);
+      for (const auto& g : grid) {
+        const auto eq = g.find('=');
+        if (eq == std::string::npos) {
+          std::cerr << "foam: --grid wants key=v1,v2,...\n";
+          return kUsage;
+        }
+        auto* axis = req.add_grid();
+        axis->set_key(g.substr(0, eq));
+        std::stringstream vs(g.substr(eq + 1));
+        for (std::string v; std::getline(vs, v, ',');) axis->add_values(v);
+      }
+      for (auto s : seeds) req.add_seeds(s);
+      req.set_tag(tag);
+      v1::SubmitSweepResponse resp;
+      auto ctx = conn.ctx();
+      const grpc::Status st = conn.stub->SubmitSweep(ctx.get(), req, &resp);
+      if (!st.ok()) return rpcError(st, "sweep");
+      std::cout << resp.sweep_id() << std::endl;
+      std::cerr << "foam: " << resp.job_ids_size() << " jobs\n";
+      if (!wait) return kOk;
+      int worst = kOk;
+      for (const auto& jid : resp.job_ids()) {
+        int rc = kRpc;
+        auto final = watch(conn, jid, true, rc);
+        const int e = final ? jobExit(*final) : rc;
+        if (final) std::cerr << "foam: " << jid << " " << stateName(final->state()) << "\n";
+        worst = std::max(worst, e);
+      }
+      return worst;
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "foam: " << e.what() << "\n";
+    return kUsage;
+  }
+  return kUsage;
+}

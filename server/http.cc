@@ -1,0 +1,185 @@
+// Read-only HTTP endpoint (see http.h).
+#include "http.h"
+
+#include <arpa/inet.h>
+#include <netdb.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cstring>
+#include <sstream>
+#include <stdexcept>
+
+#include <google/protobuf/util/json_util.h>
+#include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
+
+namespace activefoam::server {
+namespace {
+
+nlohmann::json toJson(const google::protobuf::Message& m) {
+  std::string s;
+  google::protobuf::util::JsonPrintOptions o;
+  o.preserve_proto_field_names = true;
+  o.always_print_primitive_fields = true;
+  (void)google::protobuf::util::MessageToJsonString(m, &s, o);
+  return nlohmann::json::parse(s);
+}
+
+}  // namespace
+
+HttpEndpoint::HttpEndpoint(Store& store, Pool& pool, const std::string& listen)
+    : store_(store), pool_(pool) {
+  const auto colon = listen.rfind(':');
+  if (colon == std::string::npos) throw std::runtime_error("--http: expected HOST:PORT");
+  std::string host = listen.substr(0, colon);
+  const std::string port = listen.substr(colon + 1);
+  if (host.size() > 1 && host.front() == '[') host = host.substr(1, host.size() - 2);
+  addrinfo hints{};
+  hints.ai_family = AF_UNSPEC;
+  hints.ai_socktype = SOCK_STREAM;
+  hints.ai_flags = AI_PASSIVE;
+  addrinfo* res = nullptr;
+  if (getaddrinfo(host.c_str(), port.c_str(), &hints, &res) != 0 || !res)
+    throw std::runtime_error("--http: cannot resolve " + listen);
+  fd_ = socket(res->ai_family, SOCK_STREAM, 0);
+  int one = 1;
+  setsockopt(fd_, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+  if (fd_ < 0 || bind(fd_, res->ai_addr, res->ai_addrlen) != 0 || ::listen(fd_, 16) != 0) {
+    freeaddrinfo(res);
+    if (fd_ >= 0) close(fd_);
+    throw std::runtime_error("--http: cannot listen on " + listen + ": " + std::strerror(errno));
+  }
+  freeaddrinfo(res);
+  sockaddr_storage ss{};
+  socklen_t len = sizeof ss;
+  getsockname(fd_, reinterpret_cast<sockaddr*>(&ss), &len);
+  port_ = ntohs(ss.ss_family == AF_INET6 ? reinterpret_cast<sockaddr_in6*>(&ss)->sin6_port
+                                         : reinterpret_cast<sockaddr_in*>(&ss)->sin_port);
+  thread_ = std::thread([this] { loop(); });
+  spdlog::info("foamd: HTTP (read-only JSON, /metrics) on {} (port {})", listen, port_);
+}
+
+HttpEndpoint::~HttpEndpoint() {
+  stop_ = true;
+  if (thread_.joinable()) thread_.join();
+  if (fd_ >= 0) close(fd_);
+}
+
+std::string HttpEndpoint::handle(const std::string& path, int& code, std::string& type) {
+  code = 200;
+  type = "application/json";
+  try {
+    if (path == "/metrics") {
+      type = "text/plain; version=0.0.4";
+      const auto counts = store_.countByState();
+      auto count = [&](v1::JobState s) {
+        auto it = counts.find(s);
+        return it == counts.end() ? 0 : it->second;
+      };
+      const PoolStats& st = pool_.stats();
+      std::ostringstream o;
+      o << "# HELP foamd_queue_depth Jobs waiting to run.\n# TYPE foamd_queue_depth gauge\n"
+        << "foamd_queue_depth " << count(v1::JOB_STATE_QUEUED) << "\n"
+        << "# HELP foamd_running_jobs Jobs running now.\n# TYPE foamd_running_jobs gauge\n"
+        << "foamd_running_jobs " << st.running.load() << "\n"
+        << "# HELP foamd_workers Engine workers.\n# TYPE foamd_workers gauge\n"
+        << "foamd_workers " << pool_.workers() << "\n"
+        << "# HELP foamd_steps_total Engine steps taken by this process (rate() = steps/s).\n"
+        << "# TYPE foamd_steps_total counter\nfoamd_steps_total " << st.steps_total.load() << "\n"
+        << "# HELP foamd_jobs_finished_total Jobs finished by this process, by outcome.\n"
+        << "# TYPE foamd_jobs_finished_total counter\n"
+        << "foamd_jobs_finished_total{state=\"succeeded\"} " << st.jobs_succeeded.load() << "\n"
+        << "foamd_jobs_finished_total{state=\"failed\"} " << st.jobs_failed.load() << "\n"
+        << "foamd_jobs_finished_total{state=\"cancelled\"} " << st.jobs_cancelled.load() << "\n"
+        << "# HELP foamd_jobs Jobs in the store by state.\n# TYPE foamd_jobs gauge\n";
+      for (auto s : {v1::JOB_STATE_QUEUED, v1::JOB_STATE_RUNNING, v1::JOB_STATE_SUCCEEDED,
+                     v1::JOB_STATE_FAILED, v1::JOB_STATE_CANCELLED})
+        o << "foamd_jobs{state=\"" << v1::JobState_Name(s) << "\"} " << count(s) << "\n";
+      return o.str();
+    }
+    if (path == "/healthz") return "{\"status\":\"ok\"}";
+    if (path == "/jobs" || path.rfind("/jobs?", 0) == 0) {
+      v1::ListJobsRequest req;
+      req.set_page_size(1000);
+      return toJson(store_.listJobs(req)).dump();
+    }
+    if (path.rfind("/jobs/", 0) == 0) {
+      std::string rest = path.substr(6);
+      std::string what;
+      if (auto slash = rest.find('/'); slash != std::string::npos) {
+        what = rest.substr(slash + 1);
+        rest = rest.substr(0, slash);
+      }
+      if (what.empty()) {
+        auto j = store_.getJob(rest);
+        if (!j) throw StoreError(StoreError::Kind::NotFound, "no job '" + rest + "'");
+        return toJson(*j).dump();
+      }
+      if (what == "results") return toJson(store_.results(rest, false)).dump();
+      if (what == "samples") {
+        const v1::JobResults r = store_.results(rest, true);
+        nlohmann::json j = {{"columns", r.columns()}, {"rows", nlohmann::json::array()}};
+        for (const auto& s : r.samples()) j["rows"].push_back(s.values());
+        return j.dump();
+      }
+    }
+    code = 404;
+    return "{\"error\":\"not found\"}";
+  } catch (const StoreError& e) {
+    code = e.kind == StoreError::Kind::NotFound ? 404 : 400;
+    return nlohmann::json{{"error", e.what()}}.dump();
+  } catch (const std::exception& e) {
+    code = 500;
+    return nlohmann::json{{"error", e.what()}}.dump();
+  }
+}
+
+void HttpEndpoint::loop() {
+  while (!stop_) {
+    pollfd p{fd_, POLLIN, 0};
+    if (poll(&p, 1, 200) <= 0) continue;
+    const int c = accept(fd_, nullptr, nullptr);
+    if (c < 0) continue;
+    timeval tv{2, 0};
+    setsockopt(c, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    std::string req;
+    char buf[2048];
+    while (req.find("\r\n\r\n") == std::string::npos && req.size() < 16384) {
+      const ssize_t n = recv(c, buf, sizeof buf, 0);
+      if (n <= 0) break;
+      req.append(buf, static_cast<std::size_t>(n));
+    }
+    int code = 400;
+    std::string type = "text/plain", body = "bad request\n";
+    std::istringstream line(req.substr(0, req.find("\r\n")));
+    std::string method, path;
+    line >> method >> path;
+    if (method == "GET")
+      body = handle(path, code, type);
+    else if (!method.empty()) {
+      code = 405;
+      body = "read-only endpoint: GET only\n";
+    }
+    const char* text = code == 200   ? "OK"
+                       : code == 404 ? "Not Found"
+                       : code == 405 ? "Method Not Allowed"
+                       : code == 500 ? "Internal Server Error"
+                                     : "Bad Request";
+    std::string resp = "HTTP/1.0 " + std::to_string(code) + " " + text +
+                       "\r\nContent-Type: " + type +
+                       "\r\nContent-Length: " + std::to_string(body.size()) +
+                       "\r\nConnection: close\r\n\r\n" + body;
+    std::size_t off = 0;
+    while (off < resp.size()) {
+      const ssize_t n = send(c, resp.data() + off, resp.size() - off, MSG_NOSIGNAL);
+      if (n <= 0) break;
+      off += static_cast<std::size_t>(n);
+    }
+    close(c);
+  }
+}
+
+}  // namespace activefoam::server

@@ -1,0 +1,141 @@
+// foamd: the activefoam server (DESIGN.md §8).
+//
+//   foamd [--listen HOST:PORT] [--db PATH] [--workers N] [--token-file F] [--http HOST:PORT]
+//         [--tls-cert F --tls-key F] [--config F] [--keep-snapshots N] [--log-level L]
+//
+// With no flags: gRPC on 127.0.0.1:50051, database $XDG_DATA_HOME/activefoam/foamd.db (or
+// ~/.local/share/activefoam/foamd.db), one engine worker per core. The config file is TOML with
+// the long flag names as keys (listen = "127.0.0.1:50051", workers = 2, ...).
+// SIGTERM / SIGINT: stop accepting, stop the workers (their jobs go back to the queue and resume
+// from their last checkpoint on the next start), close the store. Exit 0; 2 on bad usage or
+// when the server cannot start.
+#include <csignal>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <sstream>
+#include <thread>
+
+#include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
+
+#include "http.h"
+#include "pool.h"
+#include "service.h"
+#include "store.h"
+
+namespace fs = std::filesystem;
+using namespace activefoam::server;
+
+namespace {
+
+std::string defaultDbPath() {
+  fs::path base;
+  if (const char* x = std::getenv("XDG_DATA_HOME"); x && *x)
+    base = x;
+  else if (const char* h = std::getenv("HOME"); h && *h)
+    base = fs::path(h) / ".local" / "share";
+  else
+    base = ".";
+  return (base / "activefoam" / "foamd.db").string();
+}
+
+std::string readFile(const std::string& path, const char* what) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(std::string("cannot read ") + what + " '" + path + "'");
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::string trim(std::string s) {
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
+  std::size_t i = 0;
+  while (i < s.size() && std::isspace(static_cast<unsigned char>(s[i]))) ++i;
+  return s.substr(i);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"foamd: activefoam simulation server (gRPC API, SQLite store, engine pool)"};
+  std::string listen = "127.0.0.1:50051", db = defaultDbPath(), token_file, http, cert, key;
+  std::string log_level = "info";
+  int workers = 0, keep_snapshots = 0;
+  double checkpoint_every_s = 60;
+  app.add_option("--listen", listen, "gRPC address HOST:PORT")->capture_default_str();
+  app.add_option("--db", db, "SQLite database file")->capture_default_str();
+  app.add_option("--workers", workers, "engine workers (0 = one per core)")
+      ->check(CLI::Range(0, 1024));
+  app.add_option("--token-file", token_file, "file holding the bearer token every call needs");
+  app.add_option("--http", http, "read-only HTTP endpoint HOST:PORT (JSON, /metrics)");
+  app.add_option("--tls-cert", cert, "TLS certificate (PEM)");
+  app.add_option("--tls-key", key, "TLS private key (PEM)");
+  app.add_option("--keep-snapshots", keep_snapshots,
+                 "snapshots kept per job, newest first (0 = all)")
+      ->check(CLI::Range(0, 1000000));
+  app.add_option("--checkpoint-every-s", checkpoint_every_s, "wall seconds between checkpoints")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--log-level", log_level, "trace|debug|info|warn|error")->capture_default_str();
+  app.set_config("--config", "", "TOML config file (keys = long flag names)");
+  app.set_version_flag("--version", std::string("foamd ") + ACTIVEFOAM_VERSION);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  spdlog::set_level(spdlog::level::from_str(log_level));
+  spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
+
+  // Block the stop signals in every thread; the main thread waits for them below.
+  sigset_t sigs;
+  sigemptyset(&sigs);
+  sigaddset(&sigs, SIGTERM);
+  sigaddset(&sigs, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &sigs, nullptr);
+
+  try {
+    ServerConfig config;
+    config.listen = listen;
+    if (!token_file.empty()) {
+      config.token = trim(readFile(token_file, "token file"));
+      if (config.token.empty())
+        throw std::runtime_error("token file '" + token_file + "' is empty");
+    }
+    if (!cert.empty()) config.tls_cert = readFile(cert, "TLS certificate");
+    if (!key.empty()) config.tls_key = readFile(key, "TLS key");
+
+    if (const fs::path dir = fs::path(db).parent_path(); !dir.empty()) fs::create_directories(dir);
+    StoreOptions so;
+    so.keep_snapshots = keep_snapshots;
+    Store store(db, so);
+    spdlog::info("foamd {}: store {} (schema {})", ACTIVEFOAM_VERSION, db, store.schemaVersion());
+    if (const int n = store.requeueRunning("foamd restarted while it was running; re-queued"))
+      spdlog::warn("store: {} job(s) were running when foamd stopped; re-queued", n);
+
+    PoolOptions po;
+    po.workers = workers;
+    po.checkpoint_every_s = checkpoint_every_s;
+    Pool pool(store, po);
+    FoamServer server(store, pool, config);
+    server.start();
+    std::unique_ptr<HttpEndpoint> endpoint;
+    if (!http.empty()) endpoint = std::make_unique<HttpEndpoint>(store, pool, http);
+    pool.start();
+
+    int sig = 0;
+    sigwait(&sigs, &sig);
+    spdlog::info("foamd: {} received, shutting down", sig == SIGTERM ? "SIGTERM" : "SIGINT");
+    server.shutdown();
+    pool.stop(true);  // running jobs → queued (resume from their checkpoints)
+    endpoint.reset();
+    store.flush();
+    spdlog::info("foamd: stopped");
+    return 0;
+  } catch (const std::exception& e) {
+    spdlog::error("foamd: {}", e.what());
+    return 2;
+  }
+}

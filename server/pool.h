@@ -1,0 +1,70 @@
+// The engine pool: a fixed number of workers take queued jobs from the store by priority then
+// age and run them through activefoam::runScene with a cancel flag and a progress callback.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "store.h"
+
+namespace activefoam::server {
+
+struct PoolOptions {
+  int workers = 0;                 // 0 = hardware concurrency
+  double progress_every_s = 0.5;   // wall time between progress events
+  double checkpoint_every_s = 60;  // wall time between checkpoints (engine support needed)
+};
+
+struct PoolStats {
+  std::atomic<std::int64_t> steps_total{0};
+  std::atomic<std::int64_t> jobs_succeeded{0};
+  std::atomic<std::int64_t> jobs_failed{0};
+  std::atomic<std::int64_t> jobs_cancelled{0};
+  std::atomic<int> running{0};
+};
+
+class Pool {
+ public:
+  Pool(Store& store, PoolOptions options);
+  ~Pool();  // = stop(true)
+
+  void start();
+  // Something was queued: wake an idle worker.
+  void wake();
+  // A running job: raise its cancel flag (it ends as cancelled). Returns false if not running here.
+  bool cancel(const std::string& id, const std::string& reason);
+  // Shutdown: raise every flag; running jobs go back to queued (with their last checkpoint).
+  void stop(bool requeue_running);
+
+  int workers() const { return static_cast<int>(threads_.size()); }
+  const PoolStats& stats() const { return stats_; }
+
+ private:
+  struct Running {
+    std::atomic<bool> cancel{false};
+    std::string reason;
+  };
+  void workerLoop();
+  void runJob(const Claimed& claimed, Running& flag);
+
+  Store& store_;
+  PoolOptions options_;
+  PoolStats stats_;
+  std::vector<std::thread> threads_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::map<std::string, std::shared_ptr<Running>> running_;
+  std::uint64_t wake_gen_ = 0;
+  bool stopping_ = false;
+  bool shutdown_requeue_ = false;
+};
+
+}  // namespace activefoam::server

@@ -1,0 +1,503 @@
+// The activefoam.v1.Foam service (callback API), see service.h.
+#include "service.h"
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <grpcpp/security/server_credentials.h>
+
+#include <algorithm>
+#include <chrono>
+#include <map>
+#include <set>
+#include <thread>
+
+#include <spdlog/spdlog.h>
+
+#include "activefoam/spec_io.h"
+#include "activefoam/v1/service.grpc.pb.h"
+#include "spec_convert.h"
+
+namespace activefoam::server {
+namespace {
+
+using grpc::CallbackServerContext;
+using grpc::ServerUnaryReactor;
+using grpc::Status;
+using grpc::StatusCode;
+
+constexpr std::size_t kSnapshotChunk = 1024 * 1024;
+
+// Every call must carry `authorization: Bearer <token>` when a token is set.
+class TokenAuth : public grpc::AuthMetadataProcessor {
+ public:
+  explicit TokenAuth(std::string token) : expected_("Bearer " + std::move(token)) {}
+  bool IsBlocking() const override { return false; }
+  Status Process(const InputMetadata& md, grpc::AuthContext*, OutputMetadata* consumed,
+                 OutputMetadata*) override {
+    auto it = md.find("authorization");
+    if (it == md.end())
+      return Status(StatusCode::UNAUTHENTICATED, "missing 'authorization: Bearer <token>'");
+    const std::string got(it->second.data(), it->second.size());
+    // Constant-time comparison.
+    unsigned diff = got.size() == expected_.size() ? 0u : 1u;
+    for (std::size_t i = 0; i < got.size() && i < expected_.size(); ++i)
+      diff |= static_cast<unsigned>(got[i] ^ expected_[i]);
+    if (diff != 0) return Status(StatusCode::UNAUTHENTICATED, "wrong token");
+    consumed->insert(std::make_pair(std::string(it->first.data(), it->first.size()), got));
+    return Status::OK;
+  }
+
+ private:
+  std::string expected_;
+};
+
+Status storeStatus(const StoreError& e) {
+  switch (e.kind) {
+    case StoreError::Kind::InvalidArgument:
+      return Status(StatusCode::INVALID_ARGUMENT, e.what());
+    case StoreError::Kind::NotFound:
+      return Status(StatusCode::NOT_FOUND, e.what());
+    case StoreError::Kind::FailedPrecondition:
+      return Status(StatusCode::FAILED_PRECONDITION, e.what());
+  }
+  return Status(StatusCode::INTERNAL, e.what());
+}
+
+// Runs `fn` and maps exceptions to statuses.
+template <class F>
+Status guarded(F&& fn) {
+  try {
+    return fn();
+  } catch (const StoreError& e) {
+    return storeStatus(e);
+  } catch (const std::exception& e) {
+    spdlog::error("rpc: internal error: {}", e.what());
+    return Status(StatusCode::INTERNAL, e.what());
+  }
+}
+
+bool isLoopback(const std::string& hostport) {
+  const std::string host = hostport.substr(0, hostport.rfind(':'));
+  return host == "127.0.0.1" || host == "localhost" || host == "[::1]" || host == "::1" ||
+         host.rfind("127.", 0) == 0;
+}
+
+// Watchers waiting for new events of a job; poked by the store after each commit.
+class Hub {
+ public:
+  using Poke = std::function<void()>;
+  std::uint64_t add(const std::string& job, Poke poke) {
+    std::lock_guard lock(mu_);
+    const std::uint64_t key = ++next_;
+    subs_[job][key] = std::move(poke);
+    return key;
+  }
+  void remove(const std::string& job, std::uint64_t key) {
+    std::lock_guard lock(mu_);
+    auto it = subs_.find(job);
+    if (it == subs_.end()) return;
+    it->second.erase(key);
+    if (it->second.empty()) subs_.erase(it);
+  }
+  void notify(const std::string& job) {
+    std::lock_guard lock(mu_);  // held while poking: remove() waits, so no poke after OnDone
+    auto it = subs_.find(job);
+    if (it == subs_.end()) return;
+    for (auto& [k, poke] : it->second) poke();
+  }
+
+ private:
+  std::mutex mu_;
+  std::uint64_t next_ = 0;
+  std::map<std::string, std::map<std::uint64_t, Poke>> subs_;
+};
+
+class WatchReactor : public grpc::ServerWriteReactor<v1::JobEvent> {
+ public:
+  WatchReactor(Store& store, Hub& hub, const v1::WatchJobRequest& req)
+      : store_(store),
+        hub_(hub),
+        job_(req.job_id()),
+        after_(req.from_seq()),
+        follow_(req.follow()) {
+    key_ = hub_.add(job_, [this] { next(); });
+    next();
+  }
+  void OnWriteDone(bool ok) override {
+    {
+      std::lock_guard lock(mu_);
+      writing_ = false;
+      if (!ok) {
+        finishLocked(Status(StatusCode::CANCELLED, "stream broken"));
+        return;
+      }
+    }
+    next();
+  }
+  void OnCancel() override {
+    std::lock_guard lock(mu_);
+    cancelled_ = true;
+    if (!writing_) finishLocked(Status::CANCELLED);
+  }
+  void OnDone() override {
+    hub_.remove(job_, key_);
+    delete this;
+  }
+
+ private:
+  void finishLocked(Status s) {
+    if (finished_) return;
+    finished_ = true;
+    Finish(std::move(s));
+  }
+  // Sends the next stored event, or finishes when there is none and the job has ended.
+  void next() {
+    std::unique_lock lock(mu_);
+    if (writing_ || finished_) return;
+    if (cancelled_) {
+      finishLocked(Status::CANCELLED);
+      return;
+    }
+    try {
+      if (pending_.empty()) {
+        const std::optional<v1::Job> job = store_.getJob(job_);  // state first, then events
+        if (!job) {
+          finishLocked(Status(StatusCode::NOT_FOUND, "no job '" + job_ + "'"));
+          return;
+        }
+        auto evs = store_.events(job_, after_, 256);
+        for (auto& e : evs) pending_.push_back(std::move(e));
+        if (pending_.empty()) {
+          if (isTerminal(job->state()) || !follow_) finishLocked(Status::OK);
+          return;  // wait for a poke
+        }
+      }
+      current_ = std::move(pending_.front());
+      pending_.pop_front();
+      after_ = current_.seq();
+      writing_ = true;
+    } catch (const std::exception& e) {
+      finishLocked(Status(StatusCode::INTERNAL, e.what()));
+      return;
+    }
+    lock.unlock();
+    StartWrite(&current_);
+  }
+
+  Store& store_;
+  Hub& hub_;
+  std::string job_;
+  std::int64_t after_;
+  bool follow_;
+  std::uint64_t key_ = 0;
+  std::mutex mu_;
+  std::deque<v1::JobEvent> pending_;
+  v1::JobEvent current_;
+  bool writing_ = false;
+  bool finished_ = false;
+  bool cancelled_ = false;
+};
+
+class SnapshotReactor : public grpc::ServerWriteReactor<v1::SnapshotChunk> {
+ public:
+  SnapshotReactor(v1::SnapshotInfo info, std::string compression, std::string data)
+      : data_(std::move(data)) {
+    *chunk_.mutable_info() = info;
+    chunk_.set_compression(compression);
+    chunk_.set_total_bytes(static_cast<std::int64_t>(data_.size()));
+    next();
+  }
+  void OnWriteDone(bool ok) override {
+    if (!ok) return Finish(Status(StatusCode::CANCELLED, "stream broken"));
+    next();
+  }
+  void OnDone() override { delete this; }
+
+ private:
+  void next() {
+    if (offset_ >= data_.size() && offset_ > 0) return Finish(Status::OK);
+    const std::size_t n = std::min(kSnapshotChunk, data_.size() - offset_);
+    if (offset_ > 0) chunk_.Clear();
+    chunk_.set_data(data_.substr(offset_, n));
+    offset_ += n;
+    if (n == 0) offset_ = 1;  // empty blob: one chunk, then finish
+    StartWrite(&chunk_);
+  }
+  std::string data_;
+  std::size_t offset_ = 0;
+  v1::SnapshotChunk chunk_;
+};
+
+class FoamService final : public v1::Foam::CallbackService {
+ public:
+  FoamService(Store& store, Pool& pool) : store_(store), pool_(pool) {
+    store_.setEventListener([this](const std::string& id) { hub_.notify(id); });
+  }
+  ~FoamService() override { store_.setEventListener(nullptr); }
+
+  ServerUnaryReactor* SubmitJob(CallbackServerContext* ctx, const v1::SubmitJobRequest* req,
+                                v1::SubmitJobResponse* resp) override {
+    return done(
+        ctx, guarded([&] {
+          if (req->idempotency_key().size() > 256)
+            return Status(StatusCode::INVALID_ARGUMENT, "idempotency_key: at most 256 bytes");
+          if (req->tag().size() > 256)
+            return Status(StatusCode::INVALID_ARGUMENT, "tag: at most 256 bytes");
+          const std::vector<std::string> settings(req->settings().begin(), req->settings().end());
+          ConvertResult conv = convertSpec(req->spec(), req->spec_text(), settings);
+          if (!conv.ok()) return Status(StatusCode::INVALID_ARGUMENT, errorText(conv.errors));
+          NewJob job;
+          job.spec = *conv.spec;
+          job.spec_json = specToJson(job.spec).dump();
+          job.priority = req->priority();
+          job.tag = req->tag();
+          job.idempotency_key = req->idempotency_key();
+          auto [id, created] = store_.submit(job);
+          resp->set_job_id(id);
+          resp->set_created(created);
+          if (auto j = store_.getJob(id)) *resp->mutable_job() = *j;
+          if (created) {
+            spdlog::info("job {}: submitted ({}, seed {}, priority {})", id,
+                         toString(job.spec.scene), job.spec.seed, job.priority);
+            pool_.wake();
+          }
+          return Status::OK;
+        }));
+  }
+
+  ServerUnaryReactor* GetJob(CallbackServerContext* ctx, const v1::GetJobRequest* req,
+                             v1::Job* resp) override {
+    return done(ctx, guarded([&] {
+                  auto j = store_.getJob(req->job_id());
+                  if (!j) return Status(StatusCode::NOT_FOUND, "no job '" + req->job_id() + "'");
+                  *resp = *j;
+                  return Status::OK;
+                }));
+  }
+
+  ServerUnaryReactor* ListJobs(CallbackServerContext* ctx, const v1::ListJobsRequest* req,
+                               v1::ListJobsResponse* resp) override {
+    return done(ctx, guarded([&] {
+                  *resp = store_.listJobs(*req);
+                  return Status::OK;
+                }));
+  }
+
+  ServerUnaryReactor* CancelJob(CallbackServerContext* ctx, const v1::CancelJobRequest* req,
+                                v1::Job* resp) override {
+    return done(ctx, guarded([&] {
+                  const std::string reason =
+                      req->reason().empty() ? "cancelled by request" : req->reason();
+                  v1::Job j = store_.cancel(req->job_id(), reason);
+                  if (j.state() == v1::JOB_STATE_RUNNING) {
+                    // Claimed a moment ago, maybe not yet registered with the pool: retry.
+                    for (int i = 0; i < 200 && !pool_.cancel(j.id(), reason); ++i) {
+                      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+                      j = *store_.getJob(j.id());
+                      if (j.state() != v1::JOB_STATE_RUNNING) break;
+                    }
+                    j = *store_.getJob(j.id());
+                  }
+                  *resp = j;
+                  return Status::OK;
+                }));
+  }
+
+  grpc::ServerWriteReactor<v1::JobEvent>* WatchJob(CallbackServerContext*,
+                                                   const v1::WatchJobRequest* req) override {
+    return new WatchReactor(store_, hub_, *req);
+  }
+
+  ServerUnaryReactor* GetResults(CallbackServerContext* ctx, const v1::GetResultsRequest* req,
+                                 v1::JobResults* resp) override {
+    return done(ctx, guarded([&] {
+                  *resp = store_.results(req->job_id(), req->with_samples());
+                  return Status::OK;
+                }));
+  }
+
+  ServerUnaryReactor* QueryResults(CallbackServerContext* ctx, const v1::QueryResultsRequest* req,
+                                   v1::QueryResultsResponse* resp) override {
+    return done(ctx, guarded([&] {
+                  *resp = store_.queryResults(*req);
+                  return Status::OK;
+                }));
+  }
+
+  ServerUnaryReactor* SubmitSweep(CallbackServerContext* ctx, const v1::SubmitSweepRequest* req,
+                                  v1::SubmitSweepResponse* resp) override {
+    return done(ctx, guarded([&] { return sweep(*req, resp); }));
+  }
+
+  grpc::ServerWriteReactor<v1::SnapshotChunk>* GetSnapshot(
+      CallbackServerContext*, const v1::GetSnapshotRequest* req) override {
+    std::optional<std::tuple<v1::SnapshotInfo, std::string, std::string>> snap;
+    Status status;
+    status = guarded([&] {
+      if (!store_.getJob(req->job_id()))
+        return Status(StatusCode::NOT_FOUND, "no job '" + req->job_id() + "'");
+      snap = store_.snapshot(req->job_id(), req->index());
+      if (!snap)
+        return Status(StatusCode::NOT_FOUND, "job '" + req->job_id() + "' has no snapshot " +
+                                                 std::to_string(req->index()));
+      return Status::OK;
+    });
+    if (!status.ok()) {
+      struct Fail : grpc::ServerWriteReactor<v1::SnapshotChunk> {
+        explicit Fail(Status s) { Finish(std::move(s)); }
+        void OnDone() override { delete this; }
+      };
+      return new Fail(status);
+    }
+    auto& [info, comp, data] = *snap;
+    return new SnapshotReactor(info, comp, std::move(data));
+  }
+
+ private:
+  static ServerUnaryReactor* done(CallbackServerContext* ctx, Status s) {
+    auto* r = ctx->DefaultReactor();
+    r->Finish(std::move(s));
+    return r;
+  }
+
+  Status sweep(const v1::SubmitSweepRequest& req, v1::SubmitSweepResponse* resp) {
+    // Parameter sets: the cartesian product of the grid, or the explicit list, or one empty set.
+    std::vector<std::vector<std::string>> sets{{}};
+    if (req.grid_size() > 0) {
+      for (int a = 0; a < req.grid_size(); ++a) {
+        const v1::GridAxis& axis = req.grid(a);
+        if (axis.values_size() == 0)
+          return Status(StatusCode::INVALID_ARGUMENT,
+                        "grid[" + std::to_string(a) + "].values: empty (key " + axis.key() + ")");
+        std::vector<std::vector<std::string>> next;
+        for (const auto& s : sets)
+          for (const std::string& v : axis.values()) {
+            next.push_back(s);
+            next.back().push_back(axis.key() + "=" + v);
+          }
+        sets = std::move(next);
+        if (sets.size() > 100000)
+          return Status(StatusCode::INVALID_ARGUMENT, "grid: more than 100000 jobs");
+      }
+    } else if (req.sets_size() > 0) {
+      sets.clear();
+      for (const auto& ps : req.sets())
+        sets.emplace_back(ps.settings().begin(), ps.settings().end());
+    }
+    std::vector<std::uint64_t> seeds(req.seeds().begin(), req.seeds().end());
+    std::vector<NewJob> jobs;
+    const std::vector<std::string> base(req.settings().begin(), req.settings().end());
+    for (std::size_t i = 0; i < sets.size(); ++i) {
+      std::vector<std::string> settings = base;
+      settings.insert(settings.end(), sets[i].begin(), sets[i].end());
+      const std::size_t nseeds = seeds.empty() ? 1 : seeds.size();
+      for (std::size_t k = 0; k < nseeds; ++k) {
+        std::vector<std::string> s = settings;
+        if (!seeds.empty()) s.push_back("seed=" + std::to_string(seeds[k]));
+        ConvertResult conv = convertSpec(req.spec(), req.spec_text(), s);
+        if (!conv.ok())
+          return Status(StatusCode::INVALID_ARGUMENT,
+                        "parameter set " + std::to_string(i) + ": " + errorText(conv.errors));
+        NewJob j;
+        j.spec = *conv.spec;
+        j.spec_json = specToJson(j.spec).dump();
+        j.priority = req.priority();
+        j.tag = req.tag();
+        jobs.push_back(std::move(j));
+      }
+    }
+    auto [sid, ids, created] = store_.submitSweep(req.name(), req.idempotency_key(), jobs);
+    resp->set_sweep_id(sid);
+    for (const auto& id : ids) resp->add_job_ids(id);
+    resp->set_created(created);
+    if (created) {
+      spdlog::info("sweep {}: {} jobs", sid, ids.size());
+      pool_.wake();
+    }
+    return Status::OK;
+  }
+
+  Store& store_;
+  Pool& pool_;
+  Hub hub_;
+};
+
+}  // namespace
+
+struct FoamServer::Impl {
+  Store& store;
+  Pool& pool;
+  ServerConfig config;
+  std::unique_ptr<FoamService> service;
+  std::unique_ptr<grpc::Server> server;
+  int port = 0;
+};
+
+FoamServer::FoamServer(Store& store, Pool& pool, ServerConfig config)
+    : impl_(new Impl{store, pool, std::move(config), nullptr, nullptr, 0}) {}
+
+FoamServer::~FoamServer() {
+  shutdown();
+}
+
+void FoamServer::start() {
+  Impl& m = *impl_;
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  m.service = std::make_unique<FoamService>(m.store, m.pool);
+
+  std::shared_ptr<grpc::ServerCredentials> creds;
+  const bool tls = !m.config.tls_cert.empty() || !m.config.tls_key.empty();
+  if (tls) {
+    if (m.config.tls_cert.empty() || m.config.tls_key.empty())
+      throw std::runtime_error("TLS needs both --tls-cert and --tls-key");
+    grpc::SslServerCredentialsOptions opts;
+    opts.pem_key_cert_pairs.push_back({m.config.tls_key, m.config.tls_cert});
+    creds = grpc::SslServerCredentials(opts);
+  } else if (!m.config.token.empty()) {
+    // A token needs a channel that is not plain text to the world: loopback (local
+    // credentials) or TLS.
+    if (!isLoopback(m.config.listen))
+      throw std::runtime_error(
+          "a token on a non-loopback address needs TLS (--tls-cert/--tls-key)");
+    creds = grpc::experimental::LocalServerCredentials(LOCAL_TCP);
+  } else {
+    creds = grpc::InsecureServerCredentials();
+  }
+  if (!m.config.token.empty())
+    creds->SetAuthMetadataProcessor(std::make_shared<TokenAuth>(m.config.token));
+
+  grpc::ServerBuilder builder;
+  builder.AddListeningPort(m.config.listen, creds, &m.port);
+  builder.RegisterService(m.service.get());
+  builder.SetMaxReceiveMessageSize(m.config.max_message_bytes);
+  m.server = builder.BuildAndStart();
+  if (!m.server || m.port == 0) throw std::runtime_error("cannot listen on " + m.config.listen);
+  if (auto* health = m.server->GetHealthCheckService()) {
+    health->SetServingStatus(true);
+    health->SetServingStatus("activefoam.v1.Foam", true);
+  }
+  spdlog::info("foamd: gRPC on {} (port {}){}{}", m.config.listen, m.port, tls ? ", TLS" : "",
+               m.config.token.empty() ? "" : ", token required");
+}
+
+int FoamServer::port() const {
+  return impl_->port;
+}
+
+void FoamServer::shutdown() {
+  if (impl_->server) {
+    if (auto* health = impl_->server->GetHealthCheckService()) health->Shutdown();
+    impl_->server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+    impl_->server->Wait();
+    impl_->server.reset();
+  }
+  impl_->service.reset();
+}
+
+void FoamServer::wait() {
+  if (impl_->server) impl_->server->Wait();
+}
+
+}  // namespace activefoam::server

@@ -1,0 +1,37 @@
+// foamd's gRPC side: the activefoam.v1.Foam service, health, reflection, auth and TLS.
+// The only server translation unit (with server.cc's main) that includes gRPC headers.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "pool.h"
+#include "store.h"
+
+namespace activefoam::server {
+
+struct ServerConfig {
+  std::string listen = "127.0.0.1:50051";
+  std::string token;     // empty: no authentication
+  std::string tls_cert;  // PEM file contents (both or neither)
+  std::string tls_key;
+  int max_message_bytes = 4 * 1024 * 1024;
+};
+
+class FoamServer {
+ public:
+  FoamServer(Store& store, Pool& pool, ServerConfig config);
+  ~FoamServer();
+  // Binds and starts serving; throws std::runtime_error when it cannot bind.
+  void start();
+  int port() const;  // the bound port (useful with listen = "127.0.0.1:0")
+  void shutdown();   // stops accepting, ends open streams
+  void wait();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace activefoam::server

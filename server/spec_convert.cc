@@ -1,0 +1,244 @@
+// Proto ↔ engine spec conversion by the key table (see spec_convert.h).
+#include "spec_convert.h"
+
+#include <cctype>
+#include <cstdint>
+#include <limits>
+#include <type_traits>
+#include <variant>
+
+#include <google/protobuf/descriptor.h>
+#include <google/protobuf/message.h>
+
+#include "activefoam/spec_io.h"
+
+namespace activefoam::server {
+namespace {
+
+namespace pb = google::protobuf;
+
+// Enum value name → the engine's choice text: INTEGRATOR_SEMI_IMPLICIT → "semi-implicit"
+// (the prefix is that of the enum's UNSPECIFIED value).
+std::string enumChoice(const pb::EnumValueDescriptor* v) {
+  std::string prefix = v->type()->value(0)->name();
+  prefix.resize(prefix.size() - std::string_view("UNSPECIFIED").size());
+  std::string name = v->name().substr(prefix.size());
+  for (char& c : name) c = c == '_' ? '-' : static_cast<char>(std::tolower(c));
+  return name;
+}
+
+const pb::EnumValueDescriptor* enumFromChoice(const pb::EnumDescriptor* e, std::string_view text) {
+  for (int i = 1; i < e->value_count(); ++i)
+    if (enumChoice(e->value(i)) == text) return e->value(i);
+  return nullptr;
+}
+
+void applyMessage(const pb::Message& m, const std::string& prefix, SceneSpec& spec,
+                  std::vector<SpecError>& errors) {
+  const pb::Reflection* r = m.GetReflection();
+  std::vector<const pb::FieldDescriptor*> fields;
+  r->ListFields(m, &fields);
+  for (const pb::FieldDescriptor* f : fields) {
+    const std::string key = prefix + f->name();
+    std::optional<SpecError> e;
+    switch (f->cpp_type()) {
+      case pb::FieldDescriptor::CPPTYPE_DOUBLE:
+        e = setField(spec, key, r->GetDouble(m, f));
+        break;
+      case pb::FieldDescriptor::CPPTYPE_INT64:
+        e = setField(spec, key, static_cast<std::int64_t>(r->GetInt64(m, f)));
+        break;
+      case pb::FieldDescriptor::CPPTYPE_UINT64: {
+        const std::uint64_t v = r->GetUInt64(m, f);
+        if (v > static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max()))
+          e = SpecError{key, "too large: at most 9223372036854775807"};
+        else
+          e = setField(spec, key, static_cast<std::int64_t>(v));
+        break;
+      }
+      case pb::FieldDescriptor::CPPTYPE_ENUM: {
+        const pb::EnumValueDescriptor* v = r->GetEnum(m, f);
+        if (v->number() != 0) e = setField(spec, key, enumChoice(v));
+        break;
+      }
+      default:
+        e = SpecError{key, "unsupported field type"};  // a proto/key-table mismatch
+    }
+    if (e) errors.push_back(*e);
+  }
+}
+
+}  // namespace
+
+std::vector<SpecError> applyTyped(const v1::SceneSpec& typed, SceneSpec& spec, bool& scene_given) {
+  std::vector<SpecError> errors;
+  scene_given = false;
+  const pb::Message* scene_msg = nullptr;
+  switch (typed.scene_case()) {
+    case v1::SceneSpec::kCell:
+      scene_msg = &typed.cell();
+      break;
+    case v1::SceneSpec::kDoublet:
+      scene_msg = &typed.doublet();
+      break;
+    case v1::SceneSpec::kSpheroid:
+      scene_msg = &typed.spheroid();
+      break;
+    case v1::SceneSpec::kFusion:
+      scene_msg = &typed.fusion();
+      break;
+    case v1::SceneSpec::SCENE_NOT_SET:
+      break;
+  }
+  if (scene_msg) {
+    const pb::FieldDescriptor* f =
+        typed.GetDescriptor()->FindFieldByNumber(static_cast<int>(typed.scene_case()));
+    if (auto e = setField(spec, "scene", f->name())) errors.push_back(*e);
+    scene_given = true;
+  }
+  // Top-level scalars (the oneof and the nested tables are handled on their own).
+  {
+    v1::SceneSpec top;
+    if (typed.has_seed()) top.set_seed(typed.seed());
+    if (typed.has_duration_s()) top.set_duration_s(typed.duration_s());
+    if (typed.has_sample_every_s()) top.set_sample_every_s(typed.sample_every_s());
+    if (typed.has_snapshot_every_s()) top.set_snapshot_every_s(typed.snapshot_every_s());
+    applyMessage(top, "", spec, errors);
+  }
+  if (typed.has_cells()) applyMessage(typed.cells(), "cells.", spec, errors);
+  if (typed.has_numerics()) applyMessage(typed.numerics(), "numerics.", spec, errors);
+  if (scene_msg) applyMessage(*scene_msg, "scene.", spec, errors);
+  return errors;
+}
+
+ConvertResult convertSpec(const v1::SceneSpec& typed, std::string_view spec_text,
+                          const std::vector<std::string>& settings) {
+  ConvertResult out;
+  if (spec_text.size() > kMaxSpecTextBytes) {
+    out.errors.push_back({"spec_text", "too large: " + std::to_string(spec_text.size()) +
+                                           " bytes, at most " + std::to_string(kMaxSpecTextBytes)});
+    return out;
+  }
+  if (settings.size() > kMaxSettings) {
+    out.errors.push_back({"settings", "too many: " + std::to_string(settings.size()) +
+                                          ", at most " + std::to_string(kMaxSettings)});
+    return out;
+  }
+  SceneSpec spec;
+  bool scene_given = false;
+  out.errors = applyTyped(typed, spec, scene_given);
+  if (!out.errors.empty()) return out;
+
+  bool blank = true;
+  for (char c : spec_text) blank = blank && std::isspace(static_cast<unsigned char>(c));
+  if (!blank) {
+    SpecParseOptions opts;
+    opts.require_scene = false;
+    opts.source = "spec_text";
+    SpecParseResult parsed = parseSpecText(spec_text, SpecFormat::Auto, spec, opts);
+    if (!parsed.ok()) {
+      out.errors = parsed.errors;
+      return out;
+    }
+    spec = *parsed.spec;
+    scene_given = scene_given || parsed.scene_given;
+  }
+  if (!settings.empty()) {
+    SpecParseResult set = applySettings(spec, settings);
+    if (!set.ok()) {
+      out.errors = set.errors;
+      return out;
+    }
+    spec = *set.spec;
+    scene_given = scene_given || set.scene_given;
+  }
+  if (!scene_given) {
+    out.errors.push_back(
+        {"scene", "missing: the spec must name its scene, " + findField("scene")->range()});
+    return out;
+  }
+  SpecParseResult ready = validateAndResolve(spec);
+  if (!ready.ok()) {
+    out.errors = ready.errors;
+    return out;
+  }
+  if (!sceneAvailable(ready.spec->scene)) {
+    std::string avail;
+    for (SceneKind k :
+         {SceneKind::Cell, SceneKind::Doublet, SceneKind::Spheroid, SceneKind::Fusion})
+      if (sceneAvailable(k)) {
+        if (!avail.empty()) avail += ", ";
+        avail += toString(k);
+      }
+    std::string msg = "'";
+    msg += toString(ready.spec->scene);
+    msg += "' is not available in this engine version (available: " + avail + ")";
+    out.errors.push_back({"scene", msg});
+    return out;
+  }
+  out.spec = ready.spec;
+  return out;
+}
+
+v1::SceneSpec toProto(const SceneSpec& spec) {
+  v1::SceneSpec out;
+  pb::Message* scene_msg = nullptr;
+  switch (spec.scene) {
+    case SceneKind::Cell:
+      scene_msg = out.mutable_cell();
+      break;
+    case SceneKind::Doublet:
+      scene_msg = out.mutable_doublet();
+      break;
+    case SceneKind::Spheroid:
+      scene_msg = out.mutable_spheroid();
+      break;
+    case SceneKind::Fusion:
+      scene_msg = out.mutable_fusion();
+      break;
+  }
+  for (const SpecField& field : specFields()) {
+    if (field.key == "scene") continue;
+    const std::optional<SpecValue> value = getField(spec, field.key);
+    if (!value) continue;
+    pb::Message* m = &out;
+    std::string name = field.key;
+    if (const auto dot = name.find('.'); dot != std::string::npos) {
+      const std::string table = name.substr(0, dot);
+      name = name.substr(dot + 1);
+      if (table == "cells")
+        m = out.mutable_cells();
+      else if (table == "numerics")
+        m = out.mutable_numerics();
+      else
+        m = scene_msg;
+    }
+    const pb::FieldDescriptor* f = m->GetDescriptor()->FindFieldByName(name);
+    if (!f) continue;  // a [scene] key of another scene
+    const pb::Reflection* r = m->GetReflection();
+    std::visit(
+        [&](const auto& v) {
+          using T = std::decay_t<decltype(v)>;
+          if constexpr (std::is_same_v<T, double>) {
+            if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_DOUBLE) r->SetDouble(m, f, v);
+          } else if constexpr (std::is_same_v<T, std::int64_t>) {
+            if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_INT64) r->SetInt64(m, f, v);
+            if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_UINT64)
+              r->SetUInt64(m, f, static_cast<std::uint64_t>(v));
+          } else if constexpr (std::is_same_v<T, std::string>) {
+            if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_ENUM)
+              if (const auto* ev = enumFromChoice(f->enum_type(), v)) r->SetEnum(m, f, ev);
+          }
+        },
+        *value);
+  }
+  return out;
+}
+
+std::string errorText(const std::vector<SpecError>& errors) {
+  std::string s = "invalid spec: ";
+  for (std::size_t i = 0; i < errors.size(); ++i) s += (i ? "; " : "") + errors[i].str();
+  return s;
+}
+
+}  // namespace activefoam::server

@@ -1,0 +1,46 @@
+// The one place where proto scene specs meet engine specs (DESIGN.md §2).
+//
+// Typed messages map onto the engine's key table by name: field `cells.gamma` of
+// activefoam.v1.SceneSpec is the key "cells.gamma", the `scene` oneof case is the key "scene",
+// and the fields of the per-scene message are the keys "scene.*". Every value goes through the
+// engine's setField/validate/resolve, so ranges and messages are the engine's own.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "activefoam/spec.h"
+#include "activefoam/v1/scene.pb.h"
+
+namespace activefoam::server {
+
+struct ConvertResult {
+  std::optional<SceneSpec> spec;  // resolved and valid; set exactly when errors is empty
+  std::vector<SpecError> errors;  // every problem, each naming its key
+  bool ok() const { return errors.empty(); }
+};
+
+// Limits on what a request may carry (oversized input is refused before parsing).
+inline constexpr std::size_t kMaxSpecTextBytes = 256 * 1024;
+inline constexpr std::size_t kMaxSettings = 1000;
+
+// Builds the spec of a submit: the typed message first, then the TOML/JSON `spec_text` on top,
+// then the `key=value` settings; then validate + resolve, and refuse scenes this engine version
+// cannot build (error on "scene"). At least one of the three must name the scene.
+ConvertResult convertSpec(const v1::SceneSpec& typed, std::string_view spec_text = {},
+                          const std::vector<std::string>& settings = {});
+
+// Applies the set fields of a typed message onto `spec` (no validation beyond setField's ranges).
+// `scene_given` tells whether the oneof was set.
+std::vector<SpecError> applyTyped(const v1::SceneSpec& typed, SceneSpec& spec, bool& scene_given);
+
+// The typed message of an engine spec: every key that is set (the per-scene message of its
+// scene only). convertSpec(toProto(s)) == resolve(s) for a valid s.
+v1::SceneSpec toProto(const SceneSpec& spec);
+
+// "invalid spec: key: message; key: message" — the INVALID_ARGUMENT text.
+std::string errorText(const std::vector<SpecError>& errors);
+
+}  // namespace activefoam::server

@@ -1,0 +1,153 @@
+// The job store: one SQLite file (WAL, busy timeout), schema versioned with migrations
+// (PRAGMA user_version). Every write goes through one writer thread, which groups queued writes
+// into one IMMEDIATE transaction (one SAVEPOINT each, so one failing write does not undo the
+// others) and returns only after COMMIT: what a write call returns is on disk. Reads use their
+// own connection and see committed data only.
+#pragma once
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <future>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "activefoam/spec.h"
+#include "activefoam/v1/job.pb.h"
+#include "activefoam/v1/service.pb.h"
+
+struct sqlite3;
+
+namespace activefoam::server {
+
+inline constexpr int kSchemaVersion = 1;
+
+// A request that cannot be served as asked (bad filter, unknown id, key reuse): the service
+// maps these to gRPC codes.
+struct StoreError : std::runtime_error {
+  enum class Kind { InvalidArgument, NotFound, FailedPrecondition };
+  Kind kind;
+  StoreError(Kind k, const std::string& what) : std::runtime_error(what), kind(k) {}
+};
+
+struct NewJob {
+  SceneSpec spec;         // resolved
+  std::string spec_json;  // specToJson(spec), what the worker runs
+  int priority = 0;
+  std::string tag;
+  std::string sweep_id;
+  std::string idempotency_key;
+};
+
+struct Claimed {
+  v1::Job job;
+  std::optional<std::string> checkpoint;  // last checkpoint, if any
+  double checkpoint_t_s = 0;
+};
+
+struct StoreOptions {
+  int keep_snapshots = 0;  // per job, newest kept; 0 = all
+  int busy_timeout_ms = 5000;
+};
+
+class Store {
+ public:
+  explicit Store(const std::string& path, StoreOptions options = {});
+  ~Store();
+  Store(const Store&) = delete;
+  Store& operator=(const Store&) = delete;
+
+  int schemaVersion();
+  const std::string& path() const { return path_; }
+
+  // Called (on the writer thread, after COMMIT) with the ids of jobs that got new events.
+  void setEventListener(std::function<void(const std::string& job_id)> listener);
+
+  // ---- writes (blocking until committed)
+  // Returns (id, created). Same idempotency key again: the existing job (created = false);
+  // with a different spec: StoreError FailedPrecondition.
+  std::pair<std::string, bool> submit(const NewJob& job);
+  // All jobs or none. Returns (sweep id, job ids, created).
+  std::tuple<std::string, std::vector<std::string>, bool> submitSweep(
+      const std::string& name, const std::string& idempotency_key, const std::vector<NewJob>& jobs);
+  // The next queued job by priority then age, marked running (attempts + 1).
+  std::optional<Claimed> claimNext();
+  // Queued → cancelled at once; running: returns the job unchanged (the pool stops it).
+  v1::Job cancel(const std::string& id, const std::string& reason);
+  // Final state of a run, with its results (name, value).
+  void finish(const std::string& id, v1::JobState state, const std::string& failure_kind,
+              const std::string& reason, const std::vector<std::pair<std::string, double>>& results,
+              double t_s, std::int64_t steps);
+  // Running → queued (shutdown or restart), with the reason.
+  void requeue(const std::string& id, const std::string& reason);
+  // At startup: every job left running by a previous process → queued. Returns how many.
+  int requeueRunning(const std::string& reason);
+  // Before a (re)start: drops outputs after the checkpoint time (all of them without one).
+  void resetOutputs(const std::string& id, std::optional<double> keep_until_t_s);
+  void dropCheckpoint(const std::string& id);
+
+  // ---- writes from a running job (queued; ordered; not waited for)
+  void addSample(const std::string& id, const std::vector<std::string>& columns,
+                 const std::vector<double>& values);
+  void addProgress(const std::string& id, const v1::Progress& p);
+  void addSnapshot(const std::string& id, const v1::SnapshotInfo& info,
+                   const std::string& compression, std::string data);
+  void saveCheckpoint(const std::string& id, double t_s, std::string data);
+  // Waits until every queued write is committed.
+  void flush();
+
+  // ---- reads
+  std::optional<v1::Job> getJob(const std::string& id);
+  v1::ListJobsResponse listJobs(const v1::ListJobsRequest& request);
+  std::vector<v1::JobEvent> events(const std::string& id, std::int64_t after_seq, int limit);
+  v1::JobResults results(const std::string& id, bool with_samples);
+  v1::QueryResultsResponse queryResults(const v1::QueryResultsRequest& request);
+  // (info, compression, data) of snapshot `index` (-1 = latest).
+  std::optional<std::tuple<v1::SnapshotInfo, std::string, std::string>> snapshot(
+      const std::string& id, int index);
+  std::optional<std::pair<double, std::string>> checkpoint(const std::string& id);
+  std::map<v1::JobState, std::int64_t> countByState();
+  std::int64_t countRows(const std::string& table);  // tests: "store unchanged"
+
+  // Normalised parameter columns (filter keys of ListJobs/QueryResults).
+  static const std::vector<std::string>& paramKeys();
+
+ private:
+  struct Tx;
+  struct Task {
+    std::function<void(Tx&)> fn;
+    std::promise<void> done;
+  };
+  template <class F>
+  auto write(F f) -> decltype(f(std::declval<Tx&>()));
+  void post(std::function<void(Tx&)> fn);  // fire and forget (errors logged)
+  void writerLoop();
+  void migrate();
+
+  std::string path_;
+  StoreOptions options_;
+  sqlite3* wdb_ = nullptr;  // writer thread only
+  sqlite3* rdb_ = nullptr;  // under rmu_
+  std::mutex rmu_;
+  std::mutex qmu_;
+  std::condition_variable qcv_;
+  std::condition_variable idle_cv_;
+  std::deque<std::unique_ptr<Task>> queue_;
+  bool busy_ = false;
+  bool stop_ = false;
+  std::function<void(const std::string&)> listener_;
+  std::thread writer_;
+};
+
+std::string newId(const std::string& prefix);
+std::string utcNowText();
+bool isTerminal(v1::JobState s);
+
+}  // namespace activefoam::server

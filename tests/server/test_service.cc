@@ -1,0 +1,538 @@
+// foamd in-process on a loopback port: the gRPC API end to end (store, pool, service).
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <filesystem>
+#include <random>
+#include <thread>
+
+#include "activefoam/v1/service.grpc.pb.h"
+#include "pool.h"
+#include "service.h"
+#include "store.h"
+
+using namespace activefoam;
+using namespace activefoam::server;
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+namespace {
+
+fs::path tempDb() {
+  static std::mt19937_64 rng{std::random_device{}()};
+  const fs::path dir = fs::temp_directory_path() / ("foamd-test-" + std::to_string(rng()));
+  fs::create_directories(dir);
+  return dir / "foamd.db";
+}
+
+// A tiny cell run: 50 steps with 80 triangles, well under a second.
+v1::SubmitJobRequest tinyCell(double duration_s = 5) {
+  v1::SubmitJobRequest r;
+  auto* s = r.mutable_spec();
+  s->mutable_cell();
+  s->set_duration_s(duration_s);
+  s->set_sample_every_s(1);
+  s->set_snapshot_every_s(0);
+  s->mutable_numerics()->set_triangles_per_cell(80);
+  return r;
+}
+
+class ServiceTest : public ::testing::Test {
+ protected:
+  void startServer(bool start_pool = true, const std::string& token = "") {
+    db_ = tempDb();
+    store_ = std::make_unique<Store>(db_.string());
+    PoolOptions po;
+    po.workers = 2;
+    po.progress_every_s = 0.01;
+    pool_ = std::make_unique<Pool>(*store_, po);
+    ServerConfig config;
+    config.listen = "127.0.0.1:0";
+    config.token = token;
+    server_ = std::make_unique<FoamServer>(*store_, *pool_, config);
+    server_->start();
+    if (start_pool) pool_->start();
+    const std::string addr = "127.0.0.1:" + std::to_string(server_->port());
+    auto creds = token.empty() ? grpc::InsecureChannelCredentials()
+                               : grpc::experimental::LocalCredentials(LOCAL_TCP);
+    stub_ = v1::Foam::NewStub(grpc::CreateChannel(addr, creds));
+  }
+  void TearDown() override {
+    if (server_) server_->shutdown();
+    if (pool_) pool_->stop(true);
+    server_.reset();
+    pool_.reset();
+    store_.reset();
+    if (!db_.empty()) fs::remove_all(db_.parent_path());
+  }
+  std::unique_ptr<grpc::ClientContext> ctx(const std::string& token = "") {
+    auto c = std::make_unique<grpc::ClientContext>();
+    c->set_deadline(std::chrono::system_clock::now() + 30s);
+    if (!token.empty()) c->AddMetadata("authorization", "Bearer " + token);
+    return c;
+  }
+  std::string submit(const v1::SubmitJobRequest& r) {
+    v1::SubmitJobResponse resp;
+    auto c = ctx();
+    const grpc::Status st = stub_->SubmitJob(c.get(), r, &resp);
+    EXPECT_TRUE(st.ok()) << st.error_message();
+    return resp.job_id();
+  }
+  v1::Job get(const std::string& id) {
+    v1::GetJobRequest r;
+    r.set_job_id(id);
+    v1::Job j;
+    auto c = ctx();
+    EXPECT_TRUE(stub_->GetJob(c.get(), r, &j).ok());
+    return j;
+  }
+  v1::Job waitFor(const std::string& id, bool (*pred)(const v1::Job&), double timeout_s = 60) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    v1::Job j;
+    do {
+      j = get(id);
+      if (pred(j)) return j;
+      std::this_thread::sleep_for(5ms);
+    } while (std::chrono::steady_clock::now() < end);
+    ADD_FAILURE() << "timeout waiting for job " << id << " (state " << j.state() << ")";
+    return j;
+  }
+  // Every event from seq > from, following to the end (or `max` events, then cancel).
+  std::vector<v1::JobEvent> watch(const std::string& id, std::int64_t from, int max = -1) {
+    v1::WatchJobRequest r;
+    r.set_job_id(id);
+    r.set_from_seq(from);
+    r.set_follow(true);
+    grpc::ClientContext c;
+    c.set_deadline(std::chrono::system_clock::now() + 60s);
+    auto reader = stub_->WatchJob(&c, r);
+    std::vector<v1::JobEvent> out;
+    v1::JobEvent ev;
+    while (reader->Read(&ev)) {
+      out.push_back(ev);
+      if (max > 0 && static_cast<int>(out.size()) >= max) {
+        c.TryCancel();
+        break;
+      }
+    }
+    const grpc::Status st = reader->Finish();
+    if (max < 0) {
+      EXPECT_TRUE(st.ok()) << st.error_message();
+    }
+    return out;
+  }
+
+  fs::path db_;
+  std::unique_ptr<Store> store_;
+  std::unique_ptr<Pool> pool_;
+  std::unique_ptr<FoamServer> server_;
+  std::unique_ptr<v1::Foam::Stub> stub_;
+};
+
+bool terminal(const v1::Job& j) {
+  return isTerminal(j.state());
+}
+bool running(const v1::Job& j) {
+  return j.state() == v1::JOB_STATE_RUNNING && j.steps() > 0;
+}
+
+}  // namespace
+
+TEST_F(ServiceTest, SubmitWatchResults) {
+  startServer();
+  const std::string id = submit(tinyCell());
+  const std::vector<v1::JobEvent> evs = watch(id, 0);
+  ASSERT_FALSE(evs.empty());
+  int samples = 0;
+  for (std::size_t i = 0; i < evs.size(); ++i) {
+    EXPECT_EQ(evs[i].seq(), static_cast<std::int64_t>(i + 1));
+    samples += evs[i].has_sample();
+  }
+  EXPECT_EQ(samples, 6);  // t = 0, 1, ..., 5
+  ASSERT_TRUE(evs.back().has_state());
+  EXPECT_EQ(evs.back().state().state(), v1::JOB_STATE_SUCCEEDED);
+
+  v1::GetResultsRequest rr;
+  rr.set_job_id(id);
+  rr.set_with_samples(true);
+  v1::JobResults res;
+  auto c = ctx();
+  ASSERT_TRUE(stub_->GetResults(c.get(), rr, &res).ok());
+  EXPECT_EQ(res.job().state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(res.samples_size(), 6);
+  ASSERT_GE(res.columns_size(), 6);
+  EXPECT_EQ(res.columns(5), "aspect_ratio");
+  bool has_aspect = false;
+  for (const auto& r : res.results()) has_aspect = has_aspect || r.name() == "aspect_ratio";
+  EXPECT_TRUE(has_aspect);
+  EXPECT_EQ(res.job().engine_version(), ACTIVEFOAM_VERSION);
+}
+
+TEST_F(ServiceTest, CancelWhileRunning) {
+  startServer();
+  const std::string id = submit(tinyCell(1e6));  // would take minutes
+  waitFor(id, running);
+  v1::CancelJobRequest cr;
+  cr.set_job_id(id);
+  cr.set_reason("test cancels it");
+  v1::Job j;
+  auto c = ctx();
+  ASSERT_TRUE(stub_->CancelJob(c.get(), cr, &j).ok());
+  j = waitFor(id, terminal, 10);
+  EXPECT_EQ(j.state(), v1::JOB_STATE_CANCELLED);
+  EXPECT_EQ(j.reason(), "test cancels it");
+  EXPECT_GT(j.t_s(), 0);
+}
+
+TEST_F(ServiceTest, CancelQueuedJob) {
+  startServer(/*start_pool=*/false);
+  const std::string id = submit(tinyCell());
+  v1::CancelJobRequest cr;
+  cr.set_job_id(id);
+  v1::Job j;
+  auto c = ctx();
+  ASSERT_TRUE(stub_->CancelJob(c.get(), cr, &j).ok());
+  EXPECT_EQ(j.state(), v1::JOB_STATE_CANCELLED);
+}
+
+TEST_F(ServiceTest, IdempotentResubmitReturnsTheSameId) {
+  startServer(false);
+  v1::SubmitJobRequest r = tinyCell();
+  r.set_idempotency_key("run-42");
+  v1::SubmitJobResponse a, b;
+  auto c1 = ctx();
+  ASSERT_TRUE(stub_->SubmitJob(c1.get(), r, &a).ok());
+  auto c2 = ctx();
+  ASSERT_TRUE(stub_->SubmitJob(c2.get(), r, &b).ok());
+  EXPECT_EQ(a.job_id(), b.job_id());
+  EXPECT_TRUE(a.created());
+  EXPECT_FALSE(b.created());
+  EXPECT_EQ(store_->countRows("jobs"), 1);
+  // The same key with another spec is refused.
+  r.mutable_spec()->set_seed(99);
+  auto c3 = ctx();
+  EXPECT_EQ(stub_->SubmitJob(c3.get(), r, &b).error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+  EXPECT_EQ(store_->countRows("jobs"), 1);
+}
+
+TEST_F(ServiceTest, PaginationAndFilters) {
+  startServer(false);  // jobs stay queued
+  std::set<std::string> all;
+  for (int i = 1; i <= 7; ++i) {
+    v1::SubmitJobRequest r = tinyCell();
+    r.mutable_spec()->set_seed(static_cast<std::uint64_t>(i));
+    r.set_tag(i % 2 ? "odd" : "even");
+    all.insert(submit(r));
+  }
+  std::set<std::string> seen;
+  std::string token;
+  int pages = 0;
+  do {
+    v1::ListJobsRequest lr;
+    lr.set_page_size(3);
+    lr.set_page_token(token);
+    v1::ListJobsResponse resp;
+    auto c = ctx();
+    ASSERT_TRUE(stub_->ListJobs(c.get(), lr, &resp).ok());
+    EXPECT_EQ(resp.total(), 7);
+    for (const auto& j : resp.jobs())
+      EXPECT_TRUE(seen.insert(j.id()).second) << "twice: " << j.id();
+    token = resp.next_page_token();
+    ++pages;
+  } while (!token.empty() && pages < 10);
+  EXPECT_EQ(pages, 3);
+  EXPECT_EQ(seen, all);
+
+  auto count = [&](const v1::ListJobsRequest& lr) {
+    v1::ListJobsResponse resp;
+    auto c = ctx();
+    const grpc::Status st = stub_->ListJobs(c.get(), lr, &resp);
+    EXPECT_TRUE(st.ok()) << st.error_message();
+    return resp.jobs_size();
+  };
+  v1::ListJobsRequest by_tag;
+  by_tag.set_tag("odd");
+  EXPECT_EQ(count(by_tag), 4);
+  v1::ListJobsRequest by_seed;
+  auto* p = by_seed.add_params();
+  p->set_key("seed");
+  p->set_min(2);
+  p->set_max(4);
+  EXPECT_EQ(count(by_seed), 3);
+  v1::ListJobsRequest by_param;
+  auto* q = by_param.add_params();
+  q->set_key("cells.gamma");
+  q->set_min(0.5);
+  q->set_max(0.5);
+  by_param.add_states(v1::JOB_STATE_QUEUED);
+  EXPECT_EQ(count(by_param), 7);
+  v1::ListJobsRequest none;
+  none.add_states(v1::JOB_STATE_RUNNING);
+  EXPECT_EQ(count(none), 0);
+  // Bad filters and tokens are INVALID_ARGUMENT.
+  v1::ListJobsRequest bad;
+  bad.add_params()->set_key("nonsense");
+  v1::ListJobsResponse resp;
+  auto c = ctx();
+  EXPECT_EQ(stub_->ListJobs(c.get(), bad, &resp).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  v1::ListJobsRequest bad_token;
+  bad_token.set_page_token("xyz");
+  auto c2 = ctx();
+  EXPECT_EQ(stub_->ListJobs(c2.get(), bad_token, &resp).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+}
+
+TEST_F(ServiceTest, WatchResumeFromSequenceLosesNothing) {
+  startServer();
+  v1::SubmitJobRequest r = tinyCell(400);  // 4000 steps: several progress and sample events
+  r.mutable_spec()->set_sample_every_s(10);
+  const std::string id = submit(r);
+  // Read a few events live, drop the stream, resume from the last sequence number seen.
+  std::vector<v1::JobEvent> got = watch(id, 0, 3);
+  ASSERT_EQ(got.size(), 3u);
+  const std::vector<v1::JobEvent> rest = watch(id, got.back().seq());
+  got.insert(got.end(), rest.begin(), rest.end());
+  const std::vector<v1::JobEvent> full = watch(id, 0);
+  ASSERT_EQ(got.size(), full.size());
+  for (std::size_t i = 0; i < full.size(); ++i) {
+    EXPECT_EQ(got[i].seq(), static_cast<std::int64_t>(i + 1));
+    EXPECT_EQ(got[i].SerializeAsString(), full[i].SerializeAsString()) << "event " << i + 1;
+  }
+  EXPECT_EQ(full.back().state().state(), v1::JOB_STATE_SUCCEEDED);
+  // Resuming from the middle of a finished job gives exactly the tail.
+  const std::vector<v1::JobEvent> tail = watch(id, 5);
+  ASSERT_EQ(tail.size(), full.size() - 5);
+  EXPECT_EQ(tail.front().seq(), 6);
+}
+
+TEST_F(ServiceTest, InvalidSpecsAreInvalidArgumentNamingTheFieldAndStoreUnchanged) {
+  startServer(false);
+  struct Case {
+    const char* field;  // expected in the message
+    std::function<void(v1::SubmitJobRequest&)> edit;
+  };
+  const std::vector<Case> cases = {
+      {"scene", [](auto& r) { r.mutable_spec()->clear_scene(); }},
+      {"duration_s", [](auto& r) { r.mutable_spec()->set_duration_s(-1); }},
+      {"duration_s", [](auto& r) { r.mutable_spec()->set_duration_s(0); }},
+      {"sample_every_s", [](auto& r) { r.mutable_spec()->set_sample_every_s(-5); }},
+      {"sample_every_s", [](auto& r) { r.mutable_spec()->set_sample_every_s(100); }},
+      {"snapshot_every_s", [](auto& r) { r.mutable_spec()->set_snapshot_every_s(-1); }},
+      {"cells.gamma", [](auto& r) { r.mutable_spec()->mutable_cells()->set_gamma(0); }},
+      {"cells.gamma", [](auto& r) { r.mutable_spec()->mutable_cells()->set_gamma(std::nan("")); }},
+      {"cells.eta", [](auto& r) { r.mutable_spec()->mutable_cells()->set_eta(-3); }},
+      {"cells.alpha", [](auto& r) { r.mutable_spec()->mutable_cells()->set_alpha(1.5); }},
+      {"cells.radius_mean_um",
+       [](auto& r) { r.mutable_spec()->mutable_cells()->set_radius_mean_um(0); }},
+      {"cells.bulk_modulus",
+       [](auto& r) { r.mutable_spec()->mutable_cells()->set_bulk_modulus(-1); }},
+      {"cells.k_contact", [](auto& r) { r.mutable_spec()->mutable_cells()->set_k_contact(-1); }},
+      {"cells.tau_p_s", [](auto& r) { r.mutable_spec()->mutable_cells()->set_tau_p_s(-1); }},
+      {"cells.eta_m", [](auto& r) { r.mutable_spec()->mutable_cells()->set_eta_m(-1); }},
+      {"numerics.dt_s", [](auto& r) { r.mutable_spec()->mutable_numerics()->set_dt_s(0); }},
+      {"numerics.dt_s",
+       [](auto& r) {
+         r.mutable_spec()->mutable_numerics()->set_dt_s(std::numeric_limits<double>::infinity());
+       }},
+      {"numerics.cg_tol", [](auto& r) { r.mutable_spec()->mutable_numerics()->set_cg_tol(0); }},
+      {"numerics.triangles_per_cell",
+       [](auto& r) { r.mutable_spec()->mutable_numerics()->set_triangles_per_cell(100); }},
+      {"numerics.cg_max_iter",
+       [](auto& r) { r.mutable_spec()->mutable_numerics()->set_cg_max_iter(-1); }},
+      {"scene.axes_ratio", [](auto& r) { r.mutable_spec()->mutable_cell()->set_axes_ratio(-2); }},
+      {"seed", [](auto& r) { r.mutable_spec()->set_seed(~0ULL); }},
+      {"cells.gamma", [](auto& r) { r.add_settings("cells.gamma=abc"); }},
+      {"cells.gama", [](auto& r) { r.add_settings("cells.gama=0.5"); }},
+      {"spec_text", [](auto& r) { r.set_spec_text("scene = \"cell\"\nduration_s = [oops"); }},
+      {"spec_text", [](auto& r) { r.set_spec_text(std::string(300 * 1024, '#')); }},
+      {"idempotency_key", [](auto& r) { r.set_idempotency_key(std::string(1000, 'k')); }},
+  };
+  ASSERT_GE(cases.size(), 20u);
+  const auto jobs0 = store_->countRows("jobs");
+  const auto events0 = store_->countRows("events");
+  for (const Case& cs : cases) {
+    v1::SubmitJobRequest r = tinyCell();
+    cs.edit(r);
+    v1::SubmitJobResponse resp;
+    auto c = ctx();
+    const grpc::Status st = stub_->SubmitJob(c.get(), r, &resp);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << cs.field;
+    EXPECT_NE(st.error_message().find(cs.field), std::string::npos)
+        << "expected '" << cs.field << "' in: " << st.error_message();
+  }
+  EXPECT_EQ(store_->countRows("jobs"), jobs0);
+  EXPECT_EQ(store_->countRows("events"), events0);
+}
+
+TEST_F(ServiceTest, TokenAuth) {
+  startServer(false, "s3cret");
+  v1::ListJobsRequest lr;
+  v1::ListJobsResponse resp;
+  auto none = ctx();
+  EXPECT_EQ(stub_->ListJobs(none.get(), lr, &resp).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  auto wrong = ctx("guess");
+  EXPECT_EQ(stub_->ListJobs(wrong.get(), lr, &resp).error_code(),
+            grpc::StatusCode::UNAUTHENTICATED);
+  v1::SubmitJobResponse sresp;
+  auto wrong2 = ctx("s3cre");
+  EXPECT_EQ(stub_->SubmitJob(wrong2.get(), tinyCell(), &sresp).error_code(),
+            grpc::StatusCode::UNAUTHENTICATED);
+  EXPECT_EQ(store_->countRows("jobs"), 0);
+  auto right = ctx("s3cret");
+  const grpc::Status st = stub_->ListJobs(right.get(), lr, &resp);
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  auto right2 = ctx("s3cret");
+  EXPECT_TRUE(stub_->SubmitJob(right2.get(), tinyCell(), &sresp).ok());
+}
+
+TEST_F(ServiceTest, SnapshotLargerThan4MiBStreamsInChunks) {
+  startServer(false);
+  const std::string id = submit(tinyCell());
+  // 6 MiB of incompressible data stored as one snapshot (as a big fusion snapshot would be).
+  std::string big(6 * 1024 * 1024, '\0');
+  std::mt19937_64 rng(1);
+  for (char& ch : big) ch = static_cast<char>(rng());
+  v1::SnapshotInfo info;
+  info.set_t_s(1);
+  info.set_bytes(static_cast<std::int64_t>(big.size()));
+  store_->addSnapshot(id, info, "", big);
+  store_->flush();
+  v1::GetSnapshotRequest gr;
+  gr.set_job_id(id);
+  gr.set_index(-1);
+  grpc::ClientContext c;
+  auto reader = stub_->GetSnapshot(&c, gr);
+  v1::SnapshotChunk chunk;
+  std::string data;
+  int chunks = 0;
+  std::int64_t total = -1;
+  while (reader->Read(&chunk)) {
+    if (chunks++ == 0) total = chunk.total_bytes();
+    data += chunk.data();
+  }
+  ASSERT_TRUE(reader->Finish().ok());
+  EXPECT_GT(chunks, 4);
+  EXPECT_EQ(total, static_cast<std::int64_t>(big.size()));
+  EXPECT_TRUE(data == big);
+}
+
+TEST_F(ServiceTest, RecordedSnapshotsOfARunCanBeFetched) {
+  startServer();
+  v1::SubmitJobRequest r = tinyCell();
+  r.mutable_spec()->set_snapshot_every_s(1);
+  const std::string id = submit(r);
+  waitFor(id, terminal);
+  v1::GetSnapshotRequest gr;
+  gr.set_job_id(id);
+  gr.set_index(0);
+  grpc::ClientContext c;
+  auto reader = stub_->GetSnapshot(&c, gr);
+  v1::SnapshotChunk chunk;
+  v1::SnapshotInfo info;
+  int n = 0;
+  while (reader->Read(&chunk))
+    if (n++ == 0) info = chunk.info();
+  ASSERT_TRUE(reader->Finish().ok());
+  EXPECT_EQ(info.triangles(), 80);
+  EXPECT_EQ(info.vertices(), 42);
+}
+
+TEST_F(ServiceTest, SweepCreatesGridTimesSeedsJobs) {
+  startServer(false);
+  v1::SubmitSweepRequest sr;
+  *sr.mutable_spec() = tinyCell().spec();
+  auto* g1 = sr.add_grid();
+  g1->set_key("cells.alpha");
+  g1->add_values("0.3");
+  g1->add_values("0.5");
+  auto* g2 = sr.add_grid();
+  g2->set_key("cells.gamma");
+  g2->add_values("0.4");
+  g2->add_values("0.6");
+  sr.add_seeds(1);
+  sr.add_seeds(2);
+  v1::SubmitSweepResponse resp;
+  auto c = ctx();
+  ASSERT_TRUE(stub_->SubmitSweep(c.get(), sr, &resp).ok());
+  EXPECT_EQ(resp.job_ids_size(), 8);
+  v1::ListJobsRequest lr;
+  lr.set_sweep_id(resp.sweep_id());
+  auto* p = lr.add_params();
+  p->set_key("alpha");
+  p->set_min(0.4);
+  v1::ListJobsResponse lresp;
+  auto c2 = ctx();
+  ASSERT_TRUE(stub_->ListJobs(c2.get(), lr, &lresp).ok());
+  EXPECT_EQ(lresp.total(), 4);
+  // One invalid set: nothing is created.
+  const auto jobs0 = store_->countRows("jobs");
+  g2->add_values("-1");
+  auto c3 = ctx();
+  const grpc::Status st = stub_->SubmitSweep(c3.get(), sr, &resp);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("cells.gamma"), std::string::npos);
+  EXPECT_EQ(store_->countRows("jobs"), jobs0);
+}
+
+TEST_F(ServiceTest, QueryResultsFiltersByParameters) {
+  startServer();
+  std::vector<std::string> ids;
+  for (double gamma : {0.4, 0.6}) {
+    v1::SubmitJobRequest r = tinyCell();
+    r.mutable_spec()->mutable_cells()->set_gamma(gamma);
+    ids.push_back(submit(r));
+  }
+  for (const auto& id : ids) waitFor(id, terminal);
+  v1::QueryResultsRequest q;
+  auto* p = q.add_params();
+  p->set_key("gamma");
+  p->set_min(0.5);
+  q.add_names("aspect_ratio");
+  v1::QueryResultsResponse resp;
+  auto c = ctx();
+  ASSERT_TRUE(stub_->QueryResults(c.get(), q, &resp).ok());
+  ASSERT_EQ(resp.rows_size(), 1);
+  EXPECT_EQ(resp.rows(0).job_id(), ids[1]);
+  ASSERT_EQ(resp.rows(0).results_size(), 1);
+  EXPECT_EQ(resp.rows(0).results(0).name(), "aspect_ratio");
+  EXPECT_DOUBLE_EQ(resp.rows(0).params().at("gamma"), 0.6);
+}
+
+TEST(Store, PriorityThenAgeAndRequeueAfterRestart) {
+  const fs::path db = tempDb();
+  auto job = [](int priority) {
+    NewJob j;
+    j.spec.scene = SceneKind::Cell;
+    j.spec = resolve(j.spec);
+    j.spec_json = "{}";
+    j.priority = priority;
+    return j;
+  };
+  std::string low, high1, high2;
+  {
+    Store s(db.string());
+    EXPECT_EQ(s.schemaVersion(), kSchemaVersion);
+    low = s.submit(job(0)).first;
+    high1 = s.submit(job(5)).first;
+    high2 = s.submit(job(5)).first;
+    EXPECT_EQ(s.claimNext()->job.id(), high1);
+    EXPECT_EQ(s.claimNext()->job.id(), high2);
+    s.saveCheckpoint(high2, 3.5, "state");
+  }  // "crash": two jobs left running
+  Store s(db.string());
+  EXPECT_EQ(s.requeueRunning("restart"), 2);
+  EXPECT_EQ(s.getJob(high1)->state(), v1::JOB_STATE_QUEUED);
+  EXPECT_EQ(s.getJob(high1)->reason(), "restart");
+  const auto c1 = s.claimNext();
+  EXPECT_EQ(c1->job.id(), high1);
+  EXPECT_FALSE(c1->checkpoint);
+  const auto c2 = s.claimNext();
+  EXPECT_EQ(c2->job.id(), high2);
+  ASSERT_TRUE(c2->checkpoint);
+  EXPECT_EQ(*c2->checkpoint, "state");
+  EXPECT_DOUBLE_EQ(c2->checkpoint_t_s, 3.5);
+  EXPECT_EQ(c2->job.attempts(), 2);
+  EXPECT_EQ(s.claimNext()->job.id(), low);
+  fs::remove_all(db.parent_path());
+}

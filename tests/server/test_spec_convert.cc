@@ -1,0 +1,107 @@
+// proto ↔ engine spec conversion (server/spec_convert.cc).
+#include <gtest/gtest.h>
+
+#include <google/protobuf/descriptor.h>
+
+#include <set>
+
+#include "activefoam/spec.h"
+#include "spec_convert.h"
+
+using namespace activefoam;
+using namespace activefoam::server;
+namespace pb = google::protobuf;
+
+namespace {
+
+// Every leaf of the typed message, as a spec key.
+void leaves(const pb::Descriptor* d, const std::string& prefix, std::set<std::string>& out) {
+  for (int i = 0; i < d->field_count(); ++i) {
+    const pb::FieldDescriptor* f = d->field(i);
+    if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_MESSAGE) {
+      const bool scene = f->containing_oneof() != nullptr;
+      leaves(f->message_type(), scene ? "scene." : prefix + f->name() + ".", out);
+      if (scene) out.insert("scene");
+    } else {
+      out.insert(prefix + f->name());
+    }
+  }
+}
+
+}  // namespace
+
+TEST(SpecConvert, EveryProtoFieldIsAKeyAndEveryKeyHasAField) {
+  std::set<std::string> proto;
+  leaves(v1::SceneSpec::descriptor(), "", proto);
+  std::set<std::string> keys;
+  for (const SpecField& f : specFields()) keys.insert(f.key);
+  for (const std::string& k : proto) EXPECT_TRUE(keys.count(k)) << "proto field without key: " << k;
+  for (const std::string& k : keys) EXPECT_TRUE(proto.count(k)) << "key without proto field: " << k;
+}
+
+TEST(SpecConvert, TypedFieldsReachTheEngineSpec) {
+  v1::SceneSpec m;
+  m.mutable_cell()->set_axes_ratio(1.1);
+  m.set_seed(7);
+  m.set_duration_s(5);
+  m.set_sample_every_s(1);
+  m.mutable_cells()->set_gamma(0.7);
+  m.mutable_numerics()->set_triangles_per_cell(80);
+  m.mutable_numerics()->set_integrator(v1::INTEGRATOR_SEMI_IMPLICIT);
+  m.mutable_numerics()->set_contact_quadrature(v1::CONTACT_QUADRATURE_DUNAVANT7);
+  m.mutable_numerics()->set_preconditioner(v1::PRECONDITIONER_BLOCK_JACOBI);
+  const ConvertResult r = convertSpec(m);
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_EQ(r.spec->scene, SceneKind::Cell);
+  EXPECT_EQ(r.spec->seed, 7u);
+  EXPECT_DOUBLE_EQ(r.spec->scene_params.axes_ratio, 1.1);
+  EXPECT_DOUBLE_EQ(r.spec->cells.gamma, 0.7);
+  EXPECT_EQ(r.spec->numerics.triangles_per_cell, 80);
+  EXPECT_EQ(r.spec->numerics.integrator, IntegratorKind::SemiImplicit);
+  EXPECT_EQ(r.spec->numerics.contact_quadrature, ContactQuadrature::Dunavant7);
+  EXPECT_EQ(r.spec->numerics.preconditioner, PreconditionerKind::BlockJacobi);
+}
+
+TEST(SpecConvert, RoundTripThroughProto) {
+  SceneSpec s;
+  s.scene = SceneKind::Doublet;
+  s.seed = 3;
+  s.duration_s = 10;
+  s.sample_every_s = 2;
+  s.snapshot_every_s = 5;
+  s.cells.alpha = 0.5;
+  s.numerics.triangles_per_cell = 80;
+  s.scene_params.gap_um = 0.1;
+  const SceneSpec resolved = resolve(s);
+  const ConvertResult r = convertSpec(toProto(resolved));
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_EQ(*r.spec, resolved);
+}
+
+TEST(SpecConvert, TextAndSettingsApplyOnTopOfTyped) {
+  v1::SceneSpec m;
+  m.mutable_cells()->set_gamma(0.7);
+  const ConvertResult r = convertSpec(m, "scene = \"cell\"\nduration_s = 4\nsample_every_s = 1\n",
+                                      {"cells.gamma=0.9", "seed=11"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_DOUBLE_EQ(r.spec->cells.gamma, 0.9);
+  EXPECT_DOUBLE_EQ(r.spec->duration_s, 4);
+  EXPECT_EQ(r.spec->seed, 11u);
+}
+
+TEST(SpecConvert, MissingSceneAndUnavailableSceneNameTheSceneKey) {
+  ConvertResult r = convertSpec(v1::SceneSpec{});
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.errors[0].field, "scene");
+  v1::SceneSpec f;
+  f.mutable_fusion()->set_n_cells(2);
+  f.set_duration_s(1);
+  f.set_sample_every_s(1);
+  f.set_snapshot_every_s(0);
+  r = convertSpec(f);
+  if (!sceneAvailable(SceneKind::Fusion)) {
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.errors[0].field, "scene");
+    EXPECT_NE(r.errors[0].message.find("not available"), std::string::npos);
+  }
+}
