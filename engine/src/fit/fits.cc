@@ -1,0 +1,621 @@
+#include "activefoam/fits.h"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <sstream>
+
+#include <Eigen/Dense>
+
+namespace activefoam {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kDeg = M_PI / 180.0;
+// Bounds on log(τ/T), T the time span: τ from 3e-7 T to 3e6 T. A fit that ends near them has
+// driven a time constant to zero or infinity.
+constexpr double kLogTauMax = 15.0;
+constexpr double kLogTauAtBound = 12.0;
+
+using Vec = Eigen::VectorXd;
+using Mat = Eigen::MatrixXd;
+// Residuals r(q) (data − model) for internal parameters q; false when they are not finite.
+using Residual = std::function<bool(const Vec& q, Vec& r)>;
+
+std::string fmt(double v) {
+  std::ostringstream s;
+  s.precision(4);
+  s << v;
+  return s.str();
+}
+
+// Central-difference Jacobian of r(q); steps relative to |q_j| (internal parameters are O(1)
+// or degrees). False if any evaluation is not finite.
+bool jacobian(const Residual& f, const Vec& q, Eigen::Index n, Mat& j) {
+  j.resize(n, q.size());
+  Vec rp(n), rm(n);
+  for (Eigen::Index k = 0; k < q.size(); ++k) {
+    const double h = 1e-6 * std::max(1.0, std::abs(q(k)));
+    Vec qp = q, qm = q;
+    qp(k) += h;
+    qm(k) -= h;
+    if (!f(qp, rp) || !f(qm, rm)) return false;
+    j.col(k) = (rp - rm) / (2 * h);
+  }
+  return true;
+}
+
+struct LmResult {
+  Vec q;
+  double rss = kNaN;
+  int iterations = 0;
+  bool converged = false;
+  std::string why;
+};
+
+// Levenberg–Marquardt with Marquardt's diagonal scaling (scale-invariant in each parameter):
+// solve (JᵀJ + μ diag JᵀJ) δ = −Jᵀr, accept when the RSS falls (μ /= 3), else μ *= 4.
+// Converged when an accepted step changes the RSS by < 1e-12 relative or moves every parameter
+// by < 1e-10 relative, or when no damped step lowers the RSS any more (μ > 1e10: a minimum
+// to within rounding).
+LmResult levenbergMarquardt(const Residual& f, Vec q, Eigen::Index n, int max_iter = 400) {
+  LmResult out;
+  Vec r(n), rt(n);
+  if (!f(q, r)) {
+    out.why = "model not finite at the initial guess";
+    out.q = q;
+    return out;
+  }
+  double rss = r.squaredNorm();
+  double mu = 1e-3;
+  Mat j;
+  for (int it = 0; it < max_iter; ++it) {
+    out.iterations = it + 1;
+    if (rss == 0) {
+      out.converged = true;
+      break;
+    }
+    if (!jacobian(f, q, n, j)) {
+      out.why = "model not finite near the parameters";
+      break;
+    }
+    const Mat a = j.transpose() * j;
+    const Vec g = j.transpose() * r;
+    Vec d = a.diagonal();
+    const double dmax = d.maxCoeff();
+    if (!(dmax > 0)) {
+      out.why = "singular Jacobian (the model does not depend on its parameters)";
+      break;
+    }
+    d = d.cwiseMax(1e-12 * dmax);
+    bool accepted = false;
+    while (mu <= 1e10) {
+      Mat m = a;
+      m.diagonal() += mu * d;
+      const Vec step = -m.ldlt().solve(g);
+      const Vec qt = q + step;
+      if (step.allFinite() && f(qt, rt)) {
+        const double rss_t = rt.squaredNorm();
+        if (rss_t < rss) {
+          const double rel = (rss - rss_t) / rss;
+          bool small = true;
+          for (Eigen::Index k = 0; k < q.size(); ++k)
+            small = small && std::abs(step(k)) <= 1e-10 * std::max(1e-3, std::abs(q(k)));
+          q = qt;
+          r = rt;
+          rss = rss_t;
+          mu = std::max(mu / 3, 1e-12);
+          accepted = true;
+          if (rel < 1e-12 || small) out.converged = true;
+          break;
+        }
+      }
+      mu *= 4;
+    }
+    if (!accepted) out.converged = true;  // no damped step lowers the RSS: at a minimum
+    if (out.converged) break;
+  }
+  if (!out.converged && out.why.empty())
+    out.why = "no convergence in " + std::to_string(max_iter) + " iterations";
+  out.q = q;
+  out.rss = rss;
+  return out;
+}
+
+// Fills names/values/errors/RSS/R² from the optimum. `to_phys` maps internal q to the reported
+// parameters; `from_phys` the reverse (for the Jacobian in reported parameters); `derived`
+// computes extra quantities from the reported parameters. Returns false with why on a singular
+// covariance.
+struct Reported {
+  std::vector<std::string> names;
+  std::function<Vec(const Vec&)> to_phys, from_phys;
+  std::vector<std::string> derived_names;
+  std::function<Vec(const Vec&)> derived;
+};
+
+bool finishFit(const Residual& f, const LmResult& lm, const Vec& data, const Reported& rep,
+               FitResult& res) {
+  const Eigen::Index n = data.size(), p = lm.q.size();
+  res.n = static_cast<int>(n);
+  res.p = static_cast<int>(p);
+  res.iterations = lm.iterations;
+  res.rss = lm.rss;
+  const double mean = data.mean();
+  const double tss = (data.array() - mean).square().sum();
+  res.r2 = tss > 0 ? 1 - lm.rss / tss : (lm.rss == 0 ? 1.0 : 0.0);
+  const Vec phys = rep.to_phys(lm.q);
+  res.names = rep.names;
+  res.value.assign(phys.data(), phys.data() + p);
+  res.std_error.assign(p, kNaN);
+  Vec derived;
+  if (rep.derived) {
+    derived = rep.derived(phys);
+    res.names.insert(res.names.end(), rep.derived_names.begin(), rep.derived_names.end());
+    res.value.insert(res.value.end(), derived.data(), derived.data() + derived.size());
+    res.std_error.resize(res.value.size(), kNaN);
+  }
+  // Jacobian in the reported parameters.
+  const Residual fp = [&](const Vec& x, Vec& r) { return f(rep.from_phys(x), r); };
+  Mat j(n, p);
+  {
+    Vec rp(n), rm(n);
+    for (Eigen::Index k = 0; k < p; ++k) {
+      const double h = 1e-6 * std::max(std::abs(phys(k)), 1e-300);
+      Vec xp = phys, xm = phys;
+      xp(k) += h;
+      xm(k) -= h;
+      if (!fp(xp, rp) || !fp(xm, rm)) {
+        res.why = "model not finite near the optimum";
+        return false;
+      }
+      j.col(k) = (rp - rm) / (2 * h);
+    }
+  }
+  // Column-scaled normal matrix: its conditioning says whether the parameters are identifiable.
+  Vec scale = j.colwise().norm().transpose();
+  for (Eigen::Index k = 0; k < p; ++k)
+    if (!(scale(k) > 0)) {
+      res.why =
+          "singular Jacobian: the model does not depend on " + rep.names[static_cast<size_t>(k)];
+      return false;
+    }
+  const Mat js = j * scale.cwiseInverse().asDiagonal();
+  const Mat a = js.transpose() * js;
+  Eigen::SelfAdjointEigenSolver<Mat> es(a);
+  if (!(es.eigenvalues()(0) > 1e-13 * es.eigenvalues()(p - 1))) {
+    res.why = "singular Jacobian: the parameters are not separately identifiable from the data";
+    return false;
+  }
+  const double sigma2 = n > p ? lm.rss / static_cast<double>(n - p) : kNaN;
+  const Mat cov = sigma2 * (scale.cwiseInverse().asDiagonal() * es.operatorInverseSqrt() *
+                            es.operatorInverseSqrt() * scale.cwiseInverse().asDiagonal());
+  for (Eigen::Index k = 0; k < p; ++k) res.std_error[k] = std::sqrt(std::max(cov(k, k), 0.0));
+  if (rep.derived) {
+    for (Eigen::Index m = 0; m < derived.size(); ++m) {
+      Vec g(p);
+      for (Eigen::Index k = 0; k < p; ++k) {
+        const double h = 1e-6 * std::max(std::abs(phys(k)), 1e-300);
+        Vec xp = phys, xm = phys;
+        xp(k) += h;
+        xm(k) -= h;
+        g(k) = (rep.derived(xp)(m) - rep.derived(xm)(m)) / (2 * h);
+      }
+      res.std_error[p + m] = std::sqrt(std::max(g.dot(cov * g), 0.0));
+    }
+  }
+  return true;
+}
+
+// Common input checks. Returns an empty string when the data can be fitted.
+std::string checkData(const std::vector<double>& t, const std::vector<double>& y, int p,
+                      const char* yname) {
+  if (t.size() != y.size())
+    return "t has " + std::to_string(t.size()) + " values but " + yname + " has " +
+           std::to_string(y.size());
+  const int n = static_cast<int>(t.size());
+  if (n < p + 1)
+    return "too few points (n = " + std::to_string(n) + "; need at least " + std::to_string(p + 1) +
+           " for " + std::to_string(p) + " parameters)";
+  for (int i = 0; i < n; ++i) {
+    if (!std::isfinite(t[i])) return "non-finite time at index " + std::to_string(i);
+    if (!std::isfinite(y[i]))
+      return std::string("non-finite ") + yname + " at index " + std::to_string(i);
+  }
+  std::vector<double> ts = t;
+  std::sort(ts.begin(), ts.end());
+  const int distinct = static_cast<int>(std::unique(ts.begin(), ts.end()) - ts.begin());
+  if (distinct < p)
+    return "fewer than " + std::to_string(p) + " distinct times (" + std::to_string(distinct) + ")";
+  return "";
+}
+
+struct TimeScale {
+  double t0 = 0, span = 0, first_step = 0;
+};
+
+TimeScale timeScale(const std::vector<double>& t) {
+  std::vector<double> ts = t;
+  std::sort(ts.begin(), ts.end());
+  ts.erase(std::unique(ts.begin(), ts.end()), ts.end());
+  TimeScale s;
+  s.t0 = ts.front();
+  s.span = ts.back() - ts.front();
+  s.first_step = ts.size() > 1 ? ts[1] - ts[0] : 0;
+  return s;
+}
+
+// Model y = c1 (1 − e^{−t/τ}) + c2 φ2(t, τ): for a fixed τ, (c1, c2) by linear least squares.
+// Scans τ = T·10^{−3 … 2} (T the time span) and returns the best (c1, c2, τ).
+struct LinearScan {
+  double c1 = kNaN, c2 = kNaN, tau = kNaN, rss = kNaN;
+};
+
+LinearScan scanTau(const std::vector<double>& t, const std::vector<double>& y, double span,
+                   const std::function<double(double t, double tau)>& phi2) {
+  LinearScan best;
+  const int n = static_cast<int>(t.size());
+  Eigen::MatrixXd a(n, 2);
+  Eigen::VectorXd b = Eigen::Map<const Eigen::VectorXd>(y.data(), n);
+  const int steps = 101;
+  for (int s = 0; s < steps; ++s) {
+    const double tau = span * std::pow(10.0, -3.0 + 5.0 * s / (steps - 1));
+    for (int i = 0; i < n; ++i) {
+      a(i, 0) = -std::expm1(-t[i] / tau);
+      a(i, 1) = phi2(t[i], tau);
+    }
+    const Eigen::Vector2d c = a.colPivHouseholderQr().solve(b);
+    if (!c.allFinite()) continue;
+    const double rss = (a * c - b).squaredNorm();
+    if (std::isfinite(rss) && !(rss >= best.rss)) best = {c(0), c(1), tau, rss};
+  }
+  return best;
+}
+
+int indexOf(const FitResult& r, std::string_view name) {
+  for (size_t k = 0; k < r.names.size(); ++k)
+    if (r.names[k] == name) return static_cast<int>(k);
+  return -1;
+}
+
+// Checks shared by the τ of every model. Returns the reason for failure, or empty.
+std::string checkTau(const std::string& name, double tau, double tau_se, const TimeScale& ts) {
+  if (tau > 10 * ts.span)
+    return name + " = " + fmt(tau) + " s exceeds 10x the time span (" + fmt(ts.span) +
+           " s): the data do not saturate";
+  if (tau < ts.first_step)
+    return name + " = " + fmt(tau) + " s is below the first sampling interval (" +
+           fmt(ts.first_step) + " s): the relaxation is not resolved";
+  if (!(tau_se <= tau))
+    return name + " undetermined (relative standard error " + fmt(100 * tau_se / tau) + " %)";
+  return "";
+}
+
+}  // namespace
+
+double FitResult::get(std::string_view name) const {
+  const int k = indexOf(*this, name);
+  return k < 0 ? kNaN : value[static_cast<size_t>(k)];
+}
+
+double FitResult::error(std::string_view name) const {
+  const int k = indexOf(*this, name);
+  return k < 0 || static_cast<size_t>(k) >= std_error.size() ? kNaN
+                                                             : std_error[static_cast<size_t>(k)];
+}
+
+// ---------------------------------------------------------------------------------------------
+// Eq. 1
+
+FitResult fitEq1(const std::vector<double>& t, const std::vector<double>& theta) {
+  FitResult res;
+  res.names = {"theta_eq_deg", "theta0_deg", "tau_f_s"};
+  res.p = 3;
+  res.n = static_cast<int>(t.size());
+  res.value.assign(3, kNaN);
+  res.std_error.assign(3, kNaN);
+  if (std::string why = checkData(t, theta, 3, "theta"); !why.empty()) {
+    res.why = why;
+    return res;
+  }
+  const int n = res.n;
+  const auto [lo, hi] = std::minmax_element(theta.begin(), theta.end());
+  double mean = 0;
+  for (double v : theta) mean += v / n;
+  if (*hi - *lo <= 1e-12 * std::max(1.0, std::abs(mean))) {
+    res.value = {mean, mean, kNaN};
+    res.std_error = {0, 0, kNaN};
+    res.r2 = 1;
+    res.why = "constant data (" + fmt(mean) + " deg): no relaxation, tau_f undetermined";
+    return res;
+  }
+  const TimeScale ts = timeScale(t);
+  const LinearScan scan =
+      scanTau(t, theta, ts.span, [](double ti, double tau) { return std::exp(-ti / tau); });
+  if (!std::isfinite(scan.rss)) {
+    res.why = "no finite initial guess";
+    return res;
+  }
+  const Eigen::Map<const Vec> data(theta.data(), n);
+  const double tscale = ts.span;
+  // q = (θ_eq, θ_0, log(τ/T)).
+  const Residual f = [&](const Vec& q, Vec& r) {
+    const double tau = tscale * std::exp(std::clamp(q(2), -kLogTauMax, kLogTauMax));
+    for (int i = 0; i < n; ++i) r(i) = data(i) - (q(0) + (q(1) - q(0)) * std::exp(-t[i] / tau));
+    return r.allFinite();
+  };
+  Vec q0(3);
+  q0 << scan.c1, scan.c2, std::log(scan.tau / tscale);
+  const LmResult lm = levenbergMarquardt(f, q0, n);
+  Reported rep;
+  rep.names = res.names;
+  rep.to_phys = [&](const Vec& q) {
+    Vec p = q;
+    p(2) = tscale * std::exp(std::clamp(q(2), -kLogTauMax, kLogTauMax));
+    return p;
+  };
+  rep.from_phys = [&](const Vec& p) {
+    Vec q = p;
+    q(2) = std::log(p(2) / tscale);
+    return q;
+  };
+  if (!finishFit(f, lm, data, rep, res)) return res;
+  if (!lm.converged) {
+    res.why = lm.why;
+    return res;
+  }
+  res.why = checkTau("tau_f_s", res.value[2], res.std_error[2], ts);
+  res.ok = res.why.empty();
+  return res;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Eq. 2
+//
+// With u = cos θ: du/dt = −sin θ θ̇ = −(cos θ/τ_Γ − sin²θ/τ_ε)/2 = (1 − u² − k u)/(2τ_ε),
+// k = τ_ε/τ_Γ, i.e. du/dt = −(u − u₊)(u − u₋)/(2τ_ε) with u± the roots of u² + k u − 1 = 0:
+// u₊ = (√(k²+4) − k)/2 = 2/(√(k²+4) + k) ∈ (0, 1) (= cos θ_eq), u₋ = −1/u₊ < −1.
+// For w = (u − u₊)/(u − u₋):  dw/dt = u̇ (u₊ − u₋)/(u − u₋)² = −w (u₊ − u₋)/(2τ_ε), so
+// w(t) = w(0) e^{−λt} with λ = (u₊ − u₋)/(2τ_ε) = √(k²+4)/(2τ_ε) = ½√(1/τ_Γ² + 4/τ_ε²)
+// (multiply √(k²+4) = √(τ_ε²/τ_Γ² + 4) by 1/τ_ε): the same λ as DESIGN.md §7.
+// Back: u = (u₊ − w u₋)/(1 − w); u − u₋ > 0 for u ∈ [−1, 1], so w < 1 and this is finite.
+
+double eq2Theta(double t, double tau_gamma, double tau_eps, double theta0_deg) {
+  const double k = tau_eps / tau_gamma;
+  const double s = std::sqrt(k * k + 4);
+  const double up = 2 / (s + k), um = -1 / up;
+  const double lambda = s / (2 * tau_eps);
+  const double u0 = std::cos(theta0_deg * kDeg);
+  const double w = (u0 - up) / (u0 - um) * std::exp(-lambda * t);
+  const double u = (up - w * um) / (1 - w);
+  return std::acos(std::clamp(u, -1.0, 1.0)) / kDeg;
+}
+
+FitResult fitEq2(const std::vector<double>& t, const std::vector<double>& theta) {
+  FitResult res;
+  res.names = {"tau_gamma_s", "tau_eps_s", "theta0_deg"};
+  res.p = 3;
+  res.n = static_cast<int>(t.size());
+  res.value.assign(3, kNaN);
+  res.std_error.assign(3, kNaN);
+  if (std::string why = checkData(t, theta, 3, "theta"); !why.empty()) {
+    res.why = why;
+    return res;
+  }
+  const int n = res.n;
+  for (int i = 0; i < n; ++i)
+    if (!(theta[i] > 0 && theta[i] < 180)) {
+      res.why = "theta outside (0, 180) deg at index " + std::to_string(i);
+      return res;
+    }
+  const auto [lo, hi] = std::minmax_element(theta.begin(), theta.end());
+  if (*hi - *lo <= 1e-12 * *hi) {
+    res.why = "constant data (" + fmt(*hi) +
+              " deg): no relaxation, the time constants are "
+              "undetermined";
+    return res;
+  }
+  const TimeScale ts = timeScale(t);
+  const double tscale = ts.span;
+  const Eigen::Map<const Vec> data(theta.data(), n);
+  // q = (log(τ_Γ/T), log(τ_ε/T), θ_0). θ_0 enters through cos θ_0 (even): reported as |θ_0|.
+  auto taus = [&](const Vec& q) {
+    return std::pair{tscale * std::exp(std::clamp(q(0), -kLogTauMax, kLogTauMax)),
+                     tscale * std::exp(std::clamp(q(1), -kLogTauMax, kLogTauMax))};
+  };
+  const Residual f = [&](const Vec& q, Vec& r) {
+    const auto [tg, te] = taus(q);
+    for (int i = 0; i < n; ++i) r(i) = data(i) - eq2Theta(t[i], tg, te, q(2));
+    return r.allFinite();
+  };
+  // Starting points: a scan over (θ_eq, λ) with θ_0 from the Eq. 1 fit (or the earliest
+  // point), plus the Eq. 1 fit mapped onto Eq. 2 (λ ≈ 1/τ_f).
+  const FitResult e1 = fitEq1(t, theta);
+  double theta0 = theta[static_cast<size_t>(std::min_element(t.begin(), t.end()) - t.begin())];
+  if (std::isfinite(e1.value[1]) && e1.value[1] > 0 && e1.value[1] < 180) theta0 = e1.value[1];
+  auto start = [&](double theta_eq_deg, double lambda) {
+    const double up = std::cos(std::clamp(theta_eq_deg, 0.5, 89.5) * kDeg);
+    const double k = (1 - up * up) / up;
+    const double te = std::sqrt(k * k + 4) / (2 * lambda);
+    Vec q(3);
+    q << std::log(te / k / tscale), std::log(te / tscale), theta0;
+    return q;
+  };
+  std::vector<Vec> starts;
+  {
+    Vec r(n);
+    double best = std::numeric_limits<double>::infinity();
+    Vec best_q;
+    for (int a = 0; a <= 22; ++a) {
+      for (int l = 0; l <= 30; ++l) {
+        const Vec q = start(0.5 + 89.0 * a / 22, std::pow(10.0, 3.0 - 4.0 * l / 30) / tscale);
+        if (f(q, r) && r.squaredNorm() < best) {
+          best = r.squaredNorm();
+          best_q = q;
+        }
+      }
+    }
+    if (best_q.size()) starts.push_back(best_q);
+    if (std::isfinite(e1.value[0]) && std::isfinite(e1.value[2]) && e1.value[2] > 0)
+      starts.push_back(start(e1.value[0], 1 / e1.value[2]));
+  }
+  if (starts.empty()) {
+    res.why = "no finite initial guess";
+    return res;
+  }
+  LmResult lm;
+  for (const Vec& q0 : starts) {
+    LmResult l = levenbergMarquardt(f, q0, n);
+    if (std::isfinite(l.rss) && !(l.rss >= lm.rss)) lm = l;
+  }
+  if (!std::isfinite(lm.rss)) {
+    res.why = "model not finite at the initial guesses";
+    return res;
+  }
+  lm.q(2) = std::abs(lm.q(2));
+  Reported rep;
+  rep.names = res.names;
+  rep.to_phys = [&](const Vec& q) {
+    const auto [tg, te] = taus(q);
+    Vec p(3);
+    p << tg, te, q(2);
+    return p;
+  };
+  rep.from_phys = [&](const Vec& p) {
+    Vec q(3);
+    q << std::log(p(0) / tscale), std::log(p(1) / tscale), p(2);
+    return q;
+  };
+  rep.derived_names = {"theta_eq_deg", "lambda_per_s"};
+  rep.derived = [](const Vec& p) {
+    const double k = p(1) / p(0), s = std::sqrt(k * k + 4);
+    Vec d(2);
+    d << std::acos(2 / (s + k)) / kDeg, s / (2 * p(1));
+    return d;
+  };
+  const bool finite_cov = finishFit(f, lm, data, rep, res);
+  // Time constants driven to infinity: the data need a non-positive rate.
+  const double theta_eq = res.get("theta_eq_deg");
+  // A time constant beyond 10 T that the data do not determine, or at the bound of the search.
+  auto unbounded = [&](int k) {
+    const bool undetermined =
+        !finite_cov || !(res.std_error[static_cast<size_t>(k)] <= res.value[k]);
+    return lm.q(k) > kLogTauAtBound || (lm.q(k) > std::log(10.0) && undetermined);
+  };
+  if (unbounded(0) && theta_eq < 45) {
+    res.why =
+        "tau_gamma_s -> infinity (theta_eq -> 0 deg): the data need 1/tau_gamma <= 0, "
+        "i.e. a negative tau_gamma";
+    return res;
+  }
+  if (unbounded(1) && theta_eq >= 45) {
+    res.why =
+        "tau_eps_s -> infinity (theta_eq -> 90 deg): the data need 1/tau_eps <= 0, "
+        "i.e. a negative tau_eps";
+    return res;
+  }
+  if (lm.q(0) < -kLogTauAtBound || lm.q(1) < -kLogTauAtBound) {
+    res.why = "a time constant -> 0: the data jump at t = 0";
+    return res;
+  }
+  if (!finite_cov) return res;
+  if (!lm.converged) {
+    res.why = lm.why;
+    return res;
+  }
+  const double lambda = res.get("lambda_per_s");
+  const double relax = 1 / lambda, relax_se = res.error("lambda_per_s") / (lambda * lambda);
+  res.why = checkTau("1/lambda", relax, relax_se, ts);
+  for (int k = 0; k < 2 && res.why.empty(); ++k)
+    if (!(res.std_error[k] <= res.value[k]))
+      res.why = res.names[k] + " undetermined (relative standard error " +
+                fmt(100 * res.std_error[k] / res.value[k]) + " %)";
+  res.ok = res.why.empty();
+  return res;
+}
+
+// ---------------------------------------------------------------------------------------------
+// S1
+
+FitResult fitS1(const std::vector<double>& t, const std::vector<double>& a, double R) {
+  FitResult res;
+  res.names = {"L_e_um", "tau_1_s", "v_f_um_per_s"};
+  res.p = 3;
+  res.n = static_cast<int>(t.size());
+  res.value.assign(3, kNaN);
+  res.std_error.assign(3, kNaN);
+  if (!(R > 0) || !std::isfinite(R)) {
+    res.why = "R must be positive and finite (got " + fmt(R) + ")";
+    return res;
+  }
+  if (std::string why = checkData(t, a, 3, "neck radius"); !why.empty()) {
+    res.why = why;
+    return res;
+  }
+  const int n = res.n;
+  for (int i = 0; i < n; ++i)
+    if (a[i] < 0) {
+      res.why = "negative neck radius at index " + std::to_string(i);
+      return res;
+    }
+  const auto [lo, hi] = std::minmax_element(a.begin(), a.end());
+  if (*hi - *lo <= 1e-12 * std::max(1.0, *hi)) {
+    res.why = "constant neck radius (" + fmt(*hi) + " um): no growth, tau_1 undetermined";
+    return res;
+  }
+  const TimeScale ts = timeScale(t);
+  const double tscale = ts.span;
+  // Initial guess: the model is linear in (L_e, v_f) in y = a³/R².
+  std::vector<double> y(a.size());
+  for (size_t i = 0; i < a.size(); ++i) y[i] = a[i] * a[i] * a[i] / (R * R);
+  const LinearScan scan = scanTau(t, y, ts.span, [](double ti, double) { return ti; });
+  if (!std::isfinite(scan.rss)) {
+    res.why = "no finite initial guess";
+    return res;
+  }
+  const Eigen::Map<const Vec> data(a.data(), n);
+  const double r2 = R * R;
+  // q = (L_e, log(τ_1/T), v_f); residuals in a.
+  const Residual f = [&](const Vec& q, Vec& r) {
+    const double tau = tscale * std::exp(std::clamp(q(1), -kLogTauMax, kLogTauMax));
+    for (int i = 0; i < n; ++i)
+      r(i) = data(i) - std::cbrt(r2 * (-q(0) * std::expm1(-t[i] / tau) + q(2) * t[i]));
+    return r.allFinite();
+  };
+  Vec q0(3);
+  q0 << scan.c1, std::log(scan.tau / tscale), scan.c2;
+  const LmResult lm = levenbergMarquardt(f, q0, n);
+  Reported rep;
+  rep.names = res.names;
+  rep.to_phys = [&](const Vec& q) {
+    Vec p = q;
+    p(1) = tscale * std::exp(std::clamp(q(1), -kLogTauMax, kLogTauMax));
+    return p;
+  };
+  rep.from_phys = [&](const Vec& p) {
+    Vec q = p;
+    q(1) = std::log(p(1) / tscale);
+    return q;
+  };
+  if (!finishFit(f, lm, data, rep, res)) return res;
+  if (!lm.converged) {
+    res.why = lm.why;
+    return res;
+  }
+  if (!(res.value[0] > 0)) {
+    res.why = "L_e_um = " + fmt(res.value[0]) + " is not positive";
+    return res;
+  }
+  if (res.value[2] < -2 * res.std_error[2]) {
+    res.why = "v_f_um_per_s = " + fmt(res.value[2]) +
+              " is negative (more than 2 standard "
+              "errors)";
+    return res;
+  }
+  res.why = checkTau("tau_1_s", res.value[1], res.std_error[1], ts);
+  res.ok = res.why.empty();
+  return res;
+}
+
+}  // namespace activefoam
