@@ -76,7 +76,8 @@ int main(int argc, char** argv) {
   app.add_option("--keep-snapshots", keep_snapshots,
                  "snapshots kept per job, newest first (0 = all)")
       ->check(CLI::Range(0, 1000000));
-  app.add_option("--checkpoint-every-s", checkpoint_every_s, "wall seconds between checkpoints")
+  app.add_option("--checkpoint-every-s", checkpoint_every_s,
+                 "simulated seconds between checkpoints of a running job")
       ->check(CLI::PositiveNumber);
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error")->capture_default_str();
   app.set_config("--config", "", "TOML config file (keys = long flag names)");

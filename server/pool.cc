@@ -41,26 +41,6 @@ v1::SnapshotData toProto(const Snapshot& s) {
   return d;
 }
 
-// The engine's checkpoint hooks (RunObserver::checkpoint_every_s / on_checkpoint) are being
-// added by the engine developer; compile against either version of run.h.
-template <class Obs>
-concept HasCheckpoints = requires(Obs o) {
-  o.checkpoint_every_s;
-  o.on_checkpoint;
-};
-
-template <class Obs, class F>
-void setCheckpointHook(Obs& obs, double every_s, F&& fn) {
-  if constexpr (HasCheckpoints<Obs>) {
-    obs.checkpoint_every_s = every_s;
-    obs.on_checkpoint = std::forward<F>(fn);
-  } else {
-    (void)obs;
-    (void)every_s;
-    (void)fn;
-  }
-}
-
 }  // namespace
 
 Pool::Pool(Store& store, PoolOptions options) : store_(store), options_(options) {
@@ -197,11 +177,12 @@ void Pool::runJob(const Claimed& claimed, Running& flag) {
     p.set_eta_s(f > 0 ? wall * (1 - f) / f : -1);
     store_.addProgress(id, p);
   };
-  // Periodic, atomic checkpoints (one transaction replaces the previous one).
-  setCheckpointHook(obs, options_.checkpoint_every_s, [&](std::string state) {
-    store_.saveCheckpoint(id, last_step > 0 ? last_step * spec.numerics.dt_s : 0.0,
-                          std::move(state));
-  });
+  // Periodic, atomic checkpoints (one transaction replaces the previous one), and one when the
+  // run is cancelled (shutdown), so a re-queued job resumes where it stopped.
+  obs.checkpoint_every_s = options_.checkpoint_every_s;
+  obs.on_checkpoint = [&](double t_s, const std::string& state) {
+    store_.saveCheckpoint(id, t_s, state);
+  };
 
   RunSummary summary;
   std::string exception;
@@ -210,9 +191,8 @@ void Pool::runJob(const Claimed& claimed, Running& flag) {
       summary = runScene(spec, obs, resume);
     } catch (const std::invalid_argument& e) {
       if (!resume) throw;
-      // The engine refused the checkpoint (today: resume is not implemented yet; later: a
-      // checkpoint of another engine version). Start over from scratch — same seed, same result.
-      // TODO(engine resume): once runScene resumes, this path is only for stale checkpoints.
+      // The engine refused the checkpoint (written by another engine version or a damaged
+      // one). Start over from scratch — same seed, same result.
       spdlog::warn("job {}: cannot resume ({}); restarting from scratch", id, e.what());
       store_.dropCheckpoint(id);
       store_.resetOutputs(id, std::nullopt);

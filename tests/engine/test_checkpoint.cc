@@ -80,7 +80,7 @@ TEST(Checkpoint, ResumedRunEmitsTheSameSamples) {
   RunObserver o2;
   o2.cancel = &cancel;
   o2.checkpoint_every_s = 10;
-  o2.on_checkpoint = [&](const std::string& c) { checkpoints.push_back(c); };
+  o2.on_checkpoint = [&](double, const std::string& c) { checkpoints.push_back(c); };
   o2.on_sample = [&](const Sample& x) {
     first.push_back(x);
     if (x.values[0] >= 25) cancel = true;

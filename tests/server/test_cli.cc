@@ -150,9 +150,8 @@ TEST(Cli, SubmitWaitThenResultsJson) {
 
 // kill -9 mid-run, restart: the accepted jobs are all there and finish, with the results of an
 // uninterrupted run of the same spec and seed.
-// TODO(engine resume): the engine does not resume from checkpoints yet, so the interrupted job
-// re-runs from scratch here. Once runScene(spec, obs, &checkpoint) works, additionally assert
-// that the restarted attempt starts at t > 0 (first progress event after the requeue).
+// kill -9 mid-run: the restarted server re-queues the job and resumes it from its last checkpoint
+// (or from scratch if none was written yet); either way the results equal an uninterrupted run.
 TEST(Cli, KillDashNineThenRestartFinishesEveryJobWithTheSameResults) {
   const fs::path dir = tempDir();
   const int port = freePort();

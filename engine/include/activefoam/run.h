@@ -72,7 +72,7 @@ struct RunObserver {
   // cancelled. Resuming from it (runScene's `resume`) continues bit-identically: the samples
   // after the checkpoint equal those of an uninterrupted run (the wall-clock column aside).
   double checkpoint_every_s = 0;
-  std::function<void(const std::string& state)> on_checkpoint;
+  std::function<void(double t_s, const std::string& state)> on_checkpoint;  // t_s: state's time
 };
 
 // Runs a resolved, valid spec (see resolve/validate in spec.h) to duration_s or to its first

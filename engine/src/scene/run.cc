@@ -36,19 +36,18 @@ std::vector<std::pair<std::string, double>> sceneObservables(const Simulation& s
     case SceneKind::Spheroid: {
       const Geometry& g = sim.geometry();
       const int n = sim.cells().numCells();
-      double vol = 0, si = 0;
+      double vol = 0;
       Vec3 centre = Vec3::Zero();
       for (int c = 0; c < n; ++c) {
         vol += g.cell_volume[c];
         centre += g.cell_volume[c] * g.cell_centroid[c];
-        si += g.cell_area[c] / std::cbrt(g.cell_volume[c] * g.cell_volume[c]) / n;
       }
       centre /= vol;
       double rg2 = 0;
       for (int c = 0; c < n; ++c)
         rg2 += g.cell_volume[c] * (g.cell_centroid[c] - centre).squaredNorm();
       out.emplace_back("radius_gyration_um", std::sqrt(rg2 / vol));
-      out.emplace_back("shape_index_mean", si);
+      out.emplace_back("shape_index_mean", meanShapeIndex(g));
       out.emplace_back("contact_pairs", static_cast<double>(sim.contacts().pairs.size()));
       break;
     }
@@ -159,7 +158,8 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
     if (!obs.on_checkpoint) return;
     acc.wall_before = wall_before + wall();
     acc.last_checkpoint_t = sim.time();
-    obs.on_checkpoint(sim.saveState(std::string(reinterpret_cast<const char*>(&acc), sizeof acc)));
+    obs.on_checkpoint(sim.time(),
+                      sim.saveState(std::string(reinterpret_cast<const char*>(&acc), sizeof acc)));
   };
 
   auto emitSample = [&] {
