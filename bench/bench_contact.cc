@@ -8,6 +8,7 @@
 #include <Eigen/Geometry>
 
 #include "activefoam/contact_geometry.h"
+#include "activefoam/mesh.h"
 
 namespace {
 
@@ -59,32 +60,12 @@ BENCHMARK(BM_NarrowPhase<ContactQuadrature::Exact>);
 BENCHMARK(BM_NarrowPhase<ContactQuadrature::Dunavant7>);
 BENCHMARK(BM_NarrowPhase<ContactQuadrature::Centroid>);
 
-// Icosphere (local helper; the engine's builder lives in engine/src/mesh).
+// The engine's icosphere as plain vectors.
 void icosphere(int levels, std::vector<Vec3>& x, std::vector<Tri>& tri) {
-  const double t = (1.0 + std::sqrt(5.0)) / 2.0;
-  x = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
-       {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
-  for (Vec3& p : x) p.normalize();
-  tri = {{0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-         {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
-         {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
-  for (int l = 0; l < levels; ++l) {
-    std::map<std::pair<int, int>, int> mid;
-    auto midpoint = [&](int i, int j) {
-      const auto key = std::minmax(i, j);
-      if (auto it = mid.find(key); it != mid.end()) return it->second;
-      x.push_back((x[i] + x[j]).normalized());
-      return mid[key] = static_cast<int>(x.size()) - 1;
-    };
-    std::vector<Tri> next;
-    for (const Tri& f : tri) {
-      const int ab = midpoint(f[0], f[1]), bc = midpoint(f[1], f[2]), ca = midpoint(f[2], f[0]);
-      next.insert(next.end(), {{f[0], ab, ca}, {f[1], bc, ab}, {f[2], ca, bc}, {ab, bc, ca}});
-    }
-    tri = std::move(next);
-  }
-  for (Tri& f : tri)
-    if ((x[f[1]] - x[f[0]]).cross(x[f[2]] - x[f[0]]).dot(x[f[0]]) < 0) std::swap(f[1], f[2]);
+  const activefoam::TriMesh m = activefoam::icosphere(levels);
+  x.clear();
+  for (int i = 0; i < m.numVertices(); ++i) x.push_back(m.x.col(i));
+  tri = m.tri;
 }
 
 // n_cells spheres of radius r = 8.88 µm (320 triangles) on the FCC sites nearest the origin,

@@ -43,21 +43,6 @@ std::string expected(const SpecField& f) {
   return f.type == FieldType::Integer ? "an integer" : "a number";
 }
 
-std::size_t editDistance(std::string_view a, std::string_view b) {
-  std::vector<std::size_t> row(b.size() + 1);
-  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (std::size_t i = 1; i <= a.size(); ++i) {
-    std::size_t diag = row[0];
-    row[0] = i;
-    for (std::size_t j = 1; j <= b.size(); ++j) {
-      const std::size_t up = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diag = up;
-    }
-  }
-  return row[b.size()];
-}
-
 SpecError unknownTable(const std::string& key) {
   std::string msg = "unknown table '" + key + "'";
   for (std::string_view g : {"cells", "numerics", "scene"})

@@ -169,47 +169,18 @@ GridReference gridIntegrate(const Tri3& a, const Tri3& b, const ContactLaw& law,
   return r;
 }
 
-// Small icosphere (local helper; the engine's mesh builders live elsewhere).
+// The engine's icosphere as plain vectors.
 struct LocalMesh {
   std::vector<Vec3> x;
   std::vector<Tri> tri;
 };
 
 LocalMesh localIcosphere(int levels) {
-  const double t = (1.0 + std::sqrt(5.0)) / 2.0;
-  LocalMesh m;
-  m.x = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
-         {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
-  for (Vec3& p : m.x) p.normalize();
-  m.tri = {{0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-           {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
-           {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
-  for (int l = 0; l < levels; ++l) {
-    std::map<std::pair<int, int>, int> mid;
-    auto midpoint = [&](int i, int j) {
-      const auto key = std::minmax(i, j);
-      auto it = mid.find(key);
-      if (it != mid.end()) return it->second;
-      m.x.push_back((m.x[i] + m.x[j]).normalized());
-      const int id = static_cast<int>(m.x.size()) - 1;
-      mid.emplace(key, id);
-      return id;
-    };
-    std::vector<Tri> next;
-    for (const Tri& f : m.tri) {
-      const int ab = midpoint(f[0], f[1]), bc = midpoint(f[1], f[2]), ca = midpoint(f[2], f[0]);
-      next.push_back({f[0], ab, ca});
-      next.push_back({f[1], bc, ab});
-      next.push_back({f[2], ca, bc});
-      next.push_back({ab, bc, ca});
-    }
-    m.tri = std::move(next);
-  }
-  for (Tri& f : m.tri) {  // outward orientation
-    const Vec3 nrm = (m.x[f[1]] - m.x[f[0]]).cross(m.x[f[2]] - m.x[f[0]]);
-    if (nrm.dot(m.x[f[0]] + m.x[f[1]] + m.x[f[2]]) < 0) std::swap(f[1], f[2]);
-  }
-  return m;
+  const TriMesh m = icosphere(levels);
+  LocalMesh out;
+  for (int i = 0; i < m.numVertices(); ++i) out.x.push_back(m.x.col(i));
+  out.tri = m.tri;
+  return out;
 }
 
 struct Scene {

@@ -154,6 +154,9 @@ std::vector<SpecError> validate(const SceneSpec& spec);
 // exactly what runs. Idempotent. Call validate() first.
 SceneSpec resolve(const SceneSpec& spec);
 
+// Levenshtein distance (for "did you mean" suggestions on unknown keys and tables).
+std::size_t editDistance(std::string_view a, std::string_view b);
+
 std::string_view toString(SceneKind);
 std::string_view toString(IntegratorKind);
 std::string_view toString(PreconditionerKind);
