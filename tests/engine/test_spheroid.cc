@@ -37,9 +37,9 @@ TEST(SpherePacking, NoOverlapCompactAndDeterministic) {
   // for 60 spheres: the surface layer), the loose random start 0.2.
   const double outer = std::sqrt(5.0 / 3.0 * rg2) + mean;
   const double fraction = solid / (4.0 / 3.0 * M_PI * std::pow(outer, 3));
-  std::cout << "[ packing  ] 60 spheres: packing fraction " << fraction << ", "
-            << touching / 30.0 << " touching neighbours per sphere\n";
-  EXPECT_GT(fraction, 0.4);  // measured 0.42: twice the loose start, 2/3 of the RCP ideal
+  std::cout << "[ packing  ] 60 spheres: packing fraction " << fraction << ", " << touching / 30.0
+            << " touching neighbours per sphere\n";
+  EXPECT_GT(fraction, 0.4);         // measured 0.42: twice the loose start, 2/3 of the RCP ideal
   EXPECT_GT(touching / 30.0, 3.0);  // neighbours touch (contacts can form)
   EXPECT_EQ(packSpheres(radii, 3), x);
 }

@@ -135,6 +135,21 @@ struct Reported {
   std::function<Vec(const Vec&)> derived;
 };
 
+// Parameter k is a time constant fitted as q_k = log(τ / tscale) (kept positive and
+// scale-free); the others are reported as fitted.
+void logTimeConstant(Reported& rep, int k, double tscale) {
+  rep.to_phys = [k, tscale](const Vec& q) {
+    Vec p = q;
+    p(k) = tscale * std::exp(std::clamp(q(k), -kLogTauMax, kLogTauMax));
+    return p;
+  };
+  rep.from_phys = [k, tscale](const Vec& p) {
+    Vec q = p;
+    q(k) = std::log(p(k) / tscale);
+    return q;
+  };
+}
+
 bool finishFit(const Residual& f, const LmResult& lm, const Vec& data, const Reported& rep,
                FitResult& res) {
   const Eigen::Index n = data.size(), p = lm.q.size();
@@ -350,16 +365,7 @@ FitResult fitEq1(const std::vector<double>& t, const std::vector<double>& theta)
   const LmResult lm = levenbergMarquardt(f, q0, n);
   Reported rep;
   rep.names = res.names;
-  rep.to_phys = [&](const Vec& q) {
-    Vec p = q;
-    p(2) = tscale * std::exp(std::clamp(q(2), -kLogTauMax, kLogTauMax));
-    return p;
-  };
-  rep.from_phys = [&](const Vec& p) {
-    Vec q = p;
-    q(2) = std::log(p(2) / tscale);
-    return q;
-  };
+  logTimeConstant(rep, 2, tscale);
   if (!finishFit(f, lm, data, rep, res)) return res;
   if (!lm.converged) {
     res.why = lm.why;
@@ -588,16 +594,7 @@ FitResult fitS1(const std::vector<double>& t, const std::vector<double>& a, doub
   const LmResult lm = levenbergMarquardt(f, q0, n);
   Reported rep;
   rep.names = res.names;
-  rep.to_phys = [&](const Vec& q) {
-    Vec p = q;
-    p(1) = tscale * std::exp(std::clamp(q(1), -kLogTauMax, kLogTauMax));
-    return p;
-  };
-  rep.from_phys = [&](const Vec& p) {
-    Vec q = p;
-    q(1) = std::log(p(1) / tscale);
-    return q;
-  };
+  logTimeConstant(rep, 1, tscale);
   if (!finishFit(f, lm, data, rep, res)) return res;
   if (!lm.converged) {
     res.why = lm.why;
