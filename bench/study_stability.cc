@@ -5,8 +5,8 @@
 // smallest Δt), or "stable". The largest stable Δt of an integrator is the largest Δt below
 // which every tried step was stable.
 //
-// Run: OMP_NUM_THREADS=1 build/release/bench/study_stability [duration_s] >
-// docs/stability-doublet.md
+// Run (about 5 minutes on the 2-core machine):
+//   OMP_NUM_THREADS=1 build/release/bench/study_stability [duration_s] > docs/stability-doublet.md
 #include <chrono>
 #include <cmath>
 #include <cstdio>
