@@ -10,7 +10,7 @@
 #include <iostream>
 #include <iterator>
 #include <limits>
-#include <regex>
+#include <optional>
 #include <sstream>
 
 #include <toml++/toml.h>
@@ -144,10 +144,34 @@ class Walker {
 // `[scene]` header is read as this name and walked as the scene table. Lines keep their numbers.
 constexpr std::string_view kSceneTableAlias = "__scene_table__";
 
+// Plain string checks (GCC 12's <regex> trips -Wmaybe-uninitialized at -O3).
+std::string_view skipSpace(std::string_view l) {
+  const std::size_t i = l.find_first_not_of(" \t\r");
+  return i == std::string_view::npos ? std::string_view{} : l.substr(i);
+}
+
+// `scene =` (and not e.g. `scenery =`) at the start of a line.
+bool assignsScene(std::string_view l) {
+  l = skipSpace(l);
+  if (l.substr(0, 5) != "scene") return false;
+  l = skipSpace(l.substr(5));
+  return !l.empty() && l.front() == '=';
+}
+
+// `[scene]` with optional spaces and a trailing comment: returns the comment (possibly empty).
+std::optional<std::string> sceneHeaderComment(std::string_view l) {
+  l = skipSpace(l);
+  if (l.empty() || l.front() != '[') return std::nullopt;
+  l = skipSpace(l.substr(1));
+  if (l.substr(0, 5) != "scene") return std::nullopt;
+  l = skipSpace(l.substr(5));
+  if (l.empty() || l.front() != ']') return std::nullopt;
+  l = skipSpace(l.substr(1));
+  if (!l.empty() && l.front() != '#') return std::nullopt;
+  return std::string(l);
+}
+
 std::string liftSceneTable(std::string_view text) {
-  static const std::regex kHeader(R"(^\s*\[\s*scene\s*\]\s*(#.*)?$)");
-  static const std::regex kAnyHeader(R"(^\s*\[)");
-  static const std::regex kSceneKey(R"(^\s*scene\s*=)");
   std::vector<std::string> lines;
   std::size_t start = 0;
   while (start <= text.size()) {
@@ -157,15 +181,15 @@ std::string liftSceneTable(std::string_view text) {
   }
   bool top = true, scene_key = false;
   for (const std::string& l : lines) {
-    if (std::regex_search(l, kAnyHeader)) top = false;
-    if (top && std::regex_search(l, kSceneKey)) scene_key = true;
+    const std::string_view t = skipSpace(l);
+    if (!t.empty() && t.front() == '[') top = false;
+    if (top && assignsScene(l)) scene_key = true;
   }
   if (!scene_key) return std::string(text);
   std::string out;
   for (std::size_t i = 0; i < lines.size(); ++i) {
-    std::smatch m;
-    if (std::regex_match(lines[i], m, kHeader))
-      out += "[" + std::string(kSceneTableAlias) + "] " + m[1].str();
+    if (const auto comment = sceneHeaderComment(lines[i]))
+      out += "[" + std::string(kSceneTableAlias) + "] " + *comment;
     else
       out += lines[i];
     if (i + 1 < lines.size()) out += '\n';
