@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <random>
 #include <sstream>
 #include <thread>
@@ -217,5 +218,11 @@ TEST(Cli, SigtermRequeuesRunningJobs) {
   const nlohmann::json j = results(d2, id);
   EXPECT_EQ(j["state"], "succeeded");
   d2.stop(SIGTERM);
+  // The cancelled run wrote a checkpoint on its way out; the restart resumed from it rather
+  // than starting over.
+  std::ifstream log(dir / "foamd.log");
+  const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("resuming from checkpoint at t = "), std::string::npos) << text;
+  EXPECT_EQ(text.find("cannot resume"), std::string::npos) << text;
   fs::remove_all(dir);
 }
