@@ -21,6 +21,7 @@
 #include "activefoam/run.h"
 #include "activefoam/spec.h"
 #include "activefoam/spec_io.h"
+#include "test_files.h"
 
 extern char** environ;
 
@@ -29,25 +30,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string readFile(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-void writeFile(const fs::path& p, const std::string& text) {
-  std::ofstream out(p, std::ios::binary);
-  out << text;
-}
-
-std::vector<std::string> lines(const std::string& text) {
-  std::vector<std::string> out;
-  std::istringstream in(text);
-  std::string l;
-  while (std::getline(in, l)) out.push_back(l);
-  return out;
-}
+using testing::lines;
+using testing::readFile;
+using testing::writeFile;
 
 std::string quote(const std::string& s) {
   std::string q = "'";

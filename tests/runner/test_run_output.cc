@@ -8,18 +8,14 @@
 
 #include "activefoam/run_output.h"
 #include "activefoam/spec_io.h"
+#include "test_files.h"
 
 namespace activefoam {
 namespace {
 
 namespace fs = std::filesystem;
 
-std::string readFile(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using testing::readFile;
 
 class RunOutputTest : public ::testing::Test {
  protected:

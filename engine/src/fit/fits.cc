@@ -246,6 +246,19 @@ std::string checkData(const std::vector<double>& t, const std::vector<double>& y
   return "";
 }
 
+// A result with the parameter names, n and NaN values, and `why` set if the data cannot be fitted.
+FitResult newFit(std::vector<std::string> names, const std::vector<double>& t,
+                 const std::vector<double>& y, const char* yname) {
+  FitResult res;
+  res.p = static_cast<int>(names.size());
+  res.names = std::move(names);
+  res.n = static_cast<int>(t.size());
+  res.value.assign(res.p, kNaN);
+  res.std_error.assign(res.p, kNaN);
+  res.why = checkData(t, y, res.p, yname);
+  return res;
+}
+
 struct TimeScale {
   double t0 = 0, span = 0, first_step = 0;
 };
@@ -324,16 +337,8 @@ double FitResult::error(std::string_view name) const {
 // Eq. 1
 
 FitResult fitEq1(const std::vector<double>& t, const std::vector<double>& theta) {
-  FitResult res;
-  res.names = {"theta_eq_deg", "theta0_deg", "tau_f_s"};
-  res.p = 3;
-  res.n = static_cast<int>(t.size());
-  res.value.assign(3, kNaN);
-  res.std_error.assign(3, kNaN);
-  if (std::string why = checkData(t, theta, 3, "theta"); !why.empty()) {
-    res.why = why;
-    return res;
-  }
+  FitResult res = newFit({"theta_eq_deg", "theta0_deg", "tau_f_s"}, t, theta, "theta");
+  if (!res.why.empty()) return res;
   const int n = res.n;
   const auto [lo, hi] = std::minmax_element(theta.begin(), theta.end());
   double mean = 0;
@@ -399,16 +404,8 @@ double eq2Theta(double t, double tau_gamma, double tau_eps, double theta0_deg) {
 }
 
 FitResult fitEq2(const std::vector<double>& t, const std::vector<double>& theta) {
-  FitResult res;
-  res.names = {"tau_gamma_s", "tau_eps_s", "theta0_deg"};
-  res.p = 3;
-  res.n = static_cast<int>(t.size());
-  res.value.assign(3, kNaN);
-  res.std_error.assign(3, kNaN);
-  if (std::string why = checkData(t, theta, 3, "theta"); !why.empty()) {
-    res.why = why;
-    return res;
-  }
+  FitResult res = newFit({"tau_gamma_s", "tau_eps_s", "theta0_deg"}, t, theta, "theta");
+  if (!res.why.empty()) return res;
   const int n = res.n;
   for (int i = 0; i < n; ++i)
     if (!(theta[i] > 0 && theta[i] < 180)) {
@@ -545,20 +542,12 @@ FitResult fitEq2(const std::vector<double>& t, const std::vector<double>& theta)
 // S1
 
 FitResult fitS1(const std::vector<double>& t, const std::vector<double>& a, double R) {
-  FitResult res;
-  res.names = {"L_e_um", "tau_1_s", "v_f_um_per_s"};
-  res.p = 3;
-  res.n = static_cast<int>(t.size());
-  res.value.assign(3, kNaN);
-  res.std_error.assign(3, kNaN);
+  FitResult res = newFit({"L_e_um", "tau_1_s", "v_f_um_per_s"}, t, a, "neck radius");
   if (!(R > 0) || !std::isfinite(R)) {
     res.why = "R must be positive and finite (got " + fmt(R) + ")";
     return res;
   }
-  if (std::string why = checkData(t, a, 3, "neck radius"); !why.empty()) {
-    res.why = why;
-    return res;
-  }
+  if (!res.why.empty()) return res;
   const int n = res.n;
   for (int i = 0; i < n; ++i)
     if (a[i] < 0) {
