@@ -10,9 +10,11 @@
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <exception>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -57,6 +59,7 @@ void installSignalHandlers() {
 
 constexpr const char* kUsage =
     "usage: foam-run SPEC --out DIR [--set KEY=VALUE]... [--force] [--quiet]\n"
+    "                [--spheroid-cache DIR | --no-cache]\n"
     "       foam-run --keys | --help | --version\n";
 
 void printHelp() {
@@ -73,6 +76,11 @@ void printHelp() {
          "  --out DIR        output folder; created; must be empty unless --force\n"
          "  --set KEY=VALUE  override a spec key, e.g. --set numerics.dt_s=0.05 (repeatable)\n"
          "  --force          write into a non-empty DIR (replaces earlier outputs)\n"
+         "  --spheroid-cache DIR\n"
+         "                   fusion: prepared spheroids are kept here and reused (default\n"
+         "                   $ACTIVEFOAM_CACHE, $XDG_CACHE_HOME/activefoam/spheroids or\n"
+         "                   ~/.cache/activefoam/spheroids)\n"
+         "  --no-cache       fusion: prepare the spheroids for this run only\n"
          "  --quiet, -q      no progress lines on stderr\n"
          "  --keys           list every spec key with its range, unit and default\n"
          "  --help, -h       this text\n"
@@ -133,7 +141,19 @@ struct Args {
   std::vector<std::string> settings;
   bool force = false;
   bool quiet = false;
+  std::optional<std::string> cache;  // --spheroid-cache; "" disables
 };
+
+// Prepared spheroids are shared by every run of a user: $ACTIVEFOAM_CACHE, else
+// $XDG_CACHE_HOME/activefoam/spheroids, else ~/.cache/activefoam/spheroids.
+std::string defaultCacheDir() {
+  if (const char* d = std::getenv("ACTIVEFOAM_CACHE"); d && *d) return d;
+  if (const char* d = std::getenv("XDG_CACHE_HOME"); d && *d)
+    return (fs::path(d) / "activefoam" / "spheroids").string();
+  if (const char* d = std::getenv("HOME"); d && *d)
+    return (fs::path(d) / ".cache" / "activefoam" / "spheroids").string();
+  return "";
+}
 
 int usageError(const std::string& msg) {
   std::cerr << "foam-run: " << msg << " (see foam-run --help)\n";
@@ -178,6 +198,10 @@ int main(int argc, char** argv) {
         args.force = true;
       } else if (value("--out", v) || value("-o", v)) {
         args.out = v;
+      } else if (value("--spheroid-cache", v)) {
+        args.cache = v;
+      } else if (a == "--no-cache") {
+        args.cache = "";
       } else if (value("--set", v)) {
         args.settings.push_back(v);
       } else if (a.size() > 1 && a[0] == '-') {
@@ -214,10 +238,15 @@ int main(int argc, char** argv) {
     if (ready.spec) spec = *ready.spec;
     // A valid spec this engine version cannot build yet is refused the same way, before any
     // output is written.
-    if (errors.empty() && !sceneAvailable(spec.scene))
-      errors.push_back({"scene", "'" + std::string(toString(spec.scene)) +
-                                     "' is not available in this engine version (available: "
-                                     "cell, doublet)"});
+    if (errors.empty() && !sceneAvailable(spec.scene)) {
+      std::string avail;
+      for (SceneKind k :
+           {SceneKind::Cell, SceneKind::Doublet, SceneKind::Spheroid, SceneKind::Fusion})
+        if (sceneAvailable(k)) avail += (avail.empty() ? "" : ", ") + std::string(toString(k));
+      errors.push_back(
+          {"scene", "'" + std::string(toString(spec.scene)) +
+                        "' is not available in this engine version (available: " + avail + ")"});
+    }
   }
   if (!errors.empty()) {
     for (const SpecError& e : errors) std::cerr << "foam-run: invalid spec: " << e.str() << "\n";
@@ -260,6 +289,10 @@ int main(int argc, char** argv) {
 
   RunObserver obs;
   obs.cancel = &g_cancel;
+  obs.spheroid_cache_dir = args.cache.value_or(defaultCacheDir());
+  obs.on_log = [&](const std::string& line) {
+    if (!args.quiet) std::cerr << "foam-run: " << line << "\n" << std::flush;
+  };
   auto checkOutput = [&] {
     if (!out.error().empty() && !output_failed) {
       output_failed = true;
@@ -330,8 +363,20 @@ int main(int argc, char** argv) {
     return kExitRunFailed;
   }
   if (!out.error().empty()) return kExitRunFailed;
-  if (!args.quiet)
+  if (!args.quiet) {
     std::cerr << "foam-run: done, t = " << human(summary.t_s) << " s, " << summary.steps
               << " steps in " << formatDuration(ctx.runner_wall_s) << "\n";
+    for (const auto& [model, f] : summary.fits) {
+      std::cerr << "foam-run: fit " << model << ": ";
+      if (!f.ok) {
+        std::cerr << "failed: " << f.why << "\n";
+        continue;
+      }
+      for (std::size_t k = 0; k < f.names.size(); ++k)
+        std::cerr << (k ? ", " : "") << f.names[k] << " = " << human(f.value[k]) << " ± "
+                  << human(f.std_error[k]);
+      std::cerr << " (R² = " << human(f.r2) << ")\n";
+    }
+  }
   return kExitOk;
 }

@@ -62,7 +62,7 @@ std::string trim(std::string s) {
 int main(int argc, char** argv) {
   CLI::App app{"foamd: activefoam simulation server (gRPC API, SQLite store, engine pool)"};
   std::string listen = "127.0.0.1:50051", db = defaultDbPath(), token_file, http, cert, key;
-  std::string log_level = "info";
+  std::string log_level = "info", spheroid_cache;
   int workers = 0, keep_snapshots = 0;
   double checkpoint_every_s = 60;
   app.add_option("--listen", listen, "gRPC address HOST:PORT")->capture_default_str();
@@ -79,6 +79,9 @@ int main(int argc, char** argv) {
   app.add_option("--checkpoint-every-s", checkpoint_every_s,
                  "simulated seconds between checkpoints of a running job")
       ->check(CLI::PositiveNumber);
+  app.add_option("--spheroid-cache", spheroid_cache,
+                 "directory of prepared spheroids reused by fusion jobs (default: 'spheroids' "
+                 "next to the database)");
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error")->capture_default_str();
   app.set_config("--config", "", "TOML config file (keys = long flag names)");
   app.set_version_flag("--version", std::string("foamd ") + ACTIVEFOAM_VERSION);
@@ -119,6 +122,11 @@ int main(int argc, char** argv) {
     PoolOptions po;
     po.workers = workers;
     po.checkpoint_every_s = checkpoint_every_s;
+    po.spheroid_cache_dir = spheroid_cache;
+    if (po.spheroid_cache_dir.empty()) {
+      const fs::path dir = fs::path(db).parent_path();
+      po.spheroid_cache_dir = ((dir.empty() ? fs::path(".") : dir) / "spheroids").string();
+    }
     Pool pool(store, po);
     FoamServer server(store, pool, config);
     server.start();

@@ -180,6 +180,8 @@ void Pool::runJob(const Claimed& claimed, Running& flag) {
   // Periodic, atomic checkpoints (one transaction replaces the previous one), and one when the
   // run is cancelled (shutdown), so a re-queued job resumes where it stopped.
   obs.checkpoint_every_s = options_.checkpoint_every_s;
+  obs.spheroid_cache_dir = options_.spheroid_cache_dir;
+  obs.on_log = [id](const std::string& line) { spdlog::info("job {}: {}", id, line); };
   obs.on_checkpoint = [&](double t_s, const std::string& state) {
     store_.saveCheckpoint(id, t_s, state);
   };
@@ -228,6 +230,20 @@ void Pool::runJob(const Claimed& claimed, Running& flag) {
   results.emplace_back("wall_s", summary.wall_s);
   results.emplace_back("cg_iters_mean", summary.cg_iters_mean);
   results.emplace_back("remesh_ops", static_cast<double>(summary.remesh_ops));
+  // Fits (fusion): each parameter and its standard error ("<name>_se"), and per model
+  // "<model>_ok" and "<model>_r2"; names as in foam-run's summary.json (eq2's θ_eq is
+  // eq2_theta_eq_deg). A failed fit's parameters are left out.
+  for (const auto& [model, f] : summary.fits) {
+    results.emplace_back(model + "_ok", f.ok ? 1 : 0);
+    if (!f.ok) continue;
+    results.emplace_back(model + "_r2", f.r2);
+    for (std::size_t k = 0; k < f.names.size(); ++k) {
+      const std::string name =
+          f.names[k] == "theta_eq_deg" && model != "eq1" ? model + "_" + f.names[k] : f.names[k];
+      results.emplace_back(name, f.value[k]);
+      if (k < f.std_error.size()) results.emplace_back(name + "_se", f.std_error[k]);
+    }
+  }
   if (summary.ok()) {
     store_.finish(id, v1::JOB_STATE_SUCCEEDED, "", "", results, summary.t_s, summary.steps);
     ++stats_.jobs_succeeded;

@@ -20,7 +20,8 @@ namespace activefoam::server {
 struct PoolOptions {
   int workers = 0;                 // 0 = hardware concurrency
   double progress_every_s = 0.5;   // wall time between progress events
-  double checkpoint_every_s = 60;  // wall time between checkpoints (engine support needed)
+  double checkpoint_every_s = 60;  // simulated time between checkpoints
+  std::string spheroid_cache_dir;  // prepared spheroids of fusion jobs ("" = not kept)
 };
 
 struct PoolStats {

@@ -120,6 +120,39 @@ nlohmann::json summaryToJson(const RunSummary& summary, const SceneSpec& resolve
   nlohmann::json phases = nlohmann::json::object();
   for (const auto& [name, v] : summary.phase_wall_s) phases[name] = number(v);
   j["phase_wall_s"] = phases;
+  if (!summary.fits.empty()) {
+    // Each fit in full under "fits", and its parameters at the top level (null when the fit
+    // failed; "fits" says why) so that a study can read theta_eq_deg directly.
+    nlohmann::json fits = nlohmann::json::object();
+    for (const auto& [model, f] : summary.fits) {
+      nlohmann::json fj;
+      fj["ok"] = f.ok;
+      if (!f.ok) fj["why"] = f.why;
+      nlohmann::json params = nlohmann::json::object();
+      for (std::size_t k = 0; k < f.names.size(); ++k) {
+        params[f.names[k]] = {
+            {"value", number(f.value[k])},
+            {"std_error", number(k < f.std_error.size() ? f.std_error[k] : std::nan(""))}};
+        const std::string top =
+            f.names[k] == "theta_eq_deg" && model != "eq1" ? model + "_" + f.names[k] : f.names[k];
+        if (!j.contains(top)) j[top] = f.ok ? number(f.value[k]) : nlohmann::json();
+      }
+      fj["parameters"] = params;
+      fj["n"] = f.n;
+      fj["rss"] = number(f.rss);
+      fj["r2"] = number(f.r2);
+      fits[model] = fj;
+    }
+    j["fits"] = fits;
+  }
+  if (!summary.msrd.empty()) {
+    nlohmann::json lag = nlohmann::json::array(), value = nlohmann::json::array();
+    for (const auto& [l, m] : summary.msrd) {
+      lag.push_back(number(l));
+      value.push_back(number(m));
+    }
+    j["msrd"] = {{"lag_s", lag}, {"msrd_um2", value}};
+  }
   j["reduced"] = reducedParameters(resolved);
   j["samples"] = ctx.samples_written;
   j["snapshots"] = ctx.snapshots_written;

@@ -390,3 +390,36 @@ TEST(Remesh, OldToNewMapping) {
       last = map[i];
     }
 }
+
+// Tangential smoothing fixes a cap (an angle near 180°) without touching the topology, keeps the
+// volume and leaves the mesh closed and manifold.
+TEST(Remesh, SmoothingOpensACapTriangleAndKeepsTheVolume) {
+  TriMesh m = icosphere(2);
+  m.x *= 8.0;
+  // Push vertex k of triangle 0 onto the midpoint of its opposite edge: a cap of ~180°.
+  const Tri f = m.tri[0];
+  const Vec3 mid = 0.5 * (m.x.col(f[1]) + m.x.col(f[2]));
+  m.x.col(f[0]) = mid + 0.02 * (m.x.col(f[0]) - mid);
+  auto minAngle = [&](const TriMesh& mesh) {
+    double worst = 180;
+    for (const Tri& t : mesh.tri)
+      for (int k = 0; k < 3; ++k) {
+        const Vec3 a = mesh.x.col(t[(k + 1) % 3]) - mesh.x.col(t[k]);
+        const Vec3 b = mesh.x.col(t[(k + 2) % 3]) - mesh.x.col(t[k]);
+        worst = std::min(worst, std::acos(a.normalized().dot(b.normalized())) * 180 / M_PI);
+      }
+    return worst;
+  };
+  const double before = minAngle(m), vol = meshVolume(m);
+  ASSERT_LT(before, 2.0);
+  RemeshParams p;
+  p.flips = false;  // smoothing alone (the guards may refuse flips and collapses at a crease)
+  p.smooth_min_angle_deg = 15;
+  const auto tri = m.tri;
+  const RemeshStats st = remesh(m, p);
+  EXPECT_GT(st.smooths, 0);
+  EXPECT_EQ(m.tri, tri);  // no topology change
+  EXPECT_GT(minAngle(m), 10.0) << "was " << before;
+  EXPECT_NEAR(meshVolume(m), vol, 1e-10 * vol);
+  EXPECT_TRUE(checkClosedManifold(m).empty());
+}

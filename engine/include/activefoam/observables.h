@@ -105,6 +105,11 @@ class MsrdTracker {
   };
   Mixing mixingTime(double r_um) const;
 
+  // The tracker's samples as bytes (checkpoints) and back; restore throws std::invalid_argument
+  // on malformed bytes.
+  std::string save() const;
+  void restore(const std::string& bytes);
+
  private:
   std::vector<int> origins() const;
   int max_origins_;
@@ -122,6 +127,9 @@ class ContactHistory {
   int initialCount() const { return initial_; }  // −1 before the first sample
   int distinctCount() const { return static_cast<int>(seen_.size()); }
   double normalized() const;  // NaN before the first sample or with no contact at t = 0
+
+  std::string save() const;  // as MsrdTracker
+  void restore(const std::string& bytes);
 
  private:
   int initial_ = -1;

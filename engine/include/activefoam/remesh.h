@@ -29,17 +29,22 @@ struct RemeshParams {
   int min_vertices = 12;       // never collapse below this many vertices
   int max_vertices = 1 << 16;  // never split beyond this many (bounds a tiny max_area)
   bool flips = true;           // Delaunay flips on/off
+  // Tangential smoothing of the vertices of triangles smaller than min_area or with an angle
+  // below this (degrees; 0: off): what the collapse and flip guards refuse (see remesh.cc).
+  // The simulation uses 15°.
+  double smooth_min_angle_deg = 0;
 };
 
 struct RemeshStats {
   int splits = 0;
   int collapses = 0;
   int flips = 0;
+  int smooths = 0;            // vertices moved by tangential smoothing
   int refused_collapses = 0;  // candidates rejected by the manifold/orientation/valence guards
   int refused_flips = 0;      // Delaunay-violating edges kept by the flip guards
   double volume_before = 0;
   double volume_after = 0;
-  int operations() const { return splits + collapses + flips; }
+  int operations() const { return splits + collapses + flips + smooths; }
 };
 
 // Splits, collapses and Delaunay flips in place. Keeps the mesh closed, 2-manifold, oriented,

@@ -10,6 +10,7 @@
 
 #include <Eigen/Core>
 
+#include "activefoam/fits.h"
 #include "activefoam/mesh.h"
 #include "activefoam/spec.h"
 
@@ -43,7 +44,8 @@ enum class FailureKind {
   VolumeDrift,
   Interpenetration,
   ContactOscillation,
-  Cancelled
+  Cancelled,
+  PreparationFailed  // a spheroid's relaxation (fusion scene) failed
 };
 std::string_view toString(FailureKind);
 
@@ -59,6 +61,10 @@ struct RunSummary {
   std::vector<std::pair<std::string, double>> final_values;
   // Wall time split by phase over the run, seconds: geometry, forces, matrix, solve, remesh.
   std::vector<std::pair<std::string, double>> phase_wall_s;
+  // Fusion: the fits of θ(t) and a(t) over the samples ("eq1", "eq2", "s1"; see fits.h), and
+  // the MSRD curve (lag s, µm²).
+  std::vector<std::pair<std::string, FitResult>> fits;
+  std::vector<std::pair<double, double>> msrd;
   bool ok() const { return failure == FailureKind::None; }
 };
 
@@ -73,6 +79,10 @@ struct RunObserver {
   // after the checkpoint equal those of an uninterrupted run (the wall-clock column aside).
   double checkpoint_every_s = 0;
   std::function<void(double t_s, const std::string& state)> on_checkpoint;  // t_s: state's time
+  // Fusion: where prepared spheroids are cached (empty: prepared for this run only), and one
+  // line per preparation stage (prepared, loaded from the cache, compact after ... s).
+  std::string spheroid_cache_dir;
+  std::function<void(const std::string&)> on_log;
 };
 
 // Runs a resolved, valid spec (see resolve/validate in spec.h) to duration_s or to its first

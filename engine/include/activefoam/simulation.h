@@ -56,8 +56,11 @@ class Simulation {
 
   // One time step of length dt. After a failure the state is left as it was found failing.
   StepReport step();
-  // Remeshes every cell now (also done automatically every remesh_every_s).
+  // Remeshes every cell now (also done automatically every remesh_every_s, and for a single
+  // cell as soon as one of its triangles shrinks below half of A_m).
   StepReport remeshAll();
+  // Remeshes the cells c with which[c] != 0.
+  StepReport remeshCells(const std::vector<char>& which);
 
   const SceneSpec& spec() const { return spec_; }
   const CellSet& cells() const { return cells_; }
@@ -92,6 +95,7 @@ class Simulation {
             steps_};
   }
   bool patternCoversContacts() const;
+  double minTriangleArea(int c) const;  // A_m of cell c
   // Whether contacting vertices that move by a noticeable fraction of h0 per step mostly
   // reverse their velocity from the last step to `v`.
   bool contactVelocitiesReverse(const Eigen::VectorXd& v) const;

@@ -68,10 +68,14 @@ struct NumericsParams {
 
 struct SceneParams {
   double axes_ratio = 1.3;     // cell: start as ellipsoid (q r, r, r/q) at equal volume; 1 = sphere
-  double gap_um = 0.05;        // doublet: initial gap between the two cells
+  double gap_um = 0.05;        // doublet / fusion: initial gap between the two cells / spheroids
   std::int64_t n_cells = 100;  // spheroid: N; fusion: N per spheroid unless a/b are given
   std::int64_t n_cells_a = 0;  // fusion: cells in spheroid A (0 = n_cells)
   std::int64_t n_cells_b = 0;  // fusion: cells in spheroid B (0 = n_cells)
+  // Spheroid preparation (spheroid and fusion scenes; see spheroid.h).
+  double prep_dt_s = 0.5;            // time step of the relaxation (contact-implicit)
+  double prep_max_s = 1800;          // longest relaxation, s (0: the packed cells as they are)
+  double compact_rate_per_s = 5e-5;  // compact: |ΔRg|/Rg over 60 s below this × 60 s
 
   friend bool operator==(const SceneParams&, const SceneParams&) = default;
 };
@@ -153,6 +157,10 @@ std::vector<SpecError> validate(const SceneSpec& spec);
 // Fills derived defaults (τ_K, τ_r, ξ⊥/ξ∥) and applies reduced parameters, so the result states
 // exactly what runs. Idempotent. Call validate() first.
 SceneSpec resolve(const SceneSpec& spec);
+
+// Every key's value in table order, as text: two specs with the same fingerprint run
+// identically (checkpoints and the spheroid cache compare it).
+std::string specFingerprint(const SceneSpec& spec);
 
 // Levenshtein distance (for "did you mean" suggestions on unknown keys and tables).
 std::size_t editDistance(std::string_view a, std::string_view b);

@@ -6,12 +6,19 @@
 #include <type_traits>
 
 #include "activefoam/simulation.h"
+#include "activefoam/spheroid.h"
+#include "bytes.h"
 
 namespace activefoam {
 namespace {
 
+using bytes::Reader;
+using bytes::Writer;
+
 constexpr char kMagic[8] = {'A', 'F', 'C', 'K', 'P', 'T', '0', '1'};
 constexpr std::uint32_t kFormat = 1;
+
+}  // namespace
 
 // Every key's value in table order: two specs with the same fingerprint run identically.
 std::string specFingerprint(const SceneSpec& spec) {
@@ -24,81 +31,6 @@ std::string specFingerprint(const SceneSpec& spec) {
   }
   return os.str();
 }
-
-class Writer {
- public:
-  template <typename T>
-  void pod(const T& v) {
-    static_assert(std::is_trivially_copyable_v<T>);
-    out_.append(reinterpret_cast<const char*>(&v), sizeof v);
-  }
-  template <typename T>
-  void vec(const std::vector<T>& v) {
-    pod<std::uint64_t>(v.size());
-    out_.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
-  }
-  void str(const std::string& s) {
-    pod<std::uint64_t>(s.size());
-    out_ += s;
-  }
-  void mat(const Eigen::Matrix3Xd& m) {
-    pod<std::uint64_t>(static_cast<std::uint64_t>(m.cols()));
-    out_.append(reinterpret_cast<const char*>(m.data()), sizeof(double) * m.size());
-  }
-  std::string take() { return std::move(out_); }
-
- private:
-  std::string out_;
-};
-
-class Reader {
- public:
-  explicit Reader(const std::string& in) : in_(in) {}
-  template <typename T>
-  T pod() {
-    T v;
-    need(sizeof v);
-    std::memcpy(&v, in_.data() + pos_, sizeof v);
-    pos_ += sizeof v;
-    return v;
-  }
-  template <typename T>
-  std::vector<T> vec() {
-    const auto n = count(sizeof(T));
-    std::vector<T> v(n);
-    std::memcpy(static_cast<void*>(v.data()), in_.data() + pos_, n * sizeof(T));
-    pos_ += n * sizeof(T);
-    return v;
-  }
-  std::string str() {
-    const auto n = count(1);
-    std::string s = in_.substr(pos_, n);
-    pos_ += n;
-    return s;
-  }
-  Eigen::Matrix3Xd mat() {
-    const auto n = count(3 * sizeof(double));
-    Eigen::Matrix3Xd m(3, static_cast<Eigen::Index>(n));
-    std::memcpy(m.data(), in_.data() + pos_, 3 * n * sizeof(double));
-    pos_ += 3 * n * sizeof(double);
-    return m;
-  }
-  bool done() const { return pos_ == in_.size(); }
-
- private:
-  std::size_t count(std::size_t elem) {
-    const auto n = pod<std::uint64_t>();
-    if (n > (in_.size() - pos_) / elem) throw std::invalid_argument("checkpoint: truncated");
-    return static_cast<std::size_t>(n);
-  }
-  void need(std::size_t n) const {
-    if (in_.size() - pos_ < n) throw std::invalid_argument("checkpoint: truncated");
-  }
-  const std::string& in_;
-  std::size_t pos_ = 0;
-};
-
-}  // namespace
 
 std::string Simulation::saveState(const std::string& extra) const {
   Writer w;
@@ -176,6 +108,57 @@ std::string Simulation::loadState(const std::string& bytes) {
   computeGeometry(cells_, geo_);
   detect();
   return extra;
+}
+
+}  // namespace activefoam
+
+namespace activefoam {
+
+std::string serializeCells(const CellSet& c) {
+  Writer w;
+  w.mat(c.x);
+  w.vec(c.vertex_cell);
+  w.vec(c.tri);
+  w.vec(c.tri_cell);
+  w.vec(c.cell_vertex_begin);
+  w.vec(c.cell_tri_begin);
+  w.vec(c.radius);
+  w.vec(c.target_volume);
+  w.vec(c.pi_integral);
+  w.vec(c.polarity);
+  w.vec(c.label);
+  return w.take();
+}
+
+CellSet deserializeCells(const std::string& bytes) {
+  Reader r(bytes, "cells");
+  CellSet c;
+  c.x = r.mat();
+  c.vertex_cell = r.vec<int>();
+  c.tri = r.vec<Tri>();
+  c.tri_cell = r.vec<int>();
+  c.cell_vertex_begin = r.vec<int>();
+  c.cell_tri_begin = r.vec<int>();
+  c.radius = r.vec<double>();
+  c.target_volume = r.vec<double>();
+  c.pi_integral = r.vec<double>();
+  c.polarity = r.vec<Vec3>();
+  c.label = r.vec<int>();
+  const auto nc = c.radius.size();
+  const auto nv = static_cast<std::size_t>(c.x.cols());
+  const bool consistent =
+      r.done() && c.vertex_cell.size() == nv && c.tri_cell.size() == c.tri.size() &&
+      c.cell_vertex_begin.size() == nc + 1 && c.cell_tri_begin.size() == nc + 1 &&
+      c.target_volume.size() == nc && c.pi_integral.size() == nc && c.polarity.size() == nc &&
+      c.label.size() == nc && static_cast<std::size_t>(c.cell_vertex_begin.back()) == nv &&
+      static_cast<std::size_t>(c.cell_tri_begin.back()) == c.tri.size();
+  if (!consistent) throw std::invalid_argument("cells: inconsistent cell data");
+  for (const Tri& f : c.tri)
+    for (int i : f)
+      if (i < 0 || static_cast<std::size_t>(i) >= nv)
+        throw std::invalid_argument("cells: triangle index out of range");
+  c.v = Eigen::Matrix3Xd::Zero(3, c.x.cols());
+  return c;
 }
 
 }  // namespace activefoam

@@ -230,15 +230,39 @@ StepReport Simulation::step() {
     }
   }
 
-  if (remesh_interval_steps_ > 0 && steps_ % remesh_interval_steps_ == 0) {
-    StepReport r = remeshAll();
+  if (remesh_interval_steps_ > 0) {
+    StepReport r;
+    if (steps_ % remesh_interval_steps_ == 0) {
+      r = remeshAll();
+    } else {
+      // Between the periodic remeshes, a cell whose triangle has shrunk below half of A_m is
+      // remeshed at once: where contacts zip up (a compacting aggregate) triangles at the rim
+      // are squeezed from A_m to zero area in a few seconds, less than τ_r, and then invert.
+      std::vector<char> which(cells_.numCells(), 0);
+      bool any = false;
+      for (int t = 0; t < cells_.numTriangles(); ++t) {
+        const int c = cells_.tri_cell[t];
+        if (!which[c] && geo_.tri_area[t] < 0.5 * minTriangleArea(c)) which[c] = any = true;
+      }
+      if (any) r = remeshCells(which);
+    }
     rep.remesh_ops = r.remesh_ops;
     rep.remesh_volume_jump = r.remesh_volume_jump;
   }
   return rep;
 }
 
+double Simulation::minTriangleArea(int c) const {
+  const double r = cells_.radius[c];
+  return spec_.numerics.remesh_min_area_factor * 4 * M_PI * r * r /
+         static_cast<double>(spec_.numerics.triangles_per_cell);
+}
+
 StepReport Simulation::remeshAll() {
+  return remeshCells(std::vector<char>(cells_.numCells(), 1));
+}
+
+StepReport Simulation::remeshCells(const std::vector<char>& which) {
   StepReport rep;
   const auto t0 = Clock::now();
   const int tris = static_cast<int>(spec_.numerics.triangles_per_cell);
@@ -246,11 +270,13 @@ StepReport Simulation::remeshAll() {
   int ops = 0;
   for (int c = 0; c < cells_.numCells(); ++c) {
     meshes[c] = cells_.cellMesh(c);
+    if (!which[c]) continue;
     const double r = cells_.radius[c];
     const double a_ref = 4 * M_PI * r * r / tris;
     RemeshParams rp;
     rp.min_area = spec_.numerics.remesh_min_area_factor * a_ref;
     rp.max_area = spec_.numerics.remesh_max_area_factor * a_ref;
+    rp.smooth_min_angle_deg = 15;
     const RemeshStats s = remesh(meshes[c], rp);
     ops += s.operations();
     if (s.volume_before > 0)

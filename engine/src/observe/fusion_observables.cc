@@ -9,6 +9,7 @@
 
 #include <Eigen/Dense>
 
+#include "../integrate/bytes.h"
 #include "activefoam/observables.h"
 
 namespace activefoam {
@@ -463,6 +464,48 @@ SurfaceContactAngle surfaceContactAngle(const CellSet& cells, const ContactList&
   out.gsi = std::cos(out.theta_deg * kDeg);
   out.ok = true;
   return out;
+}
+
+std::string MsrdTracker::save() const {
+  bytes::Writer w;
+  w.pod<std::int32_t>(max_origins_);
+  w.vec(t_);
+  w.pod<std::uint64_t>(x_.size());
+  for (std::size_t k = 0; k < x_.size(); ++k) {
+    w.vec(x_[k]);
+    w.vec(pairs_[k]);
+  }
+  return w.take();
+}
+
+void MsrdTracker::restore(const std::string& data) {
+  bytes::Reader r(data, "msrd tracker");
+  MsrdTracker m(r.pod<std::int32_t>());
+  m.t_ = r.vec<double>();
+  const auto n = r.pod<std::uint64_t>();
+  if (n != m.t_.size()) throw std::invalid_argument("msrd tracker: inconsistent sample count");
+  for (std::uint64_t k = 0; k < n; ++k) {
+    m.x_.push_back(r.vec<Vec3>());
+    m.pairs_.push_back(r.vec<std::pair<int, int>>());
+  }
+  if (!r.done()) throw std::invalid_argument("msrd tracker: trailing bytes");
+  *this = std::move(m);
+}
+
+std::string ContactHistory::save() const {
+  bytes::Writer w;
+  w.pod<std::int32_t>(initial_);
+  w.vec(seen_);
+  return w.take();
+}
+
+void ContactHistory::restore(const std::string& data) {
+  bytes::Reader r(data, "contact history");
+  const auto initial = r.pod<std::int32_t>();
+  auto seen = r.vec<std::pair<int, int>>();
+  if (!r.done()) throw std::invalid_argument("contact history: trailing bytes");
+  initial_ = initial;
+  seen_ = std::move(seen);
 }
 
 }  // namespace activefoam

@@ -1,12 +1,18 @@
 #include "activefoam/run.h"
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <limits>
+#include <memory>
+#include <optional>
 #include <stdexcept>
 
+#include "../integrate/bytes.h"
 #include "activefoam/observables.h"
 #include "activefoam/simulation.h"
+#include "activefoam/spheroid.h"
 
 namespace activefoam {
 namespace {
@@ -14,8 +20,61 @@ namespace {
 const std::vector<std::string> kCommon = {"t_s", "steps", "wall_s", "cg_iters_mean",
                                           "volume_error_max"};
 
+// A fusion run's own history, carried through checkpoints: the θ(t), a(t) series for the fits,
+// the contact history and the MSRD samples, and what the preparation reported.
+struct FusionState {
+  std::vector<double> t, theta, neck;
+  ContactHistory contacts;
+  MsrdTracker msrd;
+  std::array<double, 6> prep{};  // relaxed_s, compact, Rg µm: spheroid A, then B
+  double R_um = 0;               // mean volume-equivalent radius of the two spheroids
+
+  std::string save() const {
+    bytes::Writer w;
+    w.vec(t);
+    w.vec(theta);
+    w.vec(neck);
+    w.str(contacts.save());
+    w.str(msrd.save());
+    w.pod(prep);
+    w.pod(R_um);
+    return w.take();
+  }
+  void restore(const std::string& data) {
+    bytes::Reader r(data, "checkpoint");
+    t = r.vec<double>();
+    theta = r.vec<double>();
+    neck = r.vec<double>();
+    contacts.restore(r.str());
+    msrd.restore(r.str());
+    prep = r.pod<std::array<double, 6>>();
+    R_um = r.pod<double>();
+    if (!r.done() || theta.size() != t.size() || neck.size() != t.size())
+      throw std::invalid_argument("checkpoint: inconsistent fusion history");
+  }
+};
+
+// Mean over the two spheroids of the radius of a ball of their cells' total volume.
+double spheroidRadius(const CellSet& cells) {
+  double v[2] = {0, 0};
+  for (int c = 0; c < cells.numCells(); ++c) v[cells.label[c] == 1] += cells.target_volume[c];
+  return 0.5 * (std::cbrt(3 * v[0] / (4 * M_PI)) + std::cbrt(3 * v[1] / (4 * M_PI)));
+}
+
+// Cells of the right count and sizes for a fusion run that is about to load a checkpoint (the
+// checkpoint replaces them): no preparation is repeated.
+CellSet placeholderCells(const SceneSpec& spec) {
+  CellSet cells;
+  const double r = spec.cells.radius_mean_um;
+  const int tris = static_cast<int>(spec.numerics.triangles_per_cell);
+  for (std::int64_t c = 0; c < sceneCellCount(spec); ++c)
+    cells.addCell(ellipsoidCell(r, 1.0, tris, Vec3(3 * r * static_cast<double>(c), 0, 0)), r);
+  return cells;
+}
+
 // The scene's observables, aligned with sampleColumns() after the common five.
-std::vector<std::pair<std::string, double>> sceneObservables(const Simulation& sim) {
+std::vector<std::pair<std::string, double>> sceneObservables(const Simulation& sim,
+                                                             const FusionState* fusion) {
   std::vector<std::pair<std::string, double>> out;
   switch (sim.spec().scene) {
     case SceneKind::Cell:
@@ -51,8 +110,21 @@ std::vector<std::pair<std::string, double>> sceneObservables(const Simulation& s
       out.emplace_back("contact_pairs", static_cast<double>(sim.contacts().pairs.size()));
       break;
     }
-    default:
+    case SceneKind::Fusion: {
+      const FusionAngle fa = fusionAngle(sim.cells(), sim.contacts());
+      const double nan = std::numeric_limits<double>::quiet_NaN();
+      out.emplace_back("theta_deg", fa.ok ? fa.theta_deg : nan);
+      out.emplace_back("neck_radius_um", fa.ok ? fa.neck_radius_um : nan);
+      out.emplace_back("length_um", fa.ok ? fa.length_um : nan);
+      out.emplace_back("distance_um", fa.ok ? fa.distance_um : nan);
+      out.emplace_back("shape_index_mean", meanShapeIndex(sim.geometry()));
+      out.emplace_back("unique_contacts_norm", fusion ? fusion->contacts.normalized() : nan);
+      const SurfaceContactAngle sca = surfaceContactAngle(sim.cells(), sim.contacts());
+      out.emplace_back("surface_contact_angle_deg", sca.ok ? sca.theta_deg : nan);
+      out.emplace_back("gsi", sca.ok ? sca.gsi : nan);
+      out.emplace_back("contact_pairs", static_cast<double>(sim.contacts().pairs.size()));
       break;
+    }
   }
   return out;
 }
@@ -98,6 +170,8 @@ std::string_view toString(FailureKind k) {
       return "contact-oscillation";
     case FailureKind::Cancelled:
       return "cancelled";
+    case FailureKind::PreparationFailed:
+      return "preparation-failed";
   }
   return "unknown";
 }
@@ -115,7 +189,10 @@ std::vector<std::string> sampleColumns(SceneKind scene) {
     case SceneKind::Spheroid:
       cols.insert(cols.end(), {"radius_gyration_um", "shape_index_mean", "contact_pairs"});
       break;
-    default:
+    case SceneKind::Fusion:
+      cols.insert(cols.end(),
+                  {"theta_deg", "neck_radius_um", "length_um", "distance_um", "shape_index_mean",
+                   "unique_contacts_norm", "surface_contact_angle_deg", "gsi", "contact_pairs"});
       break;
   }
   return cols;
@@ -126,8 +203,38 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
   const auto start = Clock::now();
   auto wall = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
 
-  Simulation sim(spec);
   RunSummary sum;
+  const bool fusion = spec.scene == SceneKind::Fusion;
+  FusionState fs;
+  std::unique_ptr<Simulation> simp;
+  if (fusion && !resume) {
+    PrepObserver po;
+    po.on_log = obs.on_log;
+    po.cancel = obs.cancel;
+    std::optional<SpheroidCache> cache;
+    if (!obs.spheroid_cache_dir.empty()) cache.emplace(obs.spheroid_cache_dir);
+    std::vector<PreparedSpheroid> info;
+    try {
+      CellSet cells = buildFusionCells(spec, cache ? &*cache : nullptr, po, &info);
+      simp = std::make_unique<Simulation>(spec, std::move(cells));
+    } catch (const PrepFailed& e) {
+      sum.failure = e.cancelled ? FailureKind::Cancelled : FailureKind::PreparationFailed;
+      sum.reason = e.what();
+      sum.wall_s = wall();
+      return sum;
+    }
+    for (int k = 0; k < 2; ++k) {
+      fs.prep[3 * k] = info[k].relaxed_s;
+      fs.prep[3 * k + 1] = info[k].compact ? 1 : 0;
+      fs.prep[3 * k + 2] = info[k].radius_gyration_um;
+    }
+    fs.R_um = spheroidRadius(simp->cells());
+  } else if (fusion) {
+    simp = std::make_unique<Simulation>(spec, placeholderCells(spec));
+  } else {
+    simp = std::make_unique<Simulation>(spec);
+  }
+  Simulation& sim = *simp;
   const double dt = spec.numerics.dt_s;
   const std::int64_t total = std::llround(spec.duration_s / dt);
   const std::int64_t sample_every =
@@ -149,26 +256,42 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
   window_vol = maxVolumeError(sim);
   if (resume) {
     const std::string extra = sim.loadState(*resume);
-    if (extra.size() != sizeof acc)
+    bytes::Reader r(extra, "checkpoint");  // holds a reference: `extra` must outlive it
+    acc = r.pod<Accumulators>();
+    const std::string history = r.str();
+    if (!r.done())
       throw std::invalid_argument("checkpoint: not written by runScene of this engine version");
-    std::memcpy(&acc, extra.data(), sizeof acc);
+    if (fusion) fs.restore(history);
   }
   const double wall_before = acc.wall_before;
   auto checkpoint = [&] {
     if (!obs.on_checkpoint) return;
     acc.wall_before = wall_before + wall();
     acc.last_checkpoint_t = sim.time();
-    obs.on_checkpoint(sim.time(),
-                      sim.saveState(std::string(reinterpret_cast<const char*>(&acc), sizeof acc)));
+    bytes::Writer w;
+    w.pod(acc);
+    w.str(fusion ? fs.save() : std::string());
+    obs.on_checkpoint(sim.time(), sim.saveState(w.take()));
   };
 
   auto emitSample = [&] {
-    if (!obs.on_sample) return;
-    Sample s;
-    s.values = {sim.time(), static_cast<double>(sim.steps()), wall(),
-                window_steps ? window_iters / window_steps : 0.0, window_vol};
-    for (const auto& [name, value] : sceneObservables(sim)) s.values.push_back(value);
-    obs.on_sample(s);
+    std::vector<std::pair<std::string, double>> values;
+    if (fusion) {
+      fs.contacts.add(sim.cells(), sim.contacts());
+      fs.msrd.addSample(sim.time(), sim.cells(), sim.geometry(), sim.contacts());
+      values = sceneObservables(sim, &fs);
+      fs.t.push_back(sim.time());
+      fs.theta.push_back(values[0].second);
+      fs.neck.push_back(values[1].second);
+    }
+    if (obs.on_sample) {
+      if (!fusion) values = sceneObservables(sim, nullptr);
+      Sample s;
+      s.values = {sim.time(), static_cast<double>(sim.steps()), wall(),
+                  window_steps ? window_iters / window_steps : 0.0, window_vol};
+      for (const auto& [name, value] : values) s.values.push_back(value);
+      obs.on_sample(s);
+    }
     window_iters = 0;
     window_steps = 0;
     window_vol = maxVolumeError(sim);
@@ -214,8 +337,37 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
   sum.wall_s = wall_before + wall();
   sum.cg_iters_mean = sim.steps() ? all_iters / sim.steps() : 0;
   sum.remesh_ops = sim.remeshOps();
-  sum.final_values = sceneObservables(sim);
+  sum.final_values = sceneObservables(sim, fusion ? &fs : nullptr);
   sum.final_values.emplace_back("volume_error_max", maxVolumeError(sim));
+  if (fusion) {
+    // Fits over the sampled θ(t), a(t); samples without a neck (θ undefined: no contact yet)
+    // are left out.
+    std::vector<double> t, theta, neck;
+    for (std::size_t k = 0; k < fs.t.size(); ++k)
+      if (std::isfinite(fs.theta[k]) && fs.theta[k] > 0) {
+        t.push_back(fs.t[k]);
+        theta.push_back(fs.theta[k]);
+        neck.push_back(fs.neck[k]);
+      }
+    sum.fits.emplace_back("eq1", fitEq1(t, theta));
+    sum.fits.emplace_back("eq2", fitEq2(t, theta));
+    sum.fits.emplace_back("s1", fitS1(t, neck, fs.R_um));
+    const MsrdTracker::Mixing mix = fs.msrd.mixingTime(spec.cells.radius_mean_um);
+    sum.final_values.emplace_back("mixing_time_s", mix.time_s);
+    sum.final_values.emplace_back("mixing_reached", mix.reached ? 1 : 0);
+    sum.final_values.emplace_back("spheroid_radius_um", fs.R_um);
+    const char* ab[2] = {"a", "b"};
+    for (int k = 0; k < 2; ++k) {
+      sum.final_values.emplace_back(std::string("prep_relaxed_s_") + ab[k], fs.prep[3 * k]);
+      sum.final_values.emplace_back(std::string("prep_compact_") + ab[k], fs.prep[3 * k + 1]);
+      sum.final_values.emplace_back(std::string("prep_radius_gyration_um_") + ab[k],
+                                    fs.prep[3 * k + 2]);
+    }
+    for (int k = 1; k < fs.msrd.numSamples(); ++k) {
+      const double m = fs.msrd.msrd(k);
+      if (std::isfinite(m)) sum.msrd.emplace_back(fs.msrd.lagTime(k), m);
+    }
+  }
   const PhaseTimes& pt = sim.phaseTimes();
   sum.phase_wall_s = {{"geometry", pt.geometry}, {"contacts", pt.contacts}, {"forces", pt.forces},
                       {"matrix", pt.matrix},     {"solve", pt.solve},       {"remesh", pt.remesh}};

@@ -4,6 +4,7 @@
 
 #include "activefoam/rng.h"
 #include "activefoam/simulation.h"
+#include "activefoam/spheroid.h"
 
 namespace activefoam {
 namespace {
@@ -39,7 +40,8 @@ TriMesh ellipsoidCell(double radius, double axes_ratio, int triangles, const Vec
 }
 
 bool sceneAvailable(SceneKind scene) {
-  return scene == SceneKind::Cell || scene == SceneKind::Doublet;
+  return scene == SceneKind::Cell || scene == SceneKind::Doublet || scene == SceneKind::Spheroid ||
+         scene == SceneKind::Fusion;
 }
 
 std::vector<Vec3> packSpheres(const std::vector<double>& radii, std::uint64_t seed) {
@@ -119,11 +121,10 @@ CellSet buildScene(const SceneSpec& spec) {
       for (Vec3& p : cells.polarity) p = randomUnitVector(rng);
       return cells;
     }
-    default:
-      throw std::invalid_argument(
-          "scene '" + std::string(toString(spec.scene)) +
-          "' is not available in this engine version (available: cell, doublet)");
+    case SceneKind::Fusion:
+      return buildFusionCells(spec, nullptr);  // runScene passes the spheroid cache
   }
+  throw std::invalid_argument("unknown scene");
 }
 
 }  // namespace activefoam

@@ -175,7 +175,8 @@ const std::vector<Entry>& entries() {
                       "cell: start as an ellipsoid (q r, r, r/q) of equal volume; 1 = sphere"),
                  [](SceneSpec& s) -> Slot { return &s.scene_params.axes_ratio; }});
     t.push_back({real("scene.gap_um", kClosed, 0, 10, kClosed, "µm",
-                      "doublet: initial gap between the two cells"),
+                      "doublet: initial gap between the two cells; fusion: between the two "
+                      "spheroids"),
                  [](SceneSpec& s) -> Slot { return &s.scene_params.gap_um; }});
     t.push_back(
         {integer("scene.n_cells", 1, 2000, "spheroid: number of cells N; fusion: N per spheroid"),
@@ -184,6 +185,17 @@ const std::vector<Entry>& entries() {
                  [](SceneSpec& s) -> Slot { return &s.scene_params.n_cells_a; }});
     t.push_back({integer("scene.n_cells_b", 0, 2000, "fusion: cells in spheroid B; 0 = n_cells"),
                  [](SceneSpec& s) -> Slot { return &s.scene_params.n_cells_b; }});
+    t.push_back({real("scene.prep_dt_s", kOpen, 0, 10, kClosed, "s",
+                      "fusion: time step of the spheroids' preparation (relaxation of the packed "
+                      "cells), always with the contact-implicit integrator"),
+                 [](SceneSpec& s) -> Slot { return &s.scene_params.prep_dt_s; }});
+    t.push_back({real("scene.prep_max_s", kClosed, 0, 1e5, kClosed, "s",
+                      "fusion: longest relaxation of a spheroid's packed cells; 0 = none"),
+                 [](SceneSpec& s) -> Slot { return &s.scene_params.prep_max_s; }});
+    t.push_back({real("scene.compact_rate_per_s", kOpen, 0, 1, kClosed, "1/s",
+                      "fusion: a spheroid is prepared (compact) when its radius of "
+                      "gyration changes by less than this (relative, per second) over 60 s"),
+                 [](SceneSpec& s) -> Slot { return &s.scene_params.compact_rate_per_s; }});
     return t;
   }();
   return table;

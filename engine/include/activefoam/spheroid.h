@@ -1,0 +1,86 @@
+// Prepared spheroids (DESIGN.md §6): N cells packed into a ball, then relaxed with the full DCM
+// (adhesion, motility) until the aggregate is compact; cached by everything that shapes them,
+// so that a parameter study pays the preparation once per (N, seed, parameters), not per run.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "activefoam/cellset.h"
+#include "activefoam/spec.h"
+
+namespace activefoam {
+
+struct PreparedSpheroid {
+  CellSet cells;                  // labels 0, centred on the aggregate's volume centroid
+  double relaxed_s = 0;           // simulated time of the relaxation
+  bool compact = false;           // the compaction criterion was met (else stopped at prep_max_s)
+  double radius_gyration_um = 0;  // at the end of the relaxation
+  bool from_cache = false;
+  std::string key;  // the cache key (16 hex digits)
+};
+
+// The relaxation run that prepares one spheroid of `spec` (a spheroid or fusion spec): scene
+// spheroid with n_cells cells and the given seed, the spec's cell parameters and mesh settings,
+// the contact-implicit integrator at scene.prep_dt_s, for at most scene.prep_max_s. Sampling,
+// snapshots and the fusion-only keys are normalised so that they do not change the cache key.
+SceneSpec spheroidPrepSpec(const SceneSpec& spec, std::int64_t n_cells, std::uint64_t seed);
+
+// The seeds of a fusion spec's spheroids A (0) and B (1): derived from its seed.
+std::uint64_t spheroidSeed(std::uint64_t seed, int which);
+
+// 16 hex digits of a 64-bit FNV-1a hash of the prep spec's full fingerprint (every key).
+std::string spheroidCacheKey(const SceneSpec& prep);
+
+// A directory of prepared spheroids, one file per key. A file stores the prep spec's
+// fingerprint, so a hash collision or a file from another engine version reads as absent.
+// Writes are atomic (temporary file, then rename): concurrent writers of one key are harmless.
+class SpheroidCache {
+ public:
+  explicit SpheroidCache(std::string dir) : dir_(std::move(dir)) {}
+  const std::string& dir() const { return dir_; }
+  std::optional<PreparedSpheroid> load(const SceneSpec& prep) const;
+  // Throws std::runtime_error if the directory cannot be created or written.
+  void store(const SceneSpec& prep, const PreparedSpheroid& s) const;
+
+ private:
+  std::string dir_;
+};
+
+struct PrepObserver {
+  std::function<void(const std::string&)> on_log;  // one line per stage
+  const std::atomic<bool>* cancel = nullptr;       // polled every step
+};
+
+// Thrown when a relaxation fails (the reason names the failure) or is cancelled.
+struct PrepFailed : std::runtime_error {
+  using std::runtime_error::runtime_error;
+  bool cancelled = false;
+};
+
+// The compaction criterion: the run is compact at time t (≥ 120 s) when
+// |Rg(t) − Rg(t − 60 s)| / Rg(t) < rate × 60 s.
+// Prepares (or loads from `cache`, which may be null) the spheroid of `prep`.
+PreparedSpheroid prepareSpheroid(const SceneSpec& prep, const SpheroidCache* cache,
+                                 const PrepObserver& observer = {});
+
+// The fusion scene's cells: spheroid A (n_cells_a or n_cells, label 0) at the origin and B
+// (label 1) along +x, the facing extremes gap_um apart; polarities drawn from the spec's seed.
+// `info` (optional) receives the two preparations.
+CellSet buildFusionCells(const SceneSpec& spec, const SpheroidCache* cache,
+                         const PrepObserver& observer = {},
+                         std::vector<PreparedSpheroid>* info = nullptr);
+
+// Radius of gyration of the cells' volume centroids (volume-weighted), µm.
+double radiusOfGyration(const CellSet& cells, const std::vector<double>& volumes,
+                        const std::vector<Vec3>& centroids);
+
+// A CellSet as bytes and back (positions, triangles, per-cell state; not velocities).
+std::string serializeCells(const CellSet& cells);
+CellSet deserializeCells(const std::string& bytes);
+
+}  // namespace activefoam

@@ -1,0 +1,294 @@
+#include "activefoam/spheroid.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <random>
+#include <sstream>
+#include <system_error>
+
+#include "../integrate/bytes.h"
+#include "activefoam/rng.h"
+#include "activefoam/simulation.h"
+
+namespace activefoam {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr char kMagic[8] = {'A', 'F', 'S', 'P', 'H', 'R', '0', '1'};
+constexpr double kWindowS = 60;  // compaction is judged over this much simulated time
+
+std::string hex16(std::uint64_t h) {
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+  return buf;
+}
+
+fs::path cacheFile(const std::string& dir, const SceneSpec& prep) {
+  return fs::path(dir) / ("spheroid-n" + std::to_string(prep.scene_params.n_cells) + "-" +
+                          spheroidCacheKey(prep) + ".bin");
+}
+
+Vec3 volumeCentroid(const Geometry& g) {
+  double vol = 0;
+  Vec3 c = Vec3::Zero();
+  for (std::size_t k = 0; k < g.cell_volume.size(); ++k) {
+    vol += g.cell_volume[k];
+    c += g.cell_volume[k] * g.cell_centroid[k];
+  }
+  return c / vol;
+}
+
+// How far B may move along −x before its surface meets A's: the smallest x-distance between a
+// vertex of one and the other's surface straight across (rays parallel to x, triangles
+// projected onto the yz plane). Only the facing bands (within `band` of the extremes) are
+// searched: that is where two rounded aggregates first touch.
+double clearanceAlongX(const CellSet& a, const CellSet& b, double band) {
+  const double a_max = a.x.row(0).maxCoeff(), b_min = b.x.row(0).minCoeff();
+  double best = std::numeric_limits<double>::infinity();
+  // sign = +1: vertices of `from` lie to the right of `onto` (B's vertices onto A's triangles).
+  auto cast = [&](const CellSet& from, const CellSet& onto, double sign) {
+    std::vector<int> verts;
+    for (int i = 0; i < from.numVertices(); ++i) {
+      const double x = from.x(0, i);
+      if (sign > 0 ? x < b_min + band : x > a_max - band) verts.push_back(i);
+    }
+    for (const Tri& f : onto.tri) {
+      const Vec3 p0 = onto.x.col(f[0]), p1 = onto.x.col(f[1]), p2 = onto.x.col(f[2]);
+      const double xmax = std::max({p0.x(), p1.x(), p2.x()});
+      const double xmin = std::min({p0.x(), p1.x(), p2.x()});
+      if (sign > 0 ? xmax < a_max - band : xmin > b_min + band) continue;
+      const double ylo = std::min({p0.y(), p1.y(), p2.y()}),
+                   yhi = std::max({p0.y(), p1.y(), p2.y()});
+      const double zlo = std::min({p0.z(), p1.z(), p2.z()}),
+                   zhi = std::max({p0.z(), p1.z(), p2.z()});
+      // Barycentric coordinates in the yz projection.
+      const double det =
+          (p1.y() - p0.y()) * (p2.z() - p0.z()) - (p2.y() - p0.y()) * (p1.z() - p0.z());
+      if (std::abs(det) < 1e-14) continue;  // edge-on to x
+      for (int i : verts) {
+        const Vec3 q = from.x.col(i);
+        if (q.y() < ylo || q.y() > yhi || q.z() < zlo || q.z() > zhi) continue;
+        const double l1 =
+            ((q.y() - p0.y()) * (p2.z() - p0.z()) - (p2.y() - p0.y()) * (q.z() - p0.z())) / det;
+        const double l2 =
+            ((p1.y() - p0.y()) * (q.z() - p0.z()) - (q.y() - p0.y()) * (p1.z() - p0.z())) / det;
+        if (l1 < 0 || l2 < 0 || l1 + l2 > 1) continue;
+        const double x = p0.x() + l1 * (p1.x() - p0.x()) + l2 * (p2.x() - p0.x());
+        best = std::min(best, sign * (q.x() - x));
+      }
+    }
+  };
+  cast(b, a, +1);
+  cast(a, b, -1);
+  return best;
+}
+
+}  // namespace
+
+double radiusOfGyration(const CellSet& cells, const std::vector<double>& volumes,
+                        const std::vector<Vec3>& centroids) {
+  double vol = 0;
+  Vec3 c = Vec3::Zero();
+  for (int k = 0; k < cells.numCells(); ++k) {
+    vol += volumes[k];
+    c += volumes[k] * centroids[k];
+  }
+  c /= vol;
+  double rg2 = 0;
+  for (int k = 0; k < cells.numCells(); ++k) rg2 += volumes[k] * (centroids[k] - c).squaredNorm();
+  return std::sqrt(rg2 / vol);
+}
+
+SceneSpec spheroidPrepSpec(const SceneSpec& spec, std::int64_t n_cells, std::uint64_t seed) {
+  SceneSpec p = spec;
+  p.scene = SceneKind::Spheroid;
+  p.seed = seed;
+  p.scene_params = SceneParams{};
+  p.scene_params.n_cells = n_cells;
+  p.scene_params.prep_dt_s = spec.scene_params.prep_dt_s;
+  p.scene_params.prep_max_s = spec.scene_params.prep_max_s;
+  p.scene_params.compact_rate_per_s = spec.scene_params.compact_rate_per_s;
+  p.numerics.dt_s = spec.scene_params.prep_dt_s;
+  p.numerics.integrator = IntegratorKind::ContactImplicit;
+  p.duration_s = spec.scene_params.prep_max_s;
+  p.sample_every_s = kWindowS;
+  p.snapshot_every_s = 0;
+  return resolve(p);
+}
+
+std::uint64_t spheroidSeed(std::uint64_t seed, int which) {
+  Rng r(seed, 0x5350484552ULL + static_cast<std::uint64_t>(which));  // "SPHER" + which
+  return r.next();
+}
+
+std::string spheroidCacheKey(const SceneSpec& prep) {
+  std::uint64_t h = 1469598103934665603ULL;
+  for (unsigned char c : specFingerprint(prep)) {
+    h ^= c;
+    h *= 1099511628211ULL;
+  }
+  return hex16(h);
+}
+
+std::optional<PreparedSpheroid> SpheroidCache::load(const SceneSpec& prep) const {
+  std::ifstream in(cacheFile(dir_, prep), std::ios::binary);
+  if (!in) return std::nullopt;
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  const std::string data = ss.str();
+  try {
+    bytes::Reader r(data, "spheroid cache");
+    for (char c : kMagic)
+      if (r.pod<char>() != c) return std::nullopt;
+    if (r.str() != specFingerprint(prep)) return std::nullopt;
+    PreparedSpheroid s;
+    s.relaxed_s = r.pod<double>();
+    s.compact = r.pod<std::uint8_t>() != 0;
+    s.radius_gyration_um = r.pod<double>();
+    s.cells = deserializeCells(r.str());
+    if (!r.done() || s.cells.numCells() != prep.scene_params.n_cells) return std::nullopt;
+    s.from_cache = true;
+    s.key = spheroidCacheKey(prep);
+    return s;
+  } catch (const std::invalid_argument&) {
+    return std::nullopt;  // truncated or damaged: prepare again (and overwrite it)
+  }
+}
+
+void SpheroidCache::store(const SceneSpec& prep, const PreparedSpheroid& s) const {
+  std::error_code ec;
+  fs::create_directories(dir_, ec);
+  if (ec) throw std::runtime_error("spheroid cache: cannot create " + dir_ + ": " + ec.message());
+  bytes::Writer w;
+  for (char c : kMagic) w.pod(c);
+  w.str(specFingerprint(prep));
+  w.pod(s.relaxed_s);
+  w.pod(static_cast<std::uint8_t>(s.compact));
+  w.pod(s.radius_gyration_um);
+  w.str(serializeCells(s.cells));
+  const std::string data = w.take();
+  const fs::path file = cacheFile(dir_, prep);
+  // Unique temporary name per writer: two runs preparing the same spheroid do not collide.
+  std::random_device entropy;
+  const fs::path tmp =
+      file.string() + ".tmp" + hex16((static_cast<std::uint64_t>(entropy()) << 32) ^ entropy());
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out.write(data.data(), static_cast<std::streamsize>(data.size()));
+    out.close();
+    if (!out) {
+      fs::remove(tmp, ec);
+      throw std::runtime_error("spheroid cache: cannot write " + tmp.string());
+    }
+  }
+  fs::rename(tmp, file, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw std::runtime_error("spheroid cache: cannot rename into " + file.string());
+  }
+}
+
+PreparedSpheroid prepareSpheroid(const SceneSpec& prep, const SpheroidCache* cache,
+                                 const PrepObserver& obs) {
+  auto log = [&](const std::string& s) {
+    if (obs.on_log) obs.on_log(s);
+  };
+  const std::string key = spheroidCacheKey(prep);
+  const std::string what = "spheroid of " + std::to_string(prep.scene_params.n_cells) +
+                           " cells (seed " + std::to_string(prep.seed) + ", key " + key + ")";
+  if (cache) {
+    if (auto s = cache->load(prep)) {
+      log("prepared " + what + " loaded from " + cache->dir());
+      return *s;
+    }
+  }
+  log("preparing " + what + ": relaxing for at most " + formatNumber(prep.scene_params.prep_max_s) +
+      " s at dt = " + formatNumber(prep.numerics.dt_s) + " s");
+  Simulation sim(prep);
+  const double dt = prep.numerics.dt_s;
+  const std::int64_t total = std::llround(prep.scene_params.prep_max_s / dt);
+  const std::int64_t window = std::max<std::int64_t>(1, std::llround(kWindowS / dt));
+  auto rg = [&] {
+    return radiusOfGyration(sim.cells(), sim.geometry().cell_volume, sim.geometry().cell_centroid);
+  };
+  PreparedSpheroid out;
+  double rg_prev = rg();
+  while (sim.steps() < total) {
+    if (obs.cancel && obs.cancel->load(std::memory_order_relaxed)) {
+      PrepFailed e("cancelled while preparing the " + what);
+      e.cancelled = true;
+      throw e;
+    }
+    const StepReport r = sim.step();
+    if (!r.ok())
+      throw PrepFailed("preparing the " + what + " failed: " + std::string(toString(r.failure)) +
+                       ": " + r.reason + " (try a smaller scene.prep_dt_s)");
+    if (sim.steps() % window == 0) {
+      const double now = rg();
+      const double rate = std::abs(now - rg_prev) / now / kWindowS;
+      rg_prev = now;
+      if (sim.time() >= 2 * kWindowS - 0.5 * dt && rate < prep.scene_params.compact_rate_per_s) {
+        out.compact = true;
+        break;
+      }
+    }
+  }
+  out.relaxed_s = sim.time();
+  out.radius_gyration_um = rg();
+  out.cells = sim.cells();
+  // Centre on the aggregate's volume centroid; velocities are not part of a prepared spheroid.
+  out.cells.x.colwise() -= volumeCentroid(sim.geometry());
+  out.cells.v.setZero();
+  out.key = key;
+  log((out.compact ? "compact after " : "not compact after the limit of ") +
+      formatNumber(out.relaxed_s) + " s: radius of gyration " +
+      formatNumber(std::round(out.radius_gyration_um * 1000) / 1000) + " µm");
+  if (cache) {
+    cache->store(prep, out);
+    log("stored in " + cache->dir());
+  }
+  return out;
+}
+
+CellSet buildFusionCells(const SceneSpec& spec, const SpheroidCache* cache, const PrepObserver& obs,
+                         std::vector<PreparedSpheroid>* info) {
+  const SceneParams& sp = spec.scene_params;
+  const std::int64_t na = sp.n_cells_a > 0 ? sp.n_cells_a : sp.n_cells;
+  const std::int64_t nb = sp.n_cells_b > 0 ? sp.n_cells_b : sp.n_cells;
+  PreparedSpheroid a =
+      prepareSpheroid(spheroidPrepSpec(spec, na, spheroidSeed(spec.seed, 0)), cache, obs);
+  PreparedSpheroid b =
+      prepareSpheroid(spheroidPrepSpec(spec, nb, spheroidSeed(spec.seed, 1)), cache, obs);
+  // Touching: first the extremes gap_um apart, then B moved towards A until the closest points
+  // straight across are gap_um apart (lumpy aggregates touch off their extremes).
+  double shift = a.cells.x.row(0).maxCoeff() - b.cells.x.row(0).minCoeff() + sp.gap_um;
+  b.cells.x.row(0).array() += shift;
+  const double clearance = clearanceAlongX(a.cells, b.cells, 2 * spec.cells.radius_mean_um);
+  b.cells.x.row(0).array() -= shift;
+  if (std::isfinite(clearance)) shift -= clearance - sp.gap_um;
+  CellSet cells;
+  Rng rng(spec.seed, 0);
+  for (int s = 0; s < 2; ++s) {
+    const CellSet& src = s == 0 ? a.cells : b.cells;
+    for (int c = 0; c < src.numCells(); ++c) {
+      TriMesh m = src.cellMesh(c);
+      if (s == 1) m.x.row(0).array() += shift;
+      cells.addCell(m, src.radius[c], s);
+      cells.pi_integral.back() = src.pi_integral[c];
+    }
+  }
+  for (Vec3& p : cells.polarity) {
+    const double z = 2 * rng.uniform() - 1, phi = 2 * M_PI * rng.uniform();
+    const double r = std::sqrt(1 - z * z);
+    p = Vec3(r * std::cos(phi), r * std::sin(phi), z);
+  }
+  if (info) *info = {std::move(a), std::move(b)};
+  return cells;
+}
+
+}  // namespace activefoam

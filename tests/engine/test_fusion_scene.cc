@@ -1,0 +1,185 @@
+// The fusion scene's machinery on small aggregates (fast enough for the sanitizer pass):
+// prepared spheroids and their cache, placement, and a fusion run resumed from a checkpoint.
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "activefoam/spheroid.h"
+#include "test_support.h"
+
+using namespace activefoam;
+namespace fs = std::filesystem;
+
+namespace {
+
+SceneSpec smallFusion() {
+  SceneSpec s;
+  s.scene = SceneKind::Fusion;
+  s.seed = 5;
+  s.scene_params.n_cells_a = 3;
+  s.scene_params.n_cells_b = 4;
+  s.scene_params.prep_max_s = 10;
+  s.numerics.triangles_per_cell = 80;
+  s.numerics.dt_s = 0.5;
+  s.duration_s = 10;
+  s.sample_every_s = 1;
+  s.snapshot_every_s = 0;
+  EXPECT_TRUE(validate(s).empty());
+  return resolve(s);
+}
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    std::random_device rd;
+    path = fs::temp_directory_path() / ("af-cache-" + std::to_string(rd()) + std::to_string(rd()));
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+std::vector<std::vector<double>> physics(const std::vector<Sample>& samples) {
+  std::vector<std::vector<double>> out;
+  for (const Sample& s : samples) {
+    auto v = s.values;
+    v.erase(v.begin() + 2);  // wall clock
+    out.push_back(v);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(FusionScene, TwoLabelledSpheroidsPlacedTouchingAlongX) {
+  const SceneSpec s = smallFusion();
+  std::vector<PreparedSpheroid> info;
+  const CellSet cells = buildFusionCells(s, nullptr, {}, &info);
+  ASSERT_EQ(cells.numCells(), 7);
+  ASSERT_EQ(info.size(), 2u);
+  EXPECT_EQ(info[0].cells.numCells(), 3);
+  EXPECT_EQ(info[1].cells.numCells(), 4);
+  for (int c = 0; c < 7; ++c) {
+    EXPECT_EQ(cells.label[c], c < 3 ? 0 : 1);
+    EXPECT_TRUE(checkClosedManifold(cells.cellMesh(c)).empty()) << c;
+  }
+  // B lies along +x from A and touches it: at least one contact pair joins the two spheroids,
+  // none interpenetrates.
+  Simulation sim(s, cells);
+  Vec3 ca = Vec3::Zero(), cb = Vec3::Zero();
+  for (int c = 0; c < 7; ++c)
+    (c < 3 ? ca : cb) += sim.geometry().cell_centroid[c] / (c < 3 ? 3 : 4);
+  EXPECT_GT(cb.x() - ca.x(), 0.8 * (cb - ca).norm());
+  int across = 0;
+  for (const ContactPair& p : sim.contacts().pairs) {
+    EXPECT_GT(p.c.mean_gap, -0.1);
+    if (cells.label[cells.tri_cell[p.ta]] != cells.label[cells.tri_cell[p.tb]]) ++across;
+  }
+  EXPECT_GT(across, 0);
+  // The two spheroids come from different seeds.
+  EXPECT_NE(spheroidSeed(s.seed, 0), spheroidSeed(s.seed, 1));
+}
+
+TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
+  TempDir dir;
+  const SpheroidCache cache(dir.path.string());
+  const SceneSpec s = smallFusion();
+  const SceneSpec prep = spheroidPrepSpec(s, 3, 11);
+  const PreparedSpheroid first = prepareSpheroid(prep, &cache);
+  EXPECT_FALSE(first.from_cache);
+  EXPECT_GT(first.relaxed_s, 0);
+  const PreparedSpheroid again = prepareSpheroid(prep, &cache);
+  EXPECT_TRUE(again.from_cache);
+  ASSERT_EQ(again.cells.x.cols(), first.cells.x.cols());
+  EXPECT_EQ(again.cells.x, first.cells.x);  // bit-identical
+  EXPECT_EQ(again.cells.tri, first.cells.tri);
+  EXPECT_EQ(again.relaxed_s, first.relaxed_s);
+
+  // Whatever shapes the spheroid is in the key; sampling and run length of the fusion are not.
+  SceneSpec other = s;
+  other.cells.alpha = 0.5;
+  EXPECT_NE(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
+  EXPECT_NE(spheroidCacheKey(spheroidPrepSpec(s, 3, 12)), spheroidCacheKey(prep));
+  EXPECT_NE(spheroidCacheKey(spheroidPrepSpec(s, 4, 11)), spheroidCacheKey(prep));
+  other = s;
+  other.duration_s = 500;
+  other.sample_every_s = 7;
+  EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
+
+  // A damaged file reads as absent: prepared again, and the file is replaced.
+  ASSERT_EQ(std::distance(fs::directory_iterator(dir.path), fs::directory_iterator()), 1);
+  const fs::path file = fs::directory_iterator(dir.path)->path();
+  fs::resize_file(file, fs::file_size(file) / 2);
+  EXPECT_FALSE(cache.load(prep).has_value());
+  const PreparedSpheroid redone = prepareSpheroid(prep, &cache);
+  EXPECT_FALSE(redone.from_cache);
+  EXPECT_EQ(redone.cells.x, first.cells.x);  // deterministic in its seed
+  EXPECT_TRUE(cache.load(prep).has_value());
+}
+
+TEST(FusionScene, SamplesFitsAndResumeFromCheckpoint) {
+  TempDir dir;
+  const SceneSpec s = smallFusion();
+  const auto cols = sampleColumns(SceneKind::Fusion);
+  ASSERT_EQ(cols[5], "theta_deg");
+  std::vector<Sample> full;
+  std::vector<std::string> logs;
+  std::string state;
+  double state_t = -1;
+  RunObserver obs;
+  obs.spheroid_cache_dir = dir.path.string();
+  obs.on_log = [&](const std::string& l) { logs.push_back(l); };
+  obs.on_sample = [&](const Sample& x) { full.push_back(x); };
+  obs.checkpoint_every_s = 4;
+  obs.on_checkpoint = [&](double t, const std::string& st) {
+    if (state_t < 0) state_t = t, state = st;
+  };
+  const RunSummary a = runScene(s, obs);
+  ASSERT_TRUE(a.ok()) << a.reason;
+  ASSERT_EQ(full.size(), 11u);
+  for (const Sample& x : full) {
+    ASSERT_EQ(x.values.size(), cols.size());
+    EXPECT_TRUE(std::isfinite(x.values[5])) << "theta at t=" << x.values[0];
+    EXPECT_GE(x.values[5], 0);
+    EXPECT_LE(x.values[5], 90);
+  }
+  ASSERT_EQ(a.fits.size(), 3u);
+  EXPECT_EQ(a.fits[0].first, "eq1");
+  bool has_mixing = false;
+  for (const auto& [name, v] : a.final_values) has_mixing |= name == "mixing_time_s";
+  EXPECT_TRUE(has_mixing);
+  EXPECT_EQ(logs.size(), 6u);  // two preparations: preparing, compact/not, stored
+
+  // Resumed from the checkpoint at t = 4 s: the same samples after it, the same fits.
+  ASSERT_EQ(state_t, 4);
+  std::vector<Sample> rest;
+  RunObserver obs2;
+  obs2.on_sample = [&](const Sample& x) { rest.push_back(x); };
+  const RunSummary b = runScene(s, obs2, &state);
+  ASSERT_TRUE(b.ok()) << b.reason;
+  const auto pf = physics(full), pr = physics(rest);
+  ASSERT_EQ(pr.size(), 6u);
+  for (std::size_t k = 0; k < pr.size(); ++k) EXPECT_EQ(pr[k], pf[k + 5]) << k;
+  ASSERT_EQ(b.fits.size(), a.fits.size());
+  for (std::size_t k = 0; k < a.fits.size(); ++k) {
+    EXPECT_EQ(b.fits[k].second.ok, a.fits[k].second.ok);
+    EXPECT_EQ(b.fits[k].second.value, a.fits[k].second.value);
+  }
+  EXPECT_EQ(b.final_values, a.final_values);
+
+  // The second run from scratch reuses both prepared spheroids and reproduces the first.
+  std::vector<Sample> again;
+  logs.clear();
+  obs.on_sample = [&](const Sample& x) { again.push_back(x); };
+  obs.on_checkpoint = nullptr;
+  ASSERT_TRUE(runScene(s, obs).ok());
+  ASSERT_EQ(logs.size(), 2u);
+  EXPECT_NE(logs[0].find("loaded"), std::string::npos) << logs[0];
+  EXPECT_EQ(physics(again), pf);
+}
