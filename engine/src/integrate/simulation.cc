@@ -90,10 +90,13 @@ void Simulation::rebuildPattern() {
   for (const Edge& e : topo_.edges) couplings.emplace_back(e.i, e.j);
   pattern_pairs_.clear();
   if (with_contacts_) {
-    // Skin of a few contact ranges plus a fraction of the cell radius: contacts can slide for
-    // many steps before a pair outside the pattern appears and forces a rebuild.
-    const double skin = 0.1 * spec_.cells.radius_mean_um;
-    pattern_pairs_ = findContactCandidates(cells_.x, cells_.tri, cells_.tri_cell, law_.h0 + skin);
+    // Pairs within h0 + 0.05 r, facing or not: measured on a 2 × 8-cell fusion, the facing
+    // filter forced a rebuild every ~4 steps (rim triangles turn to face as contacts spread),
+    // whatever the skin; without it only remeshing does, and a small skin keeps the pattern
+    // (and with it the SpMV) lean. Assembly 24 → 10 ms/step, the solve unchanged.
+    const double skin = 0.05 * spec_.cells.radius_mean_um;
+    pattern_pairs_ = findContactCandidates(cells_.x, cells_.tri, cells_.tri_cell, law_.h0 + skin,
+                                           /*facing_only=*/false);
     for (const ContactPair& p : contacts_.pairs) pattern_pairs_.emplace_back(p.ta, p.tb);
     std::sort(pattern_pairs_.begin(), pattern_pairs_.end());
     pattern_pairs_.erase(std::unique(pattern_pairs_.begin(), pattern_pairs_.end()),
