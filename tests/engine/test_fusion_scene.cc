@@ -154,7 +154,8 @@ TEST(FusionScene, SamplesFitsAndResumeFromCheckpoint) {
   bool has_mixing = false;
   for (const auto& [name, v] : a.final_values) has_mixing |= name == "mixing_time_s";
   EXPECT_TRUE(has_mixing);
-  EXPECT_EQ(logs.size(), 6u);  // two preparations: preparing, compact/not, stored
+  // Two preparations of 10 s (no 60 s window): preparing, compact or not, stored.
+  EXPECT_EQ(logs.size(), 6u);
 
   // Resumed from the checkpoint at t = 4 s: the same samples after it, the same fits.
   ASSERT_EQ(state_t, 4);

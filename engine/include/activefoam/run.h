@@ -85,6 +85,11 @@ struct RunObserver {
   std::function<void(const std::string&)> on_log;
 };
 
+// The flat name of a fit parameter in results tables (foam-run's summary.json top level, the
+// server's results): the parameter's own name, prefixed with the model where two models share
+// it (eq2's theta_eq_deg and theta0_deg → eq2_theta_eq_deg, eq2_theta0_deg; Eq. 1 keeps them).
+std::string fitResultName(std::string_view model, std::string_view parameter);
+
 // Runs a resolved, valid spec (see resolve/validate in spec.h) to duration_s or to its first
 // failure. Samples are emitted at t = 0 and every sample_every_s; snapshots likewise. With
 // `resume` (a checkpoint of the same spec) the run continues from it and emits only what comes

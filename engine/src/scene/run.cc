@@ -176,6 +176,12 @@ std::string_view toString(FailureKind k) {
   return "unknown";
 }
 
+std::string fitResultName(std::string_view model, std::string_view parameter) {
+  const bool shared = parameter == "theta_eq_deg" || parameter == "theta0_deg";
+  return shared && model != "eq1" ? std::string(model) + "_" + std::string(parameter)
+                                  : std::string(parameter);
+}
+
 std::vector<std::string> sampleColumns(SceneKind scene) {
   std::vector<std::string> cols = kCommon;
   switch (scene) {

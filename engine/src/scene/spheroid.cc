@@ -232,6 +232,9 @@ PreparedSpheroid prepareSpheroid(const SceneSpec& prep, const SpheroidCache* cac
       const double now = rg();
       const double rate = std::abs(now - rg_prev) / now / kWindowS;
       rg_prev = now;
+      log("  relaxing: t = " + formatNumber(sim.time()) + " s, radius of gyration " +
+          formatNumber(std::round(now * 1000) / 1000) +
+          " µm, |dRg/dt|/Rg = " + formatNumber(std::round(rate * 1e8) / 1e8) + " /s");
       if (sim.time() >= 2 * kWindowS - 0.5 * dt && rate < prep.scene_params.compact_rate_per_s) {
         out.compact = true;
         break;
