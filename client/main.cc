@@ -8,12 +8,15 @@
 // RPC error; 4 authentication failed (UNAUTHENTICATED); 5 not found.
 #include <grpcpp/grpcpp.h>
 
+#include <sys/wait.h>
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <sstream>
 #include <thread>
 
@@ -178,10 +181,77 @@ int jobExit(const v1::Job& j) {
   return j.state() == v1::JOB_STATE_SUCCEEDED ? kOk : kJobNotOk;
 }
 
+// A PNG of one sample column against time with gnuplot; for θ(t) of a fusion job also the fitted
+// Eq. 1 and Eq. 2 curves from the job's results. Returns an error text, empty on success.
+std::string plotSamples(const v1::JobResults& r, const std::string& column,
+                        const std::string& out) {
+  int col = -1, tcol = -1;
+  for (int i = 0; i < r.columns_size(); ++i) {
+    if (r.columns(i) == column) col = i;
+    if (r.columns(i) == "t_s") tcol = i;
+  }
+  if (col < 0 || tcol < 0) {
+    std::string cols;
+    for (const auto& c : r.columns()) cols += (cols.empty() ? "" : ", ") + c;
+    return "no sample column '" + column + "' (columns: " + cols + ")";
+  }
+  if (r.samples_size() == 0) return "the job has no samples yet";
+  std::map<std::string, double> res;
+  for (const auto& x : r.results()) res[x.name()] = x.value();
+  auto has = [&](std::initializer_list<const char*> names) {
+    for (const char* n : names)
+      if (!res.count(n) || !std::isfinite(res[n])) return false;
+    return true;
+  };
+  std::ostringstream gp;
+  gp.precision(10);
+  gp << "set terminal pngcairo size 900,600 enhanced font 'DejaVu Sans,11'\n"
+     << "set output '" << out << "'\n"
+     << "set title 'job " << r.job().id() << " (" << r.job().scene() << ", seed " << r.job().seed()
+     << ")' noenhanced\n"
+     << "set xlabel 't (min)'\nset ylabel '" << column << "' noenhanced\nset grid\n"
+     << "set key bottom right\n$data << EOD\n";
+  for (const auto& smp : r.samples())
+    if (std::isfinite(smp.values(col)))
+      gp << smp.values(tcol) / 60 << " " << smp.values(col) << "\n";
+  gp << "EOD\nplot [0:] $data using 1:2 with points pt 7 ps 0.8 lc rgb '#1f77b4' title '" << column
+     << "' noenhanced";
+  if (column == "theta_deg" && res["eq1_ok"] == 1 &&
+      has({"theta_eq_deg", "theta0_deg", "tau_f_s"})) {
+    const double te = res["theta_eq_deg"], t0 = res["theta0_deg"], tf = res["tau_f_s"];
+    gp << ", \\\n  " << te << " + (" << t0 << " - " << te << ") * exp(-x * 60 / " << tf
+       << ") lw 2 lc rgb '#d62728' title sprintf('Eq. 1: θ_{eq} = %.1f°, τ_f = %.0f s', " << te
+       << ", " << tf << ")";
+  }
+  if (column == "theta_deg" && res["eq2_ok"] == 1 &&
+      has({"tau_gamma_s", "tau_eps_s", "eq2_theta0_deg"})) {
+    // Closed form of Eq. 2 in u = cos θ (DESIGN.md §7).
+    const double tg = res["tau_gamma_s"], tpe = res["tau_eps_s"];
+    const double k = tpe / tg, root = std::sqrt(k * k + 4);
+    const double up = (root - k) / 2, um = (-root - k) / 2, lam = root / (2 * tpe);
+    const double u0 = std::cos(res["eq2_theta0_deg"] * M_PI / 180), c = (u0 - up) / (u0 - um);
+    gp << ", \\\n  acos((" << up << " - (" << um << ") * " << c << " * exp(-" << lam
+       << " * x * 60)) / (1 - " << c << " * exp(-" << lam
+       << " * x * 60))) * 180 / pi lw 2 dt 2 lc rgb '#2ca02c' title sprintf('Eq. 2: τ_Γ = %.0f "
+          "s, τ_ε = %.0f s', "
+       << tg << ", " << tpe << ")";
+  }
+  gp << "\n";
+  FILE* g = popen("gnuplot 2>&1", "w");
+  if (!g) return "cannot start gnuplot";
+  const std::string text = gp.str();
+  std::fwrite(text.data(), 1, text.size(), g);
+  const int rc = pclose(g);
+  if (rc != 0)
+    return "gnuplot failed (exit " + std::to_string(WEXITSTATUS(rc)) +
+           "; is it installed? apt-get install gnuplot-nox)";
+  return "";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"foam: activefoam client (submit, watch, list, show, cancel, results, sweep)"};
+  CLI::App app{"foam: activefoam client (submit, watch, list, show, cancel, results, plot, sweep)"};
   app.footer(
       "exit status: 0 ok (job succeeded for --wait/watch), 1 job failed or cancelled, 2 usage or "
       "invalid spec, 3 server unreachable / RPC error, 4 unauthenticated, 5 not found");
@@ -237,6 +307,14 @@ int main(int argc, char** argv) {
   results->add_option("ID", id)->required();
   results->add_flag("--json", json, "JSON for scripts");
   results->add_flag("--csv", csv, "samples as CSV");
+
+  auto* plot = app.add_subcommand("plot",
+                                  "PNG chart of a sample column over time (gnuplot); "
+                                  "θ(t) of a fusion job with its Eq. 1 / Eq. 2 fits");
+  std::string plot_out, plot_column = "theta_deg";
+  plot->add_option("ID", id)->required();
+  plot->add_option("--out,-o", plot_out, "PNG file (default: job-ID-COLUMN.png)");
+  plot->add_option("--column", plot_column, "sample column")->capture_default_str();
 
   auto* sweep = app.add_subcommand("sweep", "submit a grid sweep; prints the sweep id");
   std::vector<std::string> grid;
@@ -420,6 +498,22 @@ int main(int argc, char** argv) {
       std::cout << "job " << r.job().id() << ": " << stateName(r.job().state())
                 << (r.job().reason().empty() ? "" : " (" + r.job().reason() + ")") << "\n";
       for (const auto& x : r.results()) std::printf("  %-24s %.6g\n", x.name().c_str(), x.value());
+      return kOk;
+    }
+    if (*plot) {
+      v1::GetResultsRequest req;
+      req.set_job_id(id);
+      req.set_with_samples(true);
+      v1::JobResults r;
+      auto ctx = conn.ctx();
+      const grpc::Status st = conn.stub->GetResults(ctx.get(), req, &r);
+      if (!st.ok()) return rpcError(st, "plot " + id);
+      if (plot_out.empty()) plot_out = "job-" + id + "-" + plot_column + ".png";
+      if (const std::string err = plotSamples(r, plot_column, plot_out); !err.empty()) {
+        std::cerr << "foam: plot " << id << ": " << err << "\n";
+        return kUsage;
+      }
+      std::cout << plot_out << "\n";
       return kOk;
     }
     if (*sweep) {

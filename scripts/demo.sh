@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The main job of the README: install, build, start foamd on a fresh database, submit a small job
 # with foam, watch it to the end, print its results, stop foamd.
-# (The fusion scene is not in the engine yet: the job is the doublet, the most complete scene.)
+# The job is a small fusion (examples/fusion.toml): θ(t) per sample, θ_eq and τ_f from the fits.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/build.sh release
@@ -15,8 +15,8 @@ foamd_pid=$!
 trap 'kill -TERM $foamd_pid 2>/dev/null || true; wait $foamd_pid 2>/dev/null || true' EXIT
 export FOAM_SERVER="127.0.0.1:$port"
 for _ in $(seq 50); do "$bin/client/foam" list >/dev/null 2>&1 && break; sleep 0.1; done
-echo "== foam submit examples/doublet.toml --wait"
-id="$("$bin/client/foam" submit examples/doublet.toml --wait | head -1)"
+echo "== foam submit examples/fusion.toml --wait"
+id="$("$bin/client/foam" submit examples/fusion.toml --wait | head -1)"
 echo
 echo "== foam show $id"
 "$bin/client/foam" show "$id"

@@ -231,15 +231,14 @@ void Pool::runJob(const Claimed& claimed, Running& flag) {
   results.emplace_back("cg_iters_mean", summary.cg_iters_mean);
   results.emplace_back("remesh_ops", static_cast<double>(summary.remesh_ops));
   // Fits (fusion): each parameter and its standard error ("<name>_se"), and per model
-  // "<model>_ok" and "<model>_r2"; names as in foam-run's summary.json (eq2's θ_eq is
-  // eq2_theta_eq_deg). A failed fit's parameters are left out.
+  // "<model>_ok" and "<model>_r2"; names by fitResultName, as in foam-run's summary.json.
+  // A failed fit's parameters are left out.
   for (const auto& [model, f] : summary.fits) {
     results.emplace_back(model + "_ok", f.ok ? 1 : 0);
     if (!f.ok) continue;
     results.emplace_back(model + "_r2", f.r2);
     for (std::size_t k = 0; k < f.names.size(); ++k) {
-      const std::string name =
-          f.names[k] == "theta_eq_deg" && model != "eq1" ? model + "_" + f.names[k] : f.names[k];
+      const std::string name = fitResultName(model, f.names[k]);
       results.emplace_back(name, f.value[k]);
       if (k < f.std_error.size()) results.emplace_back(name + "_se", f.std_error[k]);
     }

@@ -133,9 +133,7 @@ nlohmann::json summaryToJson(const RunSummary& summary, const SceneSpec& resolve
         params[f.names[k]] = {
             {"value", number(f.value[k])},
             {"std_error", number(k < f.std_error.size() ? f.std_error[k] : std::nan(""))}};
-        const std::string top =
-            f.names[k] == "theta_eq_deg" && model != "eq1" ? model + "_" + f.names[k] : f.names[k];
-        if (!j.contains(top)) j[top] = f.ok ? number(f.value[k]) : nlohmann::json();
+        j[fitResultName(model, f.names[k])] = f.ok ? number(f.value[k]) : nlohmann::json();
       }
       fj["parameters"] = params;
       fj["n"] = f.n;
