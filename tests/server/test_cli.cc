@@ -149,6 +149,46 @@ TEST(Cli, SubmitWaitThenResultsJson) {
   fs::remove_all(dir);
 }
 
+// A small fusion job through foamd: fits and fusion observables in its results, the prepared
+// spheroids cached next to the database, and `foam plot` draws θ(t) as a PNG.
+TEST(Cli, FusionJobResultsAndPlot) {
+  const fs::path dir = tempDir();
+  Foamd d(dir / "foamd.db", freePort());
+  const std::string submit =
+      d.foam() +
+      " submit --scene fusion --set scene.n_cells_a=3 --set scene.n_cells_b=3"
+      " --set scene.prep_max_s=10 --set numerics.dt_s=0.5 --set duration_s=20"
+      " --set sample_every_s=1 --set numerics.triangles_per_cell=80 --set snapshot_every_s=0"
+      " --wait 2>/dev/null";
+  Proc r;
+  for (int i = 0; i < 50; ++i) {
+    r = sh(submit);
+    if (r.rc != 3) break;
+    std::this_thread::sleep_for(100ms);
+  }
+  ASSERT_EQ(r.rc, 0) << r.out;
+  const std::string id = firstLine(r.out);
+  const nlohmann::json j = results(d, id);
+  EXPECT_EQ(j["samples"].size(), 21u);
+  for (const char* k : {"theta_deg", "neck_radius_um", "eq1_ok", "eq2_ok", "s1_ok", "mixing_time_s",
+                        "prep_compact_a"})
+    EXPECT_TRUE(j["results"].contains(k)) << k;
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir / "spheroids"), fs::directory_iterator()), 2);
+
+  const fs::path png = dir / "theta.png";
+  const Proc plot = sh(d.foam() + " plot " + id + " --out " + png.string() + " 2>&1");
+  ASSERT_EQ(plot.rc, 0) << plot.out;
+  std::ifstream in(png, std::ios::binary);
+  char magic[8] = {};
+  in.read(magic, 8);
+  EXPECT_EQ(std::string(magic + 1, 3), "PNG");
+  const Proc bad = sh(d.foam() + " plot " + id + " --column nope 2>&1");
+  EXPECT_EQ(bad.rc, 2);
+  EXPECT_NE(bad.out.find("theta_deg"), std::string::npos) << bad.out;  // lists the columns
+  d.stop(SIGTERM);
+  fs::remove_all(dir);
+}
+
 // kill -9 mid-run, restart: the accepted jobs are all there and finish, with the results of an
 // uninterrupted run of the same spec and seed.
 // kill -9 mid-run: the restarted server re-queues the job and resumes it from its last checkpoint
