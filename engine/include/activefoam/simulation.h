@@ -77,6 +77,10 @@ class Simulation {
   void detect();                              // contacts of the current geometry
   double computeForces(Eigen::Matrix3Xd& f);  // returns the sum of term energies
   const SpMat& assembleFriction();
+  // Empty, or the reason why two cells interpenetrate beyond numerics.max_penetration_um in the
+  // current contacts (checked after every step): per pair of cells, the area-weighted mean gap
+  // of their contact pairs.
+  std::string interpenetration();
   // Replaces positions (tests: finite differences, perturbations) and refreshes geometry.
   void setPositions(const Eigen::Matrix3Xd& x);
 
@@ -123,6 +127,11 @@ class Simulation {
   std::int64_t remesh_ops_ = 0;
   std::int64_t oscillating_steps_ = 0;  // consecutive steps with reversing contact velocities
   PhaseTimes times_;
+  struct PairGap {
+    std::uint64_t key;  // (cell a << 32) | cell b, a < b
+    double gap_area, area;
+  };
+  std::vector<PairGap> penetration_;  // scratch of the interpenetration check
 };
 
 }  // namespace activefoam

@@ -56,8 +56,8 @@ struct NumericsParams {
   double remesh_max_area_factor = 3.0;        // A_M = factor · A_Δ
   ContactQuadrature contact_quadrature = ContactQuadrature::Exact;
   double max_volume_error = 0.05;  // |V − V*|/V* beyond this stops the run as failed
-  // Mean interpenetration of a contact pair beyond this stops the run as failed (cells passing
-  // through each other). Transients of ~0.1 µm are geometric: tilted 2 µm triangles crossing.
+  // Interpenetration of two cells (the area-weighted mean gap over their contact pairs) beyond
+  // this stops the run as failed (cells passing through each other).
   double max_penetration_um = 1.0;
   // Consecutive steps in which contacting vertices mostly reverse their velocity (the period-2
   // signature of an explicit scheme beyond its stability limit) before the run fails.

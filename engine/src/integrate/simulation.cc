@@ -220,16 +220,10 @@ StepReport Simulation::step() {
   }
 
   if (with_contacts_) {
-    const double limit = -spec_.numerics.max_penetration_um;
-    for (const ContactPair& p : contacts_.pairs) {
-      if (p.c.mean_gap < limit) {
-        rep.failure = FailureKind::Interpenetration;
-        why << "cells " << cells_.tri_cell[p.ta] << " and " << cells_.tri_cell[p.tb]
-            << " interpenetrate by " << -p.c.mean_gap
-            << " µm > numerics.max_penetration_um = " << -limit << " µm at t=" << t_ << " s";
-        rep.reason = why.str();
-        return rep;
-      }
+    if (std::string why_not = interpenetration(); !why_not.empty()) {
+      rep.failure = FailureKind::Interpenetration;
+      rep.reason = why_not;
+      return rep;
     }
   }
 
@@ -253,6 +247,41 @@ StepReport Simulation::step() {
     rep.remesh_volume_jump = r.remesh_volume_jump;
   }
   return rep;
+}
+
+std::string Simulation::interpenetration() {
+  // Per pair of cells, the area-weighted mean gap of their contact pairs. Single triangle
+  // pairs are no measure: where two surfaces meet at a rim at ~70° a pair overlaps by a sliver
+  // of 1e-4 µm² whose mean gap along the pair normal reads −0.5 … −1.6 µm while the cells do
+  // not overlap (measured on a 2 × 8-cell fusion; it stopped runs at t = 990 s).
+  penetration_.clear();
+  for (const ContactPair& p : contacts_.pairs) {
+    int a = cells_.tri_cell[p.ta], b = cells_.tri_cell[p.tb];
+    if (a > b) std::swap(a, b);
+    penetration_.push_back({(static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b),
+                            p.c.mean_gap * p.c.area, p.c.area});
+  }
+  std::sort(penetration_.begin(), penetration_.end(),
+            [](const auto& x, const auto& y) { return x.key < y.key; });
+  const double limit = spec_.numerics.max_penetration_um;
+  for (std::size_t i = 0; i < penetration_.size();) {
+    double gs = 0, area = 0;
+    std::size_t j = i;
+    for (; j < penetration_.size() && penetration_[j].key == penetration_[i].key; ++j) {
+      gs += penetration_[j].gap_area;
+      area += penetration_[j].area;
+    }
+    if (area > 0 && -gs / area > limit) {
+      std::ostringstream why;
+      why << "cells " << (penetration_[i].key >> 32) << " and "
+          << (penetration_[i].key & 0xffffffffULL) << " interpenetrate by " << -gs / area
+          << " µm on average over their contact > numerics.max_penetration_um = " << limit
+          << " µm at t=" << t_ << " s";
+      return why.str();
+    }
+    i = j;
+  }
+  return {};
 }
 
 double Simulation::minTriangleArea(int c) const {
