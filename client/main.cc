@@ -1,5 +1,6 @@
-// foam: the activefoam command-line client (DESIGN.md §8). Does not link the engine: specs go
-// to the server as text (TOML/JSON) plus key=value settings, and the server validates them.
+// foam: the activefoam command-line client (DESIGN.md §8). Specs go to the server as text
+// (TOML/JSON) plus key=value settings, and the server validates them; of the engine only the VTK
+// writer is used (foam export).
 //
 //   foam [--server HOST:PORT] [--token-file F] COMMAND ...      (also FOAM_SERVER, FOAM_TOKEN)
 //
@@ -10,13 +11,18 @@
 
 #include <sys/wait.h>
 
+#include <zlib.h>
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <map>
+#include <memory>
 #include <sstream>
 #include <thread>
 
@@ -25,10 +31,13 @@
 #include <nlohmann/json.hpp>
 
 #include "activefoam/v1/service.grpc.pb.h"
+#include "activefoam/vtk.h"
 
 namespace v1 = activefoam::v1;
 
 namespace {
+
+namespace fs = std::filesystem;
 
 constexpr int kOk = 0, kJobNotOk = 1, kUsage = 2, kRpc = 3, kAuth = 4, kNotFound = 5;
 
@@ -181,6 +190,76 @@ int jobExit(const v1::Job& j) {
   return j.state() == v1::JOB_STATE_SUCCEEDED ? kOk : kJobNotOk;
 }
 
+// Every recorded snapshot of a job as VTK PolyData (DIR/snap_NNNNNN.vtp) and a ParaView time
+// series (DIR/series.pvd). Returns an error text, empty on success.
+std::string exportSnapshots(v1::Foam::Stub& stub,
+                            const std::function<std::unique_ptr<grpc::ClientContext>()>& newCtx,
+                            const v1::JobResults& r, const fs::path& dir) {
+  if (r.snapshots_size() == 0)
+    return "the job has no snapshots (snapshot_every_s = 0, or none recorded yet)";
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) return "cannot create " + dir.string() + ": " + ec.message();
+  std::vector<std::pair<double, std::string>> series;
+  for (const v1::SnapshotInfo& info : r.snapshots()) {
+    v1::GetSnapshotRequest req;
+    req.set_job_id(r.job().id());
+    req.set_index(info.index());
+    auto ctx = newCtx();
+    auto reader = stub.GetSnapshot(ctx.get(), req);
+    v1::SnapshotChunk chunk;
+    std::string data, compression;
+    bool first = true;
+    while (reader->Read(&chunk)) {
+      if (first) compression = chunk.compression();
+      first = false;
+      data += chunk.data();
+    }
+    if (const grpc::Status st = reader->Finish(); !st.ok())
+      return "snapshot " + std::to_string(info.index()) + ": " + st.error_message();
+    if (compression == "zlib") {
+      std::string raw(static_cast<std::size_t>(info.bytes()), '\0');
+      uLongf n = static_cast<uLongf>(raw.size());
+      if (uncompress(reinterpret_cast<Bytef*>(raw.data()), &n,
+                     reinterpret_cast<const Bytef*>(data.data()),
+                     static_cast<uLong>(data.size())) != Z_OK ||
+          n != raw.size())
+        return "snapshot " + std::to_string(info.index()) + ": damaged (zlib)";
+      data = std::move(raw);
+    } else if (!compression.empty()) {
+      return "snapshot " + std::to_string(info.index()) + ": unknown compression " + compression;
+    }
+    v1::SnapshotData sd;
+    if (!sd.ParseFromString(data))
+      return "snapshot " + std::to_string(info.index()) + ": not a SnapshotData message";
+    activefoam::Snapshot snap;
+    snap.t_s = sd.t_s();
+    snap.step = sd.step();
+    if (sd.x_size() % 3 != 0 || sd.tri_size() % 3 != 0)
+      return "snapshot " + std::to_string(info.index()) + ": malformed coordinates";
+    snap.x = Eigen::Map<const Eigen::Matrix3Xd>(sd.x().data(), 3, sd.x_size() / 3);
+    for (int k = 0; k + 2 < sd.tri_size(); k += 3)
+      snap.tri.push_back({sd.tri(k), sd.tri(k + 1), sd.tri(k + 2)});
+    snap.vertex_cell.assign(sd.vertex_cell().begin(), sd.vertex_cell().end());
+    snap.cell_pressure.assign(sd.cell_pressure().begin(), sd.cell_pressure().end());
+    snap.cell_label.assign(sd.cell_label().begin(), sd.cell_label().end());
+    char name[32];
+    std::snprintf(name, sizeof name, "snap_%06d.vtp", info.index());
+    std::ofstream out(dir / name);
+    try {
+      activefoam::writeVtp(out, snap);
+    } catch (const std::exception& e) {
+      return std::string(name) + ": " + e.what();
+    }
+    if (!out) return "cannot write " + (dir / name).string();
+    series.emplace_back(snap.t_s, name);
+  }
+  std::ofstream pvd(dir / "series.pvd");
+  activefoam::writePvd(pvd, series);
+  if (!pvd) return "cannot write " + (dir / "series.pvd").string();
+  return "";
+}
+
 // A PNG of one sample column against time with gnuplot; for θ(t) of a fusion job also the fitted
 // Eq. 1 and Eq. 2 curves from the job's results. Returns an error text, empty on success.
 std::string plotSamples(const v1::JobResults& r, const std::string& column,
@@ -315,6 +394,12 @@ int main(int argc, char** argv) {
   plot->add_option("ID", id)->required();
   plot->add_option("--out,-o", plot_out, "PNG file (default: job-ID-COLUMN.png)");
   plot->add_option("--column", plot_column, "sample column")->capture_default_str();
+
+  auto* exportc = app.add_subcommand(
+      "export", "write a job's snapshots as VTK PolyData (.vtp) + series.pvd for ParaView");
+  std::string export_dir;
+  exportc->add_option("ID", id)->required();
+  exportc->add_option("--out,-o", export_dir, "folder (default: job-ID)");
 
   auto* sweep = app.add_subcommand("sweep", "submit a grid sweep; prints the sweep id");
   std::vector<std::string> grid;
@@ -498,6 +583,23 @@ int main(int argc, char** argv) {
       std::cout << "job " << r.job().id() << ": " << stateName(r.job().state())
                 << (r.job().reason().empty() ? "" : " (" + r.job().reason() + ")") << "\n";
       for (const auto& x : r.results()) std::printf("  %-24s %.6g\n", x.name().c_str(), x.value());
+      return kOk;
+    }
+    if (*exportc) {
+      v1::GetResultsRequest req;
+      req.set_job_id(id);
+      v1::JobResults r;
+      auto ctx = conn.ctx();
+      const grpc::Status st = conn.stub->GetResults(ctx.get(), req, &r);
+      if (!st.ok()) return rpcError(st, "export " + id);
+      if (export_dir.empty()) export_dir = "job-" + id;
+      if (const std::string err = exportSnapshots(
+              *conn.stub, [&] { return conn.ctx(); }, r, export_dir);
+          !err.empty()) {
+        std::cerr << "foam: export " << id << ": " << err << "\n";
+        return kJobNotOk;
+      }
+      std::cout << (fs::path(export_dir) / "series.pvd").string() << "\n";
       return kOk;
     }
     if (*plot) {

@@ -150,15 +150,16 @@ TEST(Cli, SubmitWaitThenResultsJson) {
 }
 
 // A small fusion job through foamd: fits and fusion observables in its results, the prepared
-// spheroids cached next to the database, and `foam plot` draws θ(t) as a PNG.
-TEST(Cli, FusionJobResultsAndPlot) {
+// spheroids cached next to the database, `foam plot` draws θ(t) as a PNG and `foam export`
+// writes the snapshots for ParaView.
+TEST(Cli, FusionJobResultsPlotAndExport) {
   const fs::path dir = tempDir();
   Foamd d(dir / "foamd.db", freePort());
   const std::string submit =
       d.foam() +
       " submit --scene fusion --set scene.n_cells_a=3 --set scene.n_cells_b=3"
       " --set scene.prep_max_s=10 --set numerics.dt_s=0.5 --set duration_s=20"
-      " --set sample_every_s=1 --set numerics.triangles_per_cell=80 --set snapshot_every_s=0"
+      " --set sample_every_s=1 --set numerics.triangles_per_cell=80 --set snapshot_every_s=10"
       " --wait 2>/dev/null";
   Proc r;
   for (int i = 0; i < 50; ++i) {
@@ -185,6 +186,25 @@ TEST(Cli, FusionJobResultsAndPlot) {
   const Proc bad = sh(d.foam() + " plot " + id + " --column nope 2>&1");
   EXPECT_EQ(bad.rc, 2);
   EXPECT_NE(bad.out.find("theta_deg"), std::string::npos) << bad.out;  // lists the columns
+
+  // foam export: the three snapshots (t = 0, 10, 20 s) as .vtp with a .pvd index; each file
+  // holds the 6 cells × 42 vertices the engine had (80 triangles per cell).
+  const fs::path out = dir / "vtk";
+  const Proc ex = sh(d.foam() + " export " + id + " --out " + out.string() + " 2>&1");
+  ASSERT_EQ(ex.rc, 0) << ex.out;
+  std::ifstream pvd(out / "series.pvd");
+  const std::string index((std::istreambuf_iterator<char>(pvd)), std::istreambuf_iterator<char>());
+  int files = 0;
+  for (const auto& e : fs::directory_iterator(out)) {
+    if (e.path().extension() != ".vtp") continue;
+    ++files;
+    EXPECT_NE(index.find(e.path().filename().string()), std::string::npos);
+    std::ifstream f(e.path());
+    const std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("NumberOfPolys=\"480\""), std::string::npos) << e.path();
+    EXPECT_NE(text.find("Name=\"spheroid\""), std::string::npos);
+  }
+  EXPECT_EQ(files, 3);
   d.stop(SIGTERM);
   fs::remove_all(dir);
 }
