@@ -33,7 +33,8 @@ SceneSpec spheroidPrepSpec(const SceneSpec& spec, std::int64_t n_cells, std::uin
 // The seeds of a fusion spec's spheroids A (0) and B (1): derived from its seed.
 std::uint64_t spheroidSeed(std::uint64_t seed, int which);
 
-// 16 hex digits of a 64-bit FNV-1a hash of the prep spec's full fingerprint (every key).
+// 16 hex digits of a 64-bit FNV-1a hash of the engine version and the prep spec's full
+// fingerprint (every key).
 std::string spheroidCacheKey(const SceneSpec& prep);
 
 // A directory of prepared spheroids, one file per key. A file stores the prep spec's

@@ -128,7 +128,8 @@ std::uint64_t spheroidSeed(std::uint64_t seed, int which) {
 
 std::string spheroidCacheKey(const SceneSpec& prep) {
   std::uint64_t h = 1469598103934665603ULL;
-  for (unsigned char c : specFingerprint(prep)) {
+  // The engine version is part of the key: a new version may relax spheroids differently.
+  for (unsigned char c : std::string(ACTIVEFOAM_VERSION) + ";" + specFingerprint(prep)) {
     h ^= c;
     h *= 1099511628211ULL;
   }
