@@ -7,6 +7,7 @@
 
 using namespace activefoam;
 using activefoam::testing::cellSpec;
+using activefoam::testing::physicsColumns;
 
 namespace {
 
@@ -17,17 +18,6 @@ SceneSpec doublet() {
   s.sample_every_s = 5;
   s.snapshot_every_s = 0;
   return s;
-}
-
-// Samples without the wall-clock column (index 2).
-std::vector<std::vector<double>> physics(const std::vector<Sample>& samples) {
-  std::vector<std::vector<double>> out;
-  for (const Sample& s : samples) {
-    auto v = s.values;
-    v.erase(v.begin() + 2);
-    out.push_back(v);
-  }
-  return out;
 }
 
 }  // namespace
@@ -94,7 +84,7 @@ TEST(Checkpoint, ResumedRunEmitsTheSameSamples) {
   const RunSummary rest = runScene(s, o3, &checkpoints.back());
   ASSERT_TRUE(rest.ok()) << rest.reason;
   first.insert(first.end(), second.begin(), second.end());
-  EXPECT_EQ(physics(first), physics(straight));
+  EXPECT_EQ(physicsColumns(first), physicsColumns(straight));
   EXPECT_EQ(rest.steps, 600);
 
   // Resuming from an earlier periodic checkpoint repeats the samples after it, identically.
@@ -102,8 +92,8 @@ TEST(Checkpoint, ResumedRunEmitsTheSameSamples) {
   RunObserver o4;
   o4.on_sample = [&](const Sample& x) { from10.push_back(x); };
   ASSERT_TRUE(runScene(s, o4, &checkpoints.front()).ok());
-  const auto tail = physics(straight);
-  EXPECT_EQ(physics(from10),
+  const auto tail = physicsColumns(straight);
+  EXPECT_EQ(physicsColumns(from10),
             std::vector<std::vector<double>>(tail.end() - from10.size(), tail.end()));
   EXPECT_EQ(from10.front().values[0], 15.0);
 }

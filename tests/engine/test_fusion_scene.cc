@@ -13,6 +13,7 @@
 #include "test_support.h"
 
 using namespace activefoam;
+using activefoam::testing::physicsColumns;
 namespace fs = std::filesystem;
 
 namespace {
@@ -44,16 +45,6 @@ struct TempDir {
     fs::remove_all(path, ec);
   }
 };
-
-std::vector<std::vector<double>> physics(const std::vector<Sample>& samples) {
-  std::vector<std::vector<double>> out;
-  for (const Sample& s : samples) {
-    auto v = s.values;
-    v.erase(v.begin() + 2);  // wall clock
-    out.push_back(v);
-  }
-  return out;
-}
 
 }  // namespace
 
@@ -164,7 +155,7 @@ TEST(FusionScene, SamplesFitsAndResumeFromCheckpoint) {
   obs2.on_sample = [&](const Sample& x) { rest.push_back(x); };
   const RunSummary b = runScene(s, obs2, &state);
   ASSERT_TRUE(b.ok()) << b.reason;
-  const auto pf = physics(full), pr = physics(rest);
+  const auto pf = physicsColumns(full), pr = physicsColumns(rest);
   ASSERT_EQ(pr.size(), 6u);
   for (std::size_t k = 0; k < pr.size(); ++k) EXPECT_EQ(pr[k], pf[k + 5]) << k;
   ASSERT_EQ(b.fits.size(), a.fits.size());
@@ -182,7 +173,7 @@ TEST(FusionScene, SamplesFitsAndResumeFromCheckpoint) {
   ASSERT_TRUE(runScene(s, obs).ok());
   ASSERT_EQ(logs.size(), 2u);
   EXPECT_NE(logs[0].find("loaded"), std::string::npos) << logs[0];
-  EXPECT_EQ(physics(again), pf);
+  EXPECT_EQ(physicsColumns(again), pf);
 }
 
 // Cells that really overlap stop the run with `interpenetration`, judged per pair of cells on

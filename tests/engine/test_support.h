@@ -28,4 +28,15 @@ inline void jiggle(CellSet& cells, double size, std::uint64_t seed) {
     for (int k = 0; k < 3; ++k) cells.x(k, i) += size * (2 * rng.uniform() - 1);
 }
 
+// Samples without the wall-clock column (index 2): what a reproducible run must repeat exactly.
+inline std::vector<std::vector<double>> physicsColumns(const std::vector<Sample>& samples) {
+  std::vector<std::vector<double>> out;
+  for (const Sample& s : samples) {
+    auto v = s.values;
+    v.erase(v.begin() + 2);
+    out.push_back(v);
+  }
+  return out;
+}
+
 }  // namespace activefoam::testing

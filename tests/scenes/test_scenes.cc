@@ -11,21 +11,8 @@
 #include "test_support.h"
 
 using namespace activefoam;
+using activefoam::testing::physicsColumns;
 namespace fs = std::filesystem;
-
-namespace {
-
-std::vector<std::vector<double>> physics(const std::vector<Sample>& samples) {
-  std::vector<std::vector<double>> out;
-  for (const Sample& s : samples) {
-    auto v = s.values;
-    v.erase(v.begin() + 2);  // wall clock
-    out.push_back(v);
-  }
-  return out;
-}
-
-}  // namespace
 
 // Two spheroids of 20 cells with motility (Table 1/2 defaults: p_a r/2γ = 0.33, α = 0.4375,
 // 320 triangles per cell; at 80 the coarse meshes interpenetrate within 300 s) fuse: the fusion
@@ -80,7 +67,7 @@ TEST(Fusion2x20, AngleGrowsAndTheRunIsReproducibleFromItsSeed) {
   const RunSummary b = runScene(shorter, obs);
   ASSERT_TRUE(b.ok()) << b.reason;
   ASSERT_EQ(second.size(), 7u);
-  EXPECT_EQ(physics(second), physics({first.begin(), first.begin() + 7}));
+  EXPECT_EQ(physicsColumns(second), physicsColumns({first.begin(), first.begin() + 7}));
 
   std::error_code ec;
   fs::remove_all(dir, ec);

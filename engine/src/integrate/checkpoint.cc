@@ -18,6 +18,53 @@ using bytes::Writer;
 constexpr char kMagic[8] = {'A', 'F', 'C', 'K', 'P', 'T', '0', '1'};
 constexpr std::uint32_t kFormat = 1;
 
+// The cells, in the checkpoint's order (velocities right after positions when kept).
+void writeCells(Writer& w, const CellSet& c, bool velocities) {
+  w.mat(c.x);
+  if (velocities) w.mat(c.v);
+  w.vec(c.vertex_cell);
+  w.vec(c.tri);
+  w.vec(c.tri_cell);
+  w.vec(c.cell_vertex_begin);
+  w.vec(c.cell_tri_begin);
+  w.vec(c.radius);
+  w.vec(c.target_volume);
+  w.vec(c.pi_integral);
+  w.vec(c.polarity);
+  w.vec(c.label);
+}
+
+// Throws std::invalid_argument("<what>: ...") when the arrays do not fit together.
+CellSet readCells(Reader& r, bool velocities, const std::string& what) {
+  CellSet c;
+  c.x = r.mat();
+  c.v = velocities ? r.mat() : Eigen::Matrix3Xd::Zero(3, c.x.cols());
+  c.vertex_cell = r.vec<int>();
+  c.tri = r.vec<Tri>();
+  c.tri_cell = r.vec<int>();
+  c.cell_vertex_begin = r.vec<int>();
+  c.cell_tri_begin = r.vec<int>();
+  c.radius = r.vec<double>();
+  c.target_volume = r.vec<double>();
+  c.pi_integral = r.vec<double>();
+  c.polarity = r.vec<Vec3>();
+  c.label = r.vec<int>();
+  const auto nc = c.radius.size();
+  const auto nv = static_cast<std::size_t>(c.x.cols());
+  const bool consistent =
+      c.v.cols() == c.x.cols() && c.vertex_cell.size() == nv && c.tri_cell.size() == c.tri.size() &&
+      c.cell_vertex_begin.size() == nc + 1 && c.cell_tri_begin.size() == nc + 1 &&
+      c.target_volume.size() == nc && c.pi_integral.size() == nc && c.polarity.size() == nc &&
+      c.label.size() == nc && static_cast<std::size_t>(c.cell_vertex_begin.back()) == nv &&
+      static_cast<std::size_t>(c.cell_tri_begin.back()) == c.tri.size();
+  if (!consistent) throw std::invalid_argument(what + ": inconsistent cell data");
+  for (const Tri& f : c.tri)
+    for (int i : f)
+      if (i < 0 || static_cast<std::size_t>(i) >= nv)
+        throw std::invalid_argument(what + ": triangle index out of range");
+  return c;
+}
+
 }  // namespace
 
 // Every key's value in table order: two specs with the same fingerprint run identically.
@@ -41,18 +88,7 @@ std::string Simulation::saveState(const std::string& extra) const {
   w.pod(steps_);
   w.pod(remesh_ops_);
   w.pod(oscillating_steps_);
-  w.mat(cells_.x);
-  w.mat(cells_.v);
-  w.vec(cells_.vertex_cell);
-  w.vec(cells_.tri);
-  w.vec(cells_.tri_cell);
-  w.vec(cells_.cell_vertex_begin);
-  w.vec(cells_.cell_tri_begin);
-  w.vec(cells_.radius);
-  w.vec(cells_.target_volume);
-  w.vec(cells_.pi_integral);
-  w.vec(cells_.polarity);
-  w.vec(cells_.label);
+  writeCells(w, cells_, true);
   w.str(extra);
   return w.take();
 }
@@ -69,35 +105,10 @@ std::string Simulation::loadState(const std::string& bytes) {
   const auto steps = r.pod<std::int64_t>();
   const auto remesh_ops = r.pod<std::int64_t>();
   const auto oscillating = r.pod<std::int64_t>();
-  CellSet c;
-  c.x = r.mat();
-  c.v = r.mat();
-  c.vertex_cell = r.vec<int>();
-  c.tri = r.vec<Tri>();
-  c.tri_cell = r.vec<int>();
-  c.cell_vertex_begin = r.vec<int>();
-  c.cell_tri_begin = r.vec<int>();
-  c.radius = r.vec<double>();
-  c.target_volume = r.vec<double>();
-  c.pi_integral = r.vec<double>();
-  c.polarity = r.vec<Vec3>();
-  c.label = r.vec<int>();
+  CellSet c = readCells(r, true, "checkpoint");
   std::string extra = r.str();
-  const auto nc = c.radius.size();
-  const auto nv = static_cast<std::size_t>(c.x.cols());
-  const bool consistent =
-      r.done() && c.v.cols() == c.x.cols() && c.vertex_cell.size() == nv &&
-      c.tri_cell.size() == c.tri.size() && c.cell_vertex_begin.size() == nc + 1 &&
-      c.cell_tri_begin.size() == nc + 1 && c.target_volume.size() == nc &&
-      c.pi_integral.size() == nc && c.polarity.size() == nc && c.label.size() == nc &&
-      nc == static_cast<std::size_t>(cells_.numCells()) &&
-      static_cast<std::size_t>(c.cell_vertex_begin.back()) == nv &&
-      static_cast<std::size_t>(c.cell_tri_begin.back()) == c.tri.size();
-  if (!consistent) throw std::invalid_argument("checkpoint: inconsistent cell data");
-  for (const Tri& f : c.tri)
-    for (int i : f)
-      if (i < 0 || static_cast<std::size_t>(i) >= nv)
-        throw std::invalid_argument("checkpoint: triangle index out of range");
+  if (!r.done() || c.numCells() != cells_.numCells())
+    throw std::invalid_argument("checkpoint: inconsistent cell data");
   c.topology_version = cells_.topology_version + 1;
   cells_ = std::move(c);
   t_ = t;
@@ -110,54 +121,16 @@ std::string Simulation::loadState(const std::string& bytes) {
   return extra;
 }
 
-}  // namespace activefoam
-
-namespace activefoam {
-
 std::string serializeCells(const CellSet& c) {
   Writer w;
-  w.mat(c.x);
-  w.vec(c.vertex_cell);
-  w.vec(c.tri);
-  w.vec(c.tri_cell);
-  w.vec(c.cell_vertex_begin);
-  w.vec(c.cell_tri_begin);
-  w.vec(c.radius);
-  w.vec(c.target_volume);
-  w.vec(c.pi_integral);
-  w.vec(c.polarity);
-  w.vec(c.label);
+  writeCells(w, c, false);
   return w.take();
 }
 
 CellSet deserializeCells(const std::string& bytes) {
   Reader r(bytes, "cells");
-  CellSet c;
-  c.x = r.mat();
-  c.vertex_cell = r.vec<int>();
-  c.tri = r.vec<Tri>();
-  c.tri_cell = r.vec<int>();
-  c.cell_vertex_begin = r.vec<int>();
-  c.cell_tri_begin = r.vec<int>();
-  c.radius = r.vec<double>();
-  c.target_volume = r.vec<double>();
-  c.pi_integral = r.vec<double>();
-  c.polarity = r.vec<Vec3>();
-  c.label = r.vec<int>();
-  const auto nc = c.radius.size();
-  const auto nv = static_cast<std::size_t>(c.x.cols());
-  const bool consistent =
-      r.done() && c.vertex_cell.size() == nv && c.tri_cell.size() == c.tri.size() &&
-      c.cell_vertex_begin.size() == nc + 1 && c.cell_tri_begin.size() == nc + 1 &&
-      c.target_volume.size() == nc && c.pi_integral.size() == nc && c.polarity.size() == nc &&
-      c.label.size() == nc && static_cast<std::size_t>(c.cell_vertex_begin.back()) == nv &&
-      static_cast<std::size_t>(c.cell_tri_begin.back()) == c.tri.size();
-  if (!consistent) throw std::invalid_argument("cells: inconsistent cell data");
-  for (const Tri& f : c.tri)
-    for (int i : f)
-      if (i < 0 || static_cast<std::size_t>(i) >= nv)
-        throw std::invalid_argument("cells: triangle index out of range");
-  c.v = Eigen::Matrix3Xd::Zero(3, c.x.cols());
+  CellSet c = readCells(r, false, "cells");
+  if (!r.done()) throw std::invalid_argument("cells: trailing bytes");
   return c;
 }
 

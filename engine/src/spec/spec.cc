@@ -163,10 +163,11 @@ const std::vector<Entry>& entries() {
     t.push_back({real("numerics.max_volume_error", kOpen, 0, 1, kClosed, "",
                       "relative cell volume error |V − V*|/V* that stops the run as failed"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.max_volume_error; }});
-    t.push_back({real("numerics.max_penetration_um", kOpen, 0, 100, kClosed, "µm",
-                      "interpenetration of two cells (area-weighted mean over their contact) that stops "
-                      "the run as failed"),
-                 [](SceneSpec& s) -> Slot { return &s.numerics.max_penetration_um; }});
+    t.push_back(
+        {real("numerics.max_penetration_um", kOpen, 0, 100, kClosed, "µm",
+              "interpenetration of two cells (area-weighted mean over their contact) that stops "
+              "the run as failed"),
+         [](SceneSpec& s) -> Slot { return &s.numerics.max_penetration_um; }});
     t.push_back({integer("numerics.max_oscillating_steps", 1, 1e6,
                          "consecutive steps of reversing contact velocities (explicit-scheme "
                          "instability) that stop the run as failed"),
