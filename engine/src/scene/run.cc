@@ -94,18 +94,8 @@ std::vector<std::pair<std::string, double>> sceneObservables(const Simulation& s
     }
     case SceneKind::Spheroid: {
       const Geometry& g = sim.geometry();
-      const int n = sim.cells().numCells();
-      double vol = 0;
-      Vec3 centre = Vec3::Zero();
-      for (int c = 0; c < n; ++c) {
-        vol += g.cell_volume[c];
-        centre += g.cell_volume[c] * g.cell_centroid[c];
-      }
-      centre /= vol;
-      double rg2 = 0;
-      for (int c = 0; c < n; ++c)
-        rg2 += g.cell_volume[c] * (g.cell_centroid[c] - centre).squaredNorm();
-      out.emplace_back("radius_gyration_um", std::sqrt(rg2 / vol));
+      out.emplace_back("radius_gyration_um",
+                       radiusOfGyration(sim.cells(), g.cell_volume, g.cell_centroid));
       out.emplace_back("shape_index_mean", meanShapeIndex(g));
       out.emplace_back("contact_pairs", static_cast<double>(sim.contacts().pairs.size()));
       break;
