@@ -1,6 +1,6 @@
 // foam-run: runs one scene spec to an output folder (DESIGN.md §10).
 //
-//   foam-run SPEC --out DIR [--set KEY=VALUE]... [--force] [--quiet]
+//   foam-run SPEC --out DIR [--set KEY=VALUE]... [--force | --resume] [--quiet]
 //
 // Exit codes: 0 the run reached duration_s; 2 invalid spec or usage (nothing is written);
 // 3 the run failed (reason on stderr and in summary.json); 130 interrupted (SIGINT/SIGTERM).
@@ -13,14 +13,19 @@
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <optional>
+#include <sstream>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <type_traits>
 #include <vector>
 
 #include <unistd.h>
+
+#include <nlohmann/json.hpp>
 
 #include "activefoam/run.h"
 #include "activefoam/run_output.h"
@@ -58,8 +63,8 @@ void installSignalHandlers() {
 }
 
 constexpr const char* kUsage =
-    "usage: foam-run SPEC --out DIR [--set KEY=VALUE]... [--force] [--quiet]\n"
-    "                [--spheroid-cache DIR | --no-cache]\n"
+    "usage: foam-run SPEC --out DIR [--set KEY=VALUE]... [--force | --resume] [--quiet]\n"
+    "                [--checkpoint-every SECONDS] [--spheroid-cache DIR | --no-cache]\n"
     "       foam-run --keys | --help | --version\n";
 
 void printHelp() {
@@ -71,11 +76,18 @@ void printHelp() {
          "  samples.csv   one row per sample (sample_every_s)\n"
          "  snapshots/    snap_NNNNNN.vtp and series.pvd (snapshot_every_s > 0)\n"
          "  summary.json  outcome, failure reason, cost, final values\n"
+         "  checkpoint.bin  the state to continue from (until the run has finished)\n"
          "\n"
          "options:\n"
          "  --out DIR        output folder; created; must be empty unless --force\n"
          "  --set KEY=VALUE  override a spec key, e.g. --set numerics.dt_s=0.05 (repeatable)\n"
          "  --force          write into a non-empty DIR (replaces earlier outputs)\n"
+         "  --resume         continue the run in DIR from its checkpoint.bin (same SPEC and\n"
+         "                   --set); without a checkpoint, start it over; a finished run is\n"
+         "                   left alone (exit 0)\n"
+         "  --checkpoint-every SECONDS\n"
+         "                   write checkpoint.bin after a sample once this much wall-clock time\n"
+         "                   has passed since the last (default 300; 0: only when interrupted)\n"
          "  --spheroid-cache DIR\n"
          "                   fusion: prepared spheroids are kept here and reused (default\n"
          "                   $ACTIVEFOAM_CACHE, $XDG_CACHE_HOME/activefoam/spheroids or\n"
@@ -87,7 +99,8 @@ void printHelp() {
          "  --version        engine version\n"
          "\n"
          "exit status: 0 done, 2 invalid spec or usage (nothing written), 3 run failed,\n"
-         "130 interrupted (SIGINT/SIGTERM; summary.json says cancelled)\n";
+         "130 interrupted (SIGINT/SIGTERM; summary.json says cancelled; checkpoint.bin\n"
+         "written: continue with --resume)\n";
 }
 
 void printKeys() {
@@ -140,6 +153,8 @@ struct Args {
   std::string out;
   std::vector<std::string> settings;
   bool force = false;
+  bool resume = false;
+  double checkpoint_every_s = 300;
   bool quiet = false;
   std::optional<std::string> cache;  // --spheroid-cache; "" disables
 };
@@ -153,6 +168,45 @@ std::string defaultCacheDir() {
   if (const char* d = std::getenv("HOME"); d && *d)
     return (fs::path(d) / ".cache" / "activefoam" / "spheroids").string();
   return "";
+}
+
+std::string readWholeFile(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot read " + p.string());
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+bool finishedRun(const fs::path& summary) {
+  try {
+    const auto j = nlohmann::json::parse(readWholeFile(summary));
+    return j.value("ok", false);
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+// Empty when `path` (a run's spec.json) holds `spec`; else the first keys that differ.
+std::string specDifference(const fs::path& path, const SceneSpec& spec) {
+  nlohmann::json was;
+  try {
+    was = nlohmann::json::parse(readWholeFile(path));
+  } catch (const std::exception& e) {
+    return path.string() + " is missing or damaged (" + e.what() + ")";
+  }
+  const nlohmann::json now = specToJson(spec);
+  const nlohmann::json patch = nlohmann::json::diff(was, now);
+  if (patch.empty()) return {};
+  std::string keys;
+  for (std::size_t k = 0; k < patch.size() && k < 5; ++k) {
+    std::string key = patch[k].value("path", "");
+    std::replace(key.begin(), key.end(), '/', '.');
+    if (!key.empty() && key[0] == '.') key.erase(0, 1);
+    keys += (k ? ", " : "") + key;
+  }
+  return "the spec differs from the run's " + path.string() + " (" + keys +
+         "); give the same SPEC and --set as the interrupted run";
 }
 
 int usageError(const std::string& msg) {
@@ -196,6 +250,15 @@ int main(int argc, char** argv) {
         args.quiet = true;
       } else if (a == "--force") {
         args.force = true;
+      } else if (a == "--resume") {
+        args.resume = true;
+      } else if (value("--checkpoint-every", v)) {
+        char* end = nullptr;
+        const double x = std::strtod(v.c_str(), &end);
+        if (v.empty() || *end != '\0' || !std::isfinite(x) || x < 0)
+          return usageError("--checkpoint-every: '" + v +
+                            "' is not a number of seconds in [0, inf)");
+        args.checkpoint_every_s = x;
       } else if (value("--out", v) || value("-o", v)) {
         args.out = v;
       } else if (value("--spheroid-cache", v)) {
@@ -219,6 +282,7 @@ int main(int argc, char** argv) {
   }
   if (!spec_seen) return usageError("no SPEC given");
   if (args.out.empty()) return usageError("no output directory given (--out DIR)");
+  if (args.force && args.resume) return usageError("--force and --resume exclude each other");
 
   // ---- parse → validate → resolve; nothing is written before this succeeds
   SpecParseOptions opts;
@@ -255,7 +319,33 @@ int main(int argc, char** argv) {
 
   // ---- the output folder
   const fs::path dir = args.out;
-  if (std::string why = checkOutputDir(dir, args.force); !why.empty()) {
+  std::optional<RunCheckpoint> checkpoint;
+  bool start_over = false;
+  if (args.resume) {
+    std::error_code ec;
+    if (fs::exists(dir / "checkpoint.bin", ec)) {
+      try {
+        checkpoint = decodeRunCheckpoint(readWholeFile(dir / "checkpoint.bin"),
+                                         (dir / "checkpoint.bin").string());
+      } catch (const std::exception& e) {
+        std::cerr << "foam-run: " << e.what() << "\n";
+        return kExitUsage;
+      }
+      // The engine refuses a checkpoint of another spec; say which keys differ first.
+      if (std::string diff = specDifference(dir / "spec.json", spec); !diff.empty()) {
+        std::cerr << "foam-run: cannot resume: " << diff << "\n";
+        return kExitUsage;
+      }
+    } else if (finishedRun(dir / "summary.json")) {
+      std::cerr << "foam-run: " << dir.string() << " holds a finished run; nothing to resume\n";
+      return kExitOk;
+    } else {
+      start_over = fs::exists(dir, ec) && !fs::is_empty(dir, ec);
+      if (!args.quiet && start_over)
+        std::cerr << "foam-run: no checkpoint in " << dir.string() << ": starting over\n";
+    }
+  }
+  if (std::string why = checkOutputDir(dir, args.force || args.resume); !why.empty()) {
     std::cerr << "foam-run: " << why << "\n";
     return kExitUsage;
   }
@@ -266,15 +356,18 @@ int main(int argc, char** argv) {
       std::cerr << "foam-run: cannot create '" << dir.string() << "': " << ec.message() << "\n";
       return kExitUsage;
     }
-    if (args.force) {  // outputs of an earlier run must not mix with this one's
-      for (const char* name : {"spec.json", "samples.csv", "summary.json"})
+    if (args.force || start_over) {  // outputs of an earlier run must not mix with this one's
+      for (const char* name : {"spec.json", "samples.csv", "summary.json", "checkpoint.bin"})
         fs::remove(dir / name, ec);
       fs::remove_all(dir / "snapshots", ec);
     }
   }
 
   RunOutput out(dir, spec);
-  out.start();
+  if (checkpoint)
+    out.resume(*checkpoint);
+  else
+    out.start();
   if (!out.error().empty()) {
     std::cerr << "foam-run: " << out.error() << "\n";
     return kExitRunFailed;
@@ -285,7 +378,11 @@ int main(int argc, char** argv) {
   const auto t0 = Clock::now();
   const std::string started = utcNow();
   auto last_progress = t0;
+  auto last_checkpoint = t0;
   bool output_failed = false;
+  // ETA from the pace since the first progress report: spheroid preparation and a resumed
+  // run's earlier part are not in it.
+  std::optional<std::pair<Clock::time_point, double>> pace_from;
 
   RunObserver obs;
   obs.cancel = &g_cancel;
@@ -307,14 +404,30 @@ int main(int argc, char** argv) {
     out.onSnapshot(s);
     checkOutput();
   };
+  // The engine offers a checkpoint after every sample (and when cancelled); we keep one every
+  // checkpoint_every_s of wall-clock time, and always the one of an interruption.
+  obs.checkpoint_every_s = args.checkpoint_every_s > 0 ? spec.sample_every_s : 0;
+  obs.on_checkpoint = [&](double t_s, const std::string& state) {
+    const auto now = Clock::now();
+    if (!g_cancel.load() &&
+        std::chrono::duration<double>(now - last_checkpoint).count() < args.checkpoint_every_s)
+      return;
+    last_checkpoint = now;
+    out.writeCheckpoint(t_s, state);
+    checkOutput();
+  };
   obs.on_progress = [&](double t_s, std::int64_t step) {
     if (args.quiet) return;
     const auto now = Clock::now();
+    if (!pace_from) pace_from.emplace(now, t_s);
     if (now - last_progress < std::chrono::seconds(2)) return;
     last_progress = now;
     const double elapsed = std::chrono::duration<double>(now - t0).count();
     const double f = spec.duration_s > 0 ? std::clamp(t_s / spec.duration_s, 0.0, 1.0) : 0.0;
-    const std::string eta = f > 0 ? formatDuration(elapsed * (1 - f) / f) : "?";
+    const double done = t_s - pace_from->second;
+    const double pace = std::chrono::duration<double>(now - pace_from->first).count();
+    const std::string eta =
+        done > 0 ? formatDuration(pace / done * std::max(0.0, spec.duration_s - t_s)) : "?";
     char line[256];
     std::snprintf(line, sizeof line,
                   "foam-run: %5.1f%%  t = %s / %s s  step %lld  elapsed %s  ETA %s\n", 100 * f,
@@ -327,7 +440,10 @@ int main(int argc, char** argv) {
   SummaryContext ctx;
   ctx.started_utc = started;
   try {
-    summary = runScene(spec, obs);
+    if (checkpoint && !args.quiet)
+      std::cerr << "foam-run: resuming from the checkpoint at t = " << human(checkpoint->t_s)
+                << " s\n";
+    summary = runScene(spec, obs, checkpoint ? &checkpoint->state : nullptr);
   } catch (const std::exception& e) {
     ctx.failure_override = "exception";
     ctx.reason_override = std::string("engine error: ") + e.what();
@@ -340,7 +456,11 @@ int main(int argc, char** argv) {
   ctx.snapshots_written = out.snapshotsWritten();
   ctx.runner_wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
   ctx.finished_utc = utcNow();
+  if (checkpoint) ctx.resumed_from_t_s = checkpoint->t_s;
   out.writeSummary(summaryToJson(summary, spec, ctx));
+  // A finished run needs no checkpoint; a failed one keeps it (resuming reproduces the failure
+  // bit for bit, which is what one wants to inspect it).
+  if (summary.ok() && ctx.failure_override.empty() && out.error().empty()) out.removeCheckpoint();
 
   if (!out.warning().empty()) std::cerr << "foam-run: warning: " << out.warning() << "\n";
   if (!out.error().empty() && !output_failed)  // summary.json itself could not be written
@@ -353,7 +473,8 @@ int main(int argc, char** argv) {
   }
   if (summary.failure == FailureKind::Cancelled) {
     std::cerr << "foam-run: interrupted at t = " << human(summary.t_s) << " s (step "
-              << summary.steps << "); partial output in " << dir.string() << "\n";
+              << summary.steps << "); partial output and checkpoint in " << dir.string()
+              << " (continue with --resume)\n";
     return kExitInterrupted;
   }
   if (!summary.ok()) {

@@ -1,6 +1,7 @@
 // foam-run's output folder (see run_output.h).
 #include "activefoam/run_output.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -154,6 +155,7 @@ nlohmann::json summaryToJson(const RunSummary& summary, const SceneSpec& resolve
   j["reduced"] = reducedParameters(resolved);
   j["samples"] = ctx.samples_written;
   j["snapshots"] = ctx.snapshots_written;
+  if (ctx.resumed_from_t_s >= 0) j["resumed_from_t_s"] = number(ctx.resumed_from_t_s);
   if (!ctx.started_utc.empty()) j["started_utc"] = ctx.started_utc;
   if (!ctx.finished_utc.empty()) j["finished_utc"] = ctx.finished_utc;
   return j;
@@ -166,6 +168,53 @@ std::string utcNow() {
   char buf[32];
   std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
   return buf;
+}
+
+// ---- checkpoint.bin ----------------------------------------------------------------------------
+// One JSON line (what the folder holds at the checkpoint), then the engine's state, raw.
+
+namespace {
+constexpr std::string_view kCheckpointMagic = "activefoam-run-checkpoint 1\n";
+}
+
+std::string encodeRunCheckpoint(const RunCheckpoint& c) {
+  nlohmann::json h;
+  h["t_s"] = c.t_s;
+  h["samples"] = c.samples;
+  nlohmann::json snaps = nlohmann::json::array();
+  for (const auto& [t, name] : c.snapshots) snaps.push_back({t, name});
+  h["snapshots"] = snaps;
+  h["state_bytes"] = c.state.size();
+  std::string out(kCheckpointMagic);
+  out += h.dump() + "\n";
+  out += c.state;
+  return out;
+}
+
+RunCheckpoint decodeRunCheckpoint(const std::string& bytes, const std::string& what) {
+  auto damaged = [&](const std::string& why) {
+    return std::runtime_error(what + " is damaged (" + why + "); remove it to start over");
+  };
+  if (bytes.compare(0, kCheckpointMagic.size(), kCheckpointMagic) != 0)
+    throw damaged("not a foam-run checkpoint");
+  const std::size_t eol = bytes.find('\n', kCheckpointMagic.size());
+  if (eol == std::string::npos) throw damaged("no header");
+  RunCheckpoint c;
+  try {
+    const auto h =
+        nlohmann::json::parse(bytes.substr(kCheckpointMagic.size(), eol - kCheckpointMagic.size()));
+    c.t_s = h.at("t_s").get<double>();
+    c.samples = h.at("samples").get<std::int64_t>();
+    for (const auto& s : h.at("snapshots"))
+      c.snapshots.emplace_back(s.at(0).get<double>(), s.at(1).get<std::string>());
+    const auto n = h.at("state_bytes").get<std::size_t>();
+    if (bytes.size() - eol - 1 != n) throw damaged("truncated");
+    c.state = bytes.substr(eol + 1);
+  } catch (const nlohmann::json::exception& e) {
+    throw damaged(e.what());
+  }
+  if (c.samples < 0) throw damaged("negative sample count");
+  return c;
 }
 
 // ---- RunOutput ---------------------------------------------------------------------------------
@@ -229,6 +278,70 @@ void RunOutput::onSnapshot(const Snapshot& snap) {
   } catch (const std::exception& e) {
     fail(e.what());
   }
+}
+
+void RunOutput::resume(const RunCheckpoint& c) {
+  if (!error_.empty()) return;
+  const fs::path path = dir_ / "samples.csv";
+  try {
+    writeFileAtomic(dir_ / "spec.json", specToJson(spec_).dump(2) + "\n");
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw std::runtime_error("cannot read " + path.string() + ": " + std::strerror(errno));
+    std::string kept, line;
+    std::int64_t rows = -1;  // the header first
+    while (rows < c.samples && std::getline(in, line)) {
+      kept += line + '\n';
+      ++rows;
+    }
+    if (rows < c.samples)
+      throw std::runtime_error(path.string() + " has " +
+                               std::to_string(std::max<std::int64_t>(rows, 0)) +
+                               " rows, the checkpoint expects " + std::to_string(c.samples));
+    in.close();
+    writeFileAtomic(path, kept);
+    columns_ = sampleColumns(spec_.scene).size();
+    samples_ = c.samples;
+    csv_.open(path, std::ios::binary | std::ios::app);
+    if (!csv_)
+      throw std::runtime_error("cannot write " + path.string() + ": " + std::strerror(errno));
+
+    series_ = c.snapshots;
+    const fs::path sdir = dir_ / "snapshots";
+    std::error_code ec;
+    if (fs::is_directory(sdir, ec)) {
+      for (const auto& entry : fs::directory_iterator(sdir)) {
+        const std::string name = entry.path().filename().string();
+        const bool kept_snap = std::any_of(series_.begin(), series_.end(),
+                                           [&](const auto& s) { return s.second == name; });
+        if (!kept_snap && name != "series.pvd") fs::remove(entry.path(), ec);
+      }
+      std::ostringstream pvd;
+      writePvd(pvd, series_);
+      writeFileAtomic(sdir / "series.pvd", pvd.str());
+    }
+    fs::remove(dir_ / "summary.json", ec);
+  } catch (const std::exception& e) {
+    fail(e.what());
+  }
+}
+
+void RunOutput::writeCheckpoint(double t_s, const std::string& state) {
+  if (!error_.empty()) return;
+  RunCheckpoint c;
+  c.t_s = t_s;
+  c.samples = samples_;
+  c.snapshots = series_;
+  c.state = state;
+  try {
+    writeFileAtomic(dir_ / "checkpoint.bin", encodeRunCheckpoint(c));
+  } catch (const std::exception& e) {
+    fail(e.what());
+  }
+}
+
+void RunOutput::removeCheckpoint() {
+  std::error_code ec;
+  fs::remove(dir_ / "checkpoint.bin", ec);
 }
 
 void RunOutput::writeSummary(const nlohmann::json& summary) {

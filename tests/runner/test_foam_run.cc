@@ -352,5 +352,121 @@ TEST_F(FoamRun, SigintCancelsWithExit130AndASummary) {
               sampleColumns(SceneKind::Cell).size());
 }
 
+// ---- interrupted runs continue from their checkpoint ------------------------------------------
+
+namespace resume {
+
+// Spawns foam-run, sends SIGINT once samples.csv holds `rows` data rows, waits; the exit code
+// (or -1).
+int runAndInterrupt(const std::vector<std::string>& args, const fs::path& out, std::size_t rows) {
+  std::vector<std::string> all{FOAM_RUN_EXE};
+  all.insert(all.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (std::string& a : all) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  pid_t pid = 0;
+  if (posix_spawn(&pid, argv[0], nullptr, nullptr, argv.data(), environ) != 0) return -1;
+  const auto t0 = std::chrono::steady_clock::now();
+  int status = 0;
+  while (waitpid(pid, &status, WNOHANG) == 0) {
+    if (fs::exists(out / "samples.csv") && lines(readFile(out / "samples.csv")).size() > rows) {
+      kill(pid, SIGINT);
+      waitpid(pid, &status, 0);
+      break;
+    }
+    if (std::chrono::steady_clock::now() - t0 > std::chrono::seconds(120)) {
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+      return -1;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// samples.csv without its wall-clock column.
+std::vector<std::string> physicsRows(const fs::path& csv) {
+  std::vector<std::string> rows;
+  for (const std::string& line : lines(readFile(csv))) {
+    std::stringstream ss(line);
+    std::string cell, kept;
+    for (int k = 0; std::getline(ss, cell, ','); ++k)
+      if (k != 2) kept += cell + ",";  // t_s, steps, wall_s, ...
+    rows.push_back(kept);
+  }
+  return rows;
+}
+
+}  // namespace resume
+
+TEST_F(FoamRun, InterruptedRunResumesToTheUninterruptedResult) {
+  if (engineMissing()) GTEST_SKIP() << "FOAM_RUN_NO_ENGINE is set";
+  ASSERT_EQ(sampleColumns(SceneKind::Doublet)[2], "wall_s");
+  const fs::path s = spec(
+      "scene = \"doublet\"\nduration_s = 200\nsample_every_s = 5\nsnapshot_every_s = 20\n"
+      "[cells]\nradius_gamma_k = 0\n");
+  const fs::path whole = dir_ / "whole", parts = dir_ / "parts";
+  ASSERT_EQ(run(quote(s.string()) + " --out " + quote(whole.string()) + " -q").code, 0);
+  EXPECT_FALSE(fs::exists(whole / "checkpoint.bin"));  // finished runs keep none
+
+  // Interrupted after a few samples: exit 130 with a checkpoint; then resumed, twice over.
+  ASSERT_EQ(resume::runAndInterrupt({s.string(), "--out", parts.string(), "-q"}, parts, 6), 130);
+  ASSERT_TRUE(fs::exists(parts / "checkpoint.bin"));
+  ASSERT_EQ(resume::runAndInterrupt(
+                {s.string(), "--out", parts.string(), "-q", "--resume", "--checkpoint-every", "0"},
+                parts, 20),
+            130);
+  // The wrong spec is refused, naming the key, and leaves the folder as it was.
+  const std::string before = readFile(parts / "samples.csv");
+  Result r = run(quote(s.string()) + " --out " + quote(parts.string()) +
+                 " --resume --set cells.alpha=0.5");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("cells.alpha"), std::string::npos) << r.err;
+  EXPECT_EQ(readFile(parts / "samples.csv"), before);
+  r = run(quote(s.string()) + " --out " + quote(parts.string()) + " --resume");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("resuming from the checkpoint"), std::string::npos) << r.err;
+
+  // Same samples (wall clock aside), same snapshots, the same final values; no checkpoint left.
+  EXPECT_EQ(resume::physicsRows(parts / "samples.csv"), resume::physicsRows(whole / "samples.csv"));
+  EXPECT_FALSE(fs::exists(parts / "checkpoint.bin"));
+  for (const char* f : {"snap_000000.vtp", "snap_000005.vtp", "series.pvd"})
+    EXPECT_EQ(readFile(parts / "snapshots" / f), readFile(whole / "snapshots" / f)) << f;
+  EXPECT_FALSE(fs::exists(parts / "snapshots" / "snap_000011.vtp"));
+  const auto a = nlohmann::json::parse(readFile(whole / "summary.json"));
+  const auto b = nlohmann::json::parse(readFile(parts / "summary.json"));
+  EXPECT_EQ(a.at("final_values"), b.at("final_values"));
+  EXPECT_EQ(a.at("steps"), b.at("steps"));
+  EXPECT_GT(b.at("resumed_from_t_s").get<double>(), 0.0);
+
+  // A finished run is left alone; --force and --resume do not mix.
+  r = run(quote(s.string()) + " --out " + quote(parts.string()) + " --resume");
+  EXPECT_EQ(r.code, 0);
+  EXPECT_NE(r.err.find("finished run"), std::string::npos) << r.err;
+  EXPECT_EQ(run(quote(s.string()) + " --out " + quote(parts.string()) + " --resume --force").code,
+            2);
+}
+
+TEST_F(FoamRun, ResumeWithoutCheckpointStartsOverAndADamagedOneIsRefused) {
+  if (engineMissing()) GTEST_SKIP() << "FOAM_RUN_NO_ENGINE is set";
+  const fs::path s = spec(kCell);
+  const fs::path out = dir_ / "out";
+  fs::create_directories(out);
+  writeFile(out / "samples.csv", "left over\n");
+  Result r = run(quote(s.string()) + " --out " + quote(out.string()) + " --resume");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("starting over"), std::string::npos) << r.err;
+  expectCompleteOutput(out, SceneKind::Cell, 6);
+
+  fs::remove(out / "summary.json");
+  writeFile(out / "checkpoint.bin", "activefoam-run-checkpoint 1\n{\"t_s\": 1}\n");
+  r = run(quote(s.string()) + " --out " + quote(out.string()) + " --resume");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("checkpoint.bin is damaged"), std::string::npos) << r.err;
+  EXPECT_EQ(lines(readFile(out / "samples.csv")).size(), 7u);  // untouched
+  EXPECT_EQ(
+      run(quote(s.string()) + " --out " + quote(out.string()) + " --checkpoint-every -1").code, 2);
+}
+
 }  // namespace
 }  // namespace activefoam

@@ -25,6 +25,10 @@ class BlockMatrix {
   void addCoupling(int i, int j, const Eigen::Matrix3d& m);
   const SpMat& matrix() const { return a_; }
   int numBlocks() const { return n_; }
+  // y = A x by 3×3 blocks: one column index per block instead of nine, and the three rows of a
+  // block row streamed together (the CG solve is most of a step; this is its inner loop).
+  void multiply(const double* x, double* y) const;
+  Eigen::Matrix3d diagonalBlock(int i) const;
 
  private:
   // Offset of block k's first value in the scalar value array.

@@ -77,6 +77,7 @@ class Simulation {
   void detect();                              // contacts of the current geometry
   double computeForces(Eigen::Matrix3Xd& f);  // returns the sum of term energies
   const SpMat& assembleFriction();
+  const BlockMatrix& frictionMatrix() const { return gamma_; }  // as last assembled
   // Empty, or the reason why two cells interpenetrate beyond numerics.max_penetration_um in the
   // current contacts (checked after every step): per pair of cells, the area-weighted mean gap
   // of their contact pairs.

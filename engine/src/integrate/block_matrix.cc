@@ -1,25 +1,41 @@
 #include "activefoam/block_matrix.h"
 
 #include <algorithm>
+#include <cstddef>
 #include <stdexcept>
 
 namespace activefoam {
 
 void BlockMatrix::setPattern(int num_blocks, std::vector<std::pair<int, int>> couplings) {
   n_ = num_blocks;
-  const size_t nc = couplings.size();
-  for (size_t k = 0; k < nc; ++k) couplings.emplace_back(couplings[k].second, couplings[k].first);
-  for (int i = 0; i < n_; ++i) couplings.emplace_back(i, i);
-  std::sort(couplings.begin(), couplings.end());
-  couplings.erase(std::unique(couplings.begin(), couplings.end()), couplings.end());
-
+  // Bucket by row, then sort each short row: a global sort of the ~10⁶ couplings of a 2 × 100-cell
+  // aggregate was 15 % of a step whenever a remesh forced a rebuild.
   row_begin_.assign(n_ + 1, 0);
-  cols_.resize(couplings.size());
-  for (size_t k = 0; k < couplings.size(); ++k) {
-    row_begin_[couplings[k].first + 1]++;
-    cols_[k] = couplings[k].second;
+  for (const auto& [i, j] : couplings) {
+    ++row_begin_[i + 1];
+    ++row_begin_[j + 1];
   }
-  for (int i = 0; i < n_; ++i) row_begin_[i + 1] += row_begin_[i];
+  for (int i = 0; i < n_; ++i) row_begin_[i + 1] += row_begin_[i] + 1;  // + the diagonal
+  std::vector<int> fill(row_begin_.begin(), row_begin_.end() - 1);
+  std::vector<int> all(row_begin_[n_]);
+  for (int i = 0; i < n_; ++i) all[fill[i]++] = i;
+  for (const auto& [i, j] : couplings) {
+    all[fill[i]++] = j;
+    all[fill[j]++] = i;
+  }
+  couplings.clear();
+  couplings.shrink_to_fit();
+  cols_.clear();
+  cols_.reserve(all.size());
+  int begin = 0;
+  for (int i = 0; i < n_; ++i) {
+    const auto first = all.begin() + begin, last = all.begin() + row_begin_[i + 1];
+    std::sort(first, last);
+    begin = row_begin_[i + 1];
+    row_begin_[i] = static_cast<int>(cols_.size());
+    cols_.insert(cols_.end(), first, std::unique(first, last));
+  }
+  row_begin_[n_] = static_cast<int>(cols_.size());
 
   // Scalar CSR: row 3i+a holds, for each block k of block-row i, columns 3·cols_[k] + {0,1,2}.
   const Eigen::Index nnz = 9 * static_cast<Eigen::Index>(cols_.size());
@@ -53,6 +69,36 @@ void BlockMatrix::setPattern(int num_blocks, std::vector<std::pair<int, int>> co
 
 void BlockMatrix::setZero() {
   std::fill_n(a_.valuePtr(), a_.nonZeros(), 0.0);
+}
+
+void BlockMatrix::multiply(const double* x, double* y) const {
+  const double* v = a_.valuePtr();
+  for (int i = 0; i < n_; ++i) {
+    const int kb = row_begin_[i], ke = row_begin_[i + 1];
+    const int w = 3 * (ke - kb);
+    const double* r0 = v + offset_[kb];
+    const double* r1 = r0 + w;
+    const double* r2 = r1 + w;
+    double y0 = 0, y1 = 0, y2 = 0;
+    for (int k = kb; k < ke; ++k, r0 += 3, r1 += 3, r2 += 3) {
+      const double* xj = x + 3 * static_cast<std::ptrdiff_t>(cols_[k]);
+      y0 += r0[0] * xj[0] + r0[1] * xj[1] + r0[2] * xj[2];
+      y1 += r1[0] * xj[0] + r1[1] * xj[1] + r1[2] * xj[2];
+      y2 += r2[0] * xj[0] + r2[1] * xj[1] + r2[2] * xj[2];
+    }
+    y[3 * i] = y0;
+    y[3 * i + 1] = y1;
+    y[3 * i + 2] = y2;
+  }
+}
+
+Eigen::Matrix3d BlockMatrix::diagonalBlock(int i) const {
+  const int k = diag_[i];
+  const double* b = a_.valuePtr() + offset_[k];
+  Eigen::Matrix3d m;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) m(r, c) = b[r * width_[k] + c];
+  return m;
 }
 
 int BlockMatrix::findBlock(int i, int j) const {

@@ -143,14 +143,14 @@ StepReport Simulation::step() {
   times_.forces += since(t0);
 
   t0 = Clock::now();
-  const SpMat& a = assembleFriction();
+  assembleFriction();
   times_.matrix += since(t0);
 
   t0 = Clock::now();
   const Eigen::Index n = 3 * static_cast<Eigen::Index>(cells_.numVertices());
   Eigen::Map<const Eigen::VectorXd> b(f_.data(), n);
   Eigen::VectorXd v = Eigen::Map<const Eigen::VectorXd>(cells_.v.data(), n);
-  rep.cg = solver_.solve(a, b, v);
+  rep.cg = solver_.solve(gamma_, b, v);
   times_.solve += since(t0);
 
   std::ostringstream why;

@@ -44,12 +44,25 @@ struct SummaryContext {
   double runner_wall_s = 0;
   std::string started_utc;
   std::string finished_utc;
+  double resumed_from_t_s = -1;  // ≥ 0: this invocation continued a checkpoint of that time
 };
 nlohmann::json summaryToJson(const RunSummary& summary, const SceneSpec& resolved,
                              const SummaryContext& context);
 
 // ISO 8601 UTC time of now, e.g. "2026-11-22T10:53:26Z".
 std::string utcNow();
+
+// checkpoint.bin: what a run needs to continue after an interruption: the engine's state
+// (runScene's checkpoint) and how much of the output folder belongs to it.
+struct RunCheckpoint {
+  double t_s = 0;
+  std::int64_t samples = 0;                               // rows of samples.csv, header aside
+  std::vector<std::pair<double, std::string>> snapshots;  // series.pvd entries
+  std::string state;
+};
+std::string encodeRunCheckpoint(const RunCheckpoint& c);
+// Throws std::runtime_error naming the file when it is damaged.
+RunCheckpoint decodeRunCheckpoint(const std::string& bytes, const std::string& what);
 
 // Streams one run's files into a prepared (existing, empty) directory. Write errors do not
 // throw: the first one is kept in error() and later writes are skipped.
@@ -61,6 +74,13 @@ class RunOutput {
   void onSample(const Sample& sample);               // a row of samples.csv, flushed
   void onSnapshot(const Snapshot& snap);             // snapshots/snap_NNNNNN.vtp + series.pvd
   void writeSummary(const nlohmann::json& summary);  // summary.json (atomic)
+  // Continue a run from a checkpoint: samples.csv keeps its header and the checkpoint's rows
+  // (later ones, written after the checkpoint, are dropped: the resumed run writes them again),
+  // snapshots after it are removed, and summary.json of the interrupted run is removed.
+  void resume(const RunCheckpoint& c);
+  // checkpoint.bin (atomic), recording the rows and snapshots written so far.
+  void writeCheckpoint(double t_s, const std::string& state);
+  void removeCheckpoint();
 
   const std::string& error() const { return error_; }
   // Set when a sample did not have one value per column (the row was padded with nan or cut).
