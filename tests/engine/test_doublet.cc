@@ -123,6 +123,18 @@ TEST(Doublet, InternalForcesWithContactsConserveMomentum) {
   const Eigen::MatrixXd a = Eigen::MatrixXd(sim.assembleFriction());
   EXPECT_LT((a - a.transpose()).norm(), 1e-12 * a.norm());
   EXPECT_EQ(Eigen::LLT<Eigen::MatrixXd>(a).info(), Eigen::Success);
+  // A step applies the contact couplings as a product: the same Γ, and the CG preconditioner
+  // sees the full diagonal blocks.
+  sim.prepareFriction();
+  Rng rng(5, 2);
+  Eigen::VectorXd v(a.rows()), y(a.rows());
+  for (Eigen::Index k = 0; k < v.size(); ++k) v[k] = rng.uniform() - 0.5;
+  sim.applyFriction(v.data(), y.data());
+  EXPECT_LT((y - a * v).norm(), 1e-12 * (a * v).norm());
+  for (int i = 0; i < sim.cells().numVertices(); ++i)
+    ASSERT_LT((sim.frictionMatrix().diagonalBlock(i) - a.block<3, 3>(3 * i, 3 * i)).norm(),
+              1e-12 * a.norm())
+        << "vertex " << i;
 }
 
 TEST(Doublet, SemiImplicitIsUnstableAtTheSupplementTimeStepAndSaysSo) {

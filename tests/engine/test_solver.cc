@@ -72,6 +72,7 @@ TEST(Solver, ConjugateGradientMatchesDirectSolve) {
     Eigen::Matrix3Xd f;
     sim.computeForces(f);
     const SpMat a = sim.assembleFriction();
+    sim.prepareFriction();
     const Eigen::VectorXd b = Eigen::Map<const Eigen::VectorXd>(f.data(), f.size());
     Eigen::SimplicialLDLT<SpMat> ldlt(a);
     ASSERT_EQ(ldlt.info(), Eigen::Success);
@@ -102,6 +103,7 @@ TEST(Solver, WarmStartFromTheSolutionNeedsNoIterations) {
   Eigen::Matrix3Xd f;
   sim.computeForces(f);
   const SpMat a = sim.assembleFriction();
+  sim.prepareFriction();
   const Eigen::VectorXd b = Eigen::Map<const Eigen::VectorXd>(f.data(), f.size());
   LinearSolver cg(PreconditionerKind::Jacobi, 1e-6, 1000);
   Eigen::VectorXd v = Eigen::VectorXd::Zero(b.size());

@@ -36,6 +36,13 @@ class ForceTerm {
   virtual double addForces(const StepContext& /*ctx*/, Eigen::Matrix3Xd& /*f*/) const { return 0; }
   // Adds this term's friction blocks (nN·s/µm) to Γ.
   virtual void addFriction(const StepContext& /*ctx*/, BlockMatrix& /*gamma*/) const {}
+  // Terms that couple vertices of different cells (contact friction) are applied without
+  // assembling those couplings: a step adds only their diagonal blocks to Γ
+  // (addFrictionDiagonal) and the rest as a product, y += C v (addCouplingProduct), between
+  // the two calls the contacts do not change. Diagonal + product = what addFriction assembles.
+  virtual bool hasCouplingProduct() const { return false; }
+  virtual void addFrictionDiagonal(const StepContext& /*ctx*/, BlockMatrix& /*gamma*/) const {}
+  virtual void addCouplingProduct(const double* /*v*/, double* /*y*/) const {}
   // Updates per-cell state once the step is taken (positions already advanced).
   virtual void endStep(const StepContext& /*ctx*/, CellSet& /*cells*/) const {}
 };

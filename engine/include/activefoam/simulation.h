@@ -76,8 +76,14 @@ class Simulation {
   // Pieces of a step, exposed for tests and benchmarks. Geometry must be current.
   void detect();                              // contacts of the current geometry
   double computeForces(Eigen::Matrix3Xd& f);  // returns the sum of term energies
-  const SpMat& assembleFriction();
-  const BlockMatrix& frictionMatrix() const { return gamma_; }  // as last assembled
+  // Γ as a step uses it: the assembled blocks of the cells (pattern: mesh edges) with the
+  // contacts' diagonal blocks, and the contact couplings applied as a product.
+  void prepareFriction();
+  const BlockMatrix& frictionMatrix() const { return gamma_; }  // as last prepared
+  void applyFriction(const double* v, double* y) const;         // y = Γ v
+  // The whole Γ assembled, contact couplings included (tests and tools; builds its pattern on
+  // every call).
+  SpMat assembleFriction();
   // Empty, or the reason why two cells interpenetrate beyond numerics.max_penetration_um in the
   // current contacts (checked after every step): per pair of cells, the area-weighted mean gap
   // of their contact pairs.
@@ -99,12 +105,10 @@ class Simulation {
     return {cells_, geo_, topo_, spec_.numerics.dt_s, t_, with_contacts_ ? &contacts_ : nullptr,
             steps_};
   }
-  bool patternCoversContacts() const;
   double minTriangleArea(int c) const;  // A_m of cell c
   // Whether contacting vertices that move by a noticeable fraction of h0 per step mostly
   // reverse their velocity from the last step to `v`.
   bool contactVelocitiesReverse(const Eigen::VectorXd& v) const;
-  void rebuildPattern();
 
   SceneSpec spec_;
   CellSet cells_;
@@ -115,9 +119,7 @@ class Simulation {
   ContactList contacts_;
   BlockMatrix gamma_;
   std::uint64_t pattern_version_ = ~std::uint64_t{0};
-  // Triangle pairs whose vertex couplings the pattern holds (sorted): the contact candidates
-  // within h0 + skin when it was built, so that it survives many steps of sliding contacts.
-  std::vector<std::pair<int, int>> pattern_pairs_;
+  std::vector<const ForceTerm*> product_terms_;  // terms with a coupling product
   LinearSolver solver_;
   std::vector<std::unique_ptr<ForceTerm>> terms_;
   const CytoplasmPressure* pressure_ = nullptr;

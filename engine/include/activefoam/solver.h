@@ -4,6 +4,7 @@
 // fuses the vector updates, which halved the solve on the 2 × 100-cell reference scene.
 #pragma once
 
+#include <functional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -26,6 +27,10 @@ class LinearSolver {
   // x holds the initial guess on entry and the solution on exit. Converged when
   // |b − A x| ≤ tol |b| (the same criterion as Eigen's ConjugateGradient).
   SolveStats solve(const BlockMatrix& a, const Eigen::VectorXd& b, Eigen::VectorXd& x);
+  // A matrix given as a product y = A x whose diagonal blocks are those of `diagonal`.
+  using Product = std::function<void(const double* x, double* y)>;
+  SolveStats solve(const Product& a, const BlockMatrix& diagonal, const Eigen::VectorXd& b,
+                   Eigen::VectorXd& x);
   // The same on a plain symmetric sparse matrix of 3×3 blocks (tests, tools).
   SolveStats solve(const SpMat& a, const Eigen::VectorXd& b, Eigen::VectorXd& x);
 

@@ -53,13 +53,67 @@ double ContactAdhesion::addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) c
   return energy;
 }
 
+Eigen::Matrix3d ContactFriction::pairMatrix(const ContactPair& p) const {
+  const Vec3& n = p.c.normal;
+  const Eigen::Matrix3d nn = n * n.transpose();
+  return p.c.area * ((xi_n_ + implicit_dt_ * k_) * nn + xi_t_ * (Eigen::Matrix3d::Identity() - nn));
+}
+
+void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& gamma) const {
+  ops_.clear();
+  if (!ctx.contacts) return;
+  ops_.reserve(ctx.contacts->pairs.size());
+  for (const ContactPair& p : ctx.contacts->pairs) {
+    // Σ_k w_ik G = λ_i^A (Σ_k λ_k^B) G on vertex i of A, and the same for B.
+    const Eigen::Matrix3d g = pairMatrix(p);
+    const Tri& a = ctx.cells.tri[p.ta];
+    const Tri& b = ctx.cells.tri[p.tb];
+    const double sa = p.c.bary_a[0] + p.c.bary_a[1] + p.c.bary_a[2];
+    const double sb = p.c.bary_b[0] + p.c.bary_b[1] + p.c.bary_b[2];
+    PairOp op;
+    for (int i = 0; i < 3; ++i) {
+      op.a[i] = a[i];
+      op.b[i] = b[i];
+      op.wa[i] = p.c.bary_a[i];
+      op.wb[i] = p.c.bary_b[i];
+      if (op.wa[i] > 0) gamma.addDiagonal(a[i], (op.wa[i] * sb) * g);
+      if (op.wb[i] > 0) gamma.addDiagonal(b[i], (op.wb[i] * sa) * g);
+    }
+    op.s = p.c.area * xi_t_;
+    op.d = p.c.area * (xi_n_ + implicit_dt_ * k_ - xi_t_);
+    for (int k = 0; k < 3; ++k) op.n[k] = p.c.normal[k];
+    ops_.push_back(op);
+  }
+}
+
+void ContactFriction::addCouplingProduct(const double* v, double* y) const {
+  // The off-diagonal blocks −w_ik G: vertex i of A gets −λ_i^A G u_B with u_B = Σ_k λ_k^B v_k.
+  for (const PairOp& op : ops_) {
+    double ua[3] = {0, 0, 0}, ub[3] = {0, 0, 0};
+    for (int i = 0; i < 3; ++i)
+      for (int c = 0; c < 3; ++c) {
+        ua[c] += op.wa[i] * v[3 * op.a[i] + c];
+        ub[c] += op.wb[i] * v[3 * op.b[i] + c];
+      }
+    const double na = op.n[0] * ua[0] + op.n[1] * ua[1] + op.n[2] * ua[2];
+    const double nb = op.n[0] * ub[0] + op.n[1] * ub[1] + op.n[2] * ub[2];
+    double ga[3], gb[3];  // G u_A, G u_B
+    for (int c = 0; c < 3; ++c) {
+      ga[c] = op.s * ua[c] + op.d * na * op.n[c];
+      gb[c] = op.s * ub[c] + op.d * nb * op.n[c];
+    }
+    for (int i = 0; i < 3; ++i)
+      for (int c = 0; c < 3; ++c) {
+        y[3 * op.a[i] + c] -= op.wa[i] * gb[c];
+        y[3 * op.b[i] + c] -= op.wb[i] * ga[c];
+      }
+  }
+}
+
 void ContactFriction::addFriction(const StepContext& ctx, BlockMatrix& gamma) const {
   if (!ctx.contacts) return;
   for (const ContactPair& p : ctx.contacts->pairs) {
-    const Vec3& n = p.c.normal;
-    const Eigen::Matrix3d nn = n * n.transpose();
-    const Eigen::Matrix3d g =
-        p.c.area * ((xi_n_ + implicit_dt_ * k_) * nn + xi_t_ * (Eigen::Matrix3d::Identity() - nn));
+    const Eigen::Matrix3d g = pairMatrix(p);
     const Tri& a = ctx.cells.tri[p.ta];
     const Tri& b = ctx.cells.tri[p.tb];
     for (int i = 0; i < 3; ++i)

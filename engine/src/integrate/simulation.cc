@@ -76,47 +76,46 @@ double Simulation::computeForces(Eigen::Matrix3Xd& f) {
   return energy;
 }
 
-bool Simulation::patternCoversContacts() const {
-  for (const ContactPair& p : contacts_.pairs)
-    if (!std::binary_search(pattern_pairs_.begin(), pattern_pairs_.end(),
-                            std::make_pair(p.ta, p.tb)))
-      return false;
-  return true;
-}
-
-void Simulation::rebuildPattern() {
-  std::vector<std::pair<int, int>> couplings;
-  couplings.reserve(topo_.edges.size());
-  for (const Edge& e : topo_.edges) couplings.emplace_back(e.i, e.j);
-  pattern_pairs_.clear();
-  if (with_contacts_) {
-    // Pairs within h0 + 0.05 r, facing or not: measured on a 2 × 8-cell fusion, the facing
-    // filter forced a rebuild every ~4 steps (rim triangles turn to face as contacts spread),
-    // whatever the skin; without it only remeshing does, and a small skin keeps the pattern
-    // (and with it the SpMV) lean. Assembly 24 → 10 ms/step, the solve unchanged.
-    const double skin = 0.05 * spec_.cells.radius_mean_um;
-    pattern_pairs_ = findContactCandidates(cells_.x, cells_.tri, cells_.tri_cell, law_.h0 + skin,
-                                           /*facing_only=*/false);
-    for (const ContactPair& p : contacts_.pairs) pattern_pairs_.emplace_back(p.ta, p.tb);
-    std::sort(pattern_pairs_.begin(), pattern_pairs_.end());
-    pattern_pairs_.erase(std::unique(pattern_pairs_.begin(), pattern_pairs_.end()),
-                         pattern_pairs_.end());
-    for (const auto& [ta, tb] : pattern_pairs_)
-      for (int i : cells_.tri[ta])
-        for (int k : cells_.tri[tb]) couplings.emplace_back(i, k);
-  }
-  gamma_.setPattern(cells_.numVertices(), std::move(couplings));
-  pattern_version_ = cells_.topology_version;
-}
-
-const SpMat& Simulation::assembleFriction() {
-  if (pattern_version_ != cells_.topology_version || !patternCoversContacts())
-    rebuildPattern();
-  else
+void Simulation::prepareFriction() {
+  if (pattern_version_ != cells_.topology_version) {
+    // Only the cells' own couplings (mesh edges): contact couplings are applied as a product,
+    // so contacts coming and going never force a rebuild.
+    std::vector<std::pair<int, int>> couplings;
+    couplings.reserve(topo_.edges.size());
+    for (const Edge& e : topo_.edges) couplings.emplace_back(e.i, e.j);
+    gamma_.setPattern(cells_.numVertices(), std::move(couplings));
+    pattern_version_ = cells_.topology_version;
+  } else {
     gamma_.setZero();
+  }
   const StepContext ctx = context();
-  for (const auto& term : terms_) term->addFriction(ctx, gamma_);
-  return gamma_.matrix();
+  product_terms_.clear();
+  for (const auto& term : terms_) {
+    if (term->hasCouplingProduct()) {
+      term->addFrictionDiagonal(ctx, gamma_);
+      product_terms_.push_back(term.get());
+    } else {
+      term->addFriction(ctx, gamma_);
+    }
+  }
+}
+
+void Simulation::applyFriction(const double* v, double* y) const {
+  gamma_.multiply(v, y);
+  for (const ForceTerm* t : product_terms_) t->addCouplingProduct(v, y);
+}
+
+SpMat Simulation::assembleFriction() {
+  std::vector<std::pair<int, int>> couplings;
+  for (const Edge& e : topo_.edges) couplings.emplace_back(e.i, e.j);
+  for (const ContactPair& p : contacts_.pairs)
+    for (int i : cells_.tri[p.ta])
+      for (int k : cells_.tri[p.tb]) couplings.emplace_back(i, k);
+  BlockMatrix full;
+  full.setPattern(cells_.numVertices(), std::move(couplings));
+  const StepContext ctx = context();
+  for (const auto& term : terms_) term->addFriction(ctx, full);
+  return full.matrix();
 }
 
 bool Simulation::contactVelocitiesReverse(const Eigen::VectorXd& v) const {
@@ -143,14 +142,15 @@ StepReport Simulation::step() {
   times_.forces += since(t0);
 
   t0 = Clock::now();
-  assembleFriction();
+  prepareFriction();
   times_.matrix += since(t0);
 
   t0 = Clock::now();
   const Eigen::Index n = 3 * static_cast<Eigen::Index>(cells_.numVertices());
   Eigen::Map<const Eigen::VectorXd> b(f_.data(), n);
   Eigen::VectorXd v = Eigen::Map<const Eigen::VectorXd>(cells_.v.data(), n);
-  rep.cg = solver_.solve(gamma_, b, v);
+  rep.cg = solver_.solve([this](const double* in, double* out) { applyFriction(in, out); }, gamma_,
+                         b, v);
   times_.solve += since(t0);
 
   std::ostringstream why;

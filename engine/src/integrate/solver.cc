@@ -75,6 +75,13 @@ SolveStats LinearSolver::solve(const BlockMatrix& a, const Eigen::VectorXd& b, E
   return pcg([&](const double* in, double* out) { a.multiply(in, out); }, b, x);
 }
 
+SolveStats LinearSolver::solve(const Product& a, const BlockMatrix& diagonal,
+                               const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+  inv_.resize(diagonal.numBlocks());
+  for (int i = 0; i < diagonal.numBlocks(); ++i) setPreconditioner(i, diagonal.diagonalBlock(i));
+  return pcg(a, b, x);
+}
+
 SolveStats LinearSolver::solve(const SpMat& a, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   const Eigen::Index nb = a.rows() / 3;
   inv_.resize(nb);
