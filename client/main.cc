@@ -2,7 +2,8 @@
 // (TOML/JSON) plus key=value settings, and the server validates them; of the engine only the VTK
 // writer is used (foam export).
 //
-//   foam [--server HOST:PORT] [--token-file F] COMMAND ...      (also FOAM_SERVER, FOAM_TOKEN)
+//   foam [--server HOST:PORT] [--token-file F] [--tls-ca F] COMMAND ...
+//        (also FOAM_SERVER, FOAM_TOKEN, FOAM_TLS_CA)
 //
 // Exit codes: 0 success (with --wait / watch: the job succeeded); 1 the job failed or was
 // cancelled; 2 usage error or invalid spec (INVALID_ARGUMENT); 3 server unreachable or another
@@ -44,6 +45,7 @@ constexpr int kOk = 0, kJobNotOk = 1, kUsage = 2, kRpc = 3, kAuth = 4, kNotFound
 struct Conn {
   std::string server = "127.0.0.1:50051";
   std::string token;
+  std::string tls_ca;  // PEM roots; non-empty: connect with TLS
   std::unique_ptr<v1::Foam::Stub> stub;
 
   bool loopback() const {
@@ -51,9 +53,18 @@ struct Conn {
     return host == "localhost" || host == "[::1]" || host.rfind("127.", 0) == 0;
   }
   void connect() {
-    // With a token the server wants local credentials (loopback) — see foamd --token-file.
-    auto creds = !token.empty() && loopback() ? grpc::experimental::LocalCredentials(LOCAL_TCP)
-                                              : grpc::InsecureChannelCredentials();
+    // With a token and no TLS the server wants local credentials (loopback): see foamd
+    // --token-file.
+    std::shared_ptr<grpc::ChannelCredentials> creds;
+    if (!tls_ca.empty()) {
+      grpc::SslCredentialsOptions o;
+      o.pem_root_certs = tls_ca;
+      creds = grpc::SslCredentials(o);
+    } else if (!token.empty() && loopback()) {
+      creds = grpc::experimental::LocalCredentials(LOCAL_TCP);
+    } else {
+      creds = grpc::InsecureChannelCredentials();
+    }
     stub = v1::Foam::NewStub(grpc::CreateChannel(server, creds));
   }
   std::unique_ptr<grpc::ClientContext> ctx(double deadline_s = 30) const {
@@ -338,10 +349,14 @@ int main(int argc, char** argv) {
   Conn conn;
   if (const char* s = std::getenv("FOAM_SERVER"); s && *s) conn.server = s;
   if (const char* t = std::getenv("FOAM_TOKEN"); t && *t) conn.token = t;
-  std::string token_file;
+  std::string token_file, tls_ca_file;
+  if (const char* c = std::getenv("FOAM_TLS_CA"); c && *c) tls_ca_file = c;
   app.add_option("--server", conn.server, "server HOST:PORT (env FOAM_SERVER)");
   app.add_option("--token-file", token_file, "file holding the bearer token (env FOAM_TOKEN)");
-  app.set_config("--config", "", "TOML config file (server = ..., token-file = ...)");
+  app.add_option("--tls-ca", tls_ca_file,
+                 "connect with TLS, trusting the certificate(s) in this PEM file (env "
+                 "FOAM_TLS_CA; for foamd --tls-cert, its certificate or its CA)");
+  app.set_config("--config", "", "TOML config file (server = ..., token-file = ..., tls-ca = ...)");
 
   // submit
   auto* submit = app.add_subcommand("submit", "submit a job; prints its id on the first line");
@@ -419,6 +434,7 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? kOk : kUsage;
   }
   try {
+    if (!tls_ca_file.empty()) conn.tls_ca = readFile(tls_ca_file);
     if (!token_file.empty()) {
       conn.token = readFile(token_file);
       while (!conn.token.empty() && std::isspace(static_cast<unsigned char>(conn.token.back())))

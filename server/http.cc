@@ -8,9 +8,12 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <cctype>
+#include <cmath>
 #include <cstring>
 #include <sstream>
 #include <stdexcept>
+#include <vector>
 
 #include <google/protobuf/util/json_util.h>
 #include <spdlog/spdlog.h>
@@ -26,6 +29,79 @@ nlohmann::json toJson(const google::protobuf::Message& m) {
   o.always_print_primitive_fields = true;
   (void)google::protobuf::util::MessageToJsonString(m, &s, o);
   return nlohmann::json::parse(s);
+}
+
+std::string urlDecode(const std::string& in) {
+  std::string out;
+  for (std::size_t k = 0; k < in.size(); ++k) {
+    if (in[k] == '+') {
+      out += ' ';
+    } else if (in[k] == '%' && k + 2 < in.size() &&
+               std::isxdigit(static_cast<unsigned char>(in[k + 1])) &&
+               std::isxdigit(static_cast<unsigned char>(in[k + 2]))) {
+      out += static_cast<char>(std::stoi(in.substr(k + 1, 2), nullptr, 16));
+      k += 2;
+    } else {
+      out += in[k];
+    }
+  }
+  return out;
+}
+
+std::vector<std::string> splitList(const std::string& v) {
+  std::vector<std::string> out;
+  std::stringstream ss(v);
+  for (std::string item; std::getline(ss, item, ',');)
+    if (!item.empty()) out.push_back(item);
+  return out;
+}
+
+StoreError badQuery(const std::string& name, const std::string& why) {
+  return StoreError(StoreError::Kind::InvalidArgument, "query parameter '" + name + "': " + why);
+}
+
+double number(const std::string& name, const std::string& v) {
+  char* end = nullptr;
+  const double x = std::strtod(v.c_str(), &end);
+  if (v.empty() || *end != '\0' || !std::isfinite(x))
+    throw badQuery(name, "'" + v + "' is not a finite number");
+  return x;
+}
+
+std::int32_t count(const std::string& name, const std::string& v, std::int32_t max) {
+  const double x = number(name, v);
+  if (x < 1 || x > max || x != std::floor(x))
+    throw badQuery(name, "'" + v + "' is not an integer in [1, " + std::to_string(max) + "]");
+  return static_cast<std::int32_t>(x);
+}
+
+// `param.KEY=MIN:MAX` (either side may be empty) → a parameter range filter.
+void addRange(const std::string& name, const std::string& v,
+              google::protobuf::RepeatedPtrField<v1::ParamRange>* out) {
+  const auto colon = v.find(':');
+  v1::ParamRange r;
+  r.set_key(name.substr(6));
+  if (r.key().empty()) throw badQuery(name, "no parameter key after 'param.'");
+  const std::string lo = colon == std::string::npos ? v : v.substr(0, colon);
+  const std::string hi = colon == std::string::npos ? v : v.substr(colon + 1);
+  if (!lo.empty()) r.set_min(number(name, lo));
+  if (!hi.empty()) r.set_max(number(name, hi));
+  *out->Add() = r;
+}
+
+// Splits "/path?a=1&b=2" into the path and decoded (name, value) pairs.
+std::string splitQuery(const std::string& target,
+                       std::vector<std::pair<std::string, std::string>>& query) {
+  const auto q = target.find('?');
+  if (q == std::string::npos) return target;
+  std::stringstream ss(target.substr(q + 1));
+  for (std::string item; std::getline(ss, item, '&');) {
+    if (item.empty()) continue;
+    const auto eq = item.find('=');
+    query.emplace_back(urlDecode(item.substr(0, eq)),
+                       eq == std::string::npos ? "" : urlDecode(item.substr(eq + 1)));
+  }
+  return target.substr(0, q);
 }
 
 }  // namespace
@@ -68,10 +144,12 @@ HttpEndpoint::~HttpEndpoint() {
   if (fd_ >= 0) close(fd_);
 }
 
-std::string HttpEndpoint::handle(const std::string& path, int& code, std::string& type) {
+std::string HttpEndpoint::handle(const std::string& target, int& code, std::string& type) {
   code = 200;
   type = "application/json";
   try {
+    std::vector<std::pair<std::string, std::string>> query;
+    const std::string path = splitQuery(target, query);
     if (path == "/metrics") {
       type = "text/plain; version=0.0.4";
       const auto counts = store_.countByState();
@@ -101,11 +179,70 @@ std::string HttpEndpoint::handle(const std::string& path, int& code, std::string
       return o.str();
     }
     if (path == "/healthz") return "{\"status\":\"ok\"}";
-    if (path == "/jobs" || path.rfind("/jobs?", 0) == 0) {
+    if (path == "/jobs") {
+      // The filters of ListJobs: state (comma-separated), tag, sweep, scene, param.KEY=MIN:MAX,
+      // page_size (default 1000), page_token.
       v1::ListJobsRequest req;
       req.set_page_size(1000);
+      for (const auto& [name, v] : query) {
+        if (name == "state") {
+          for (const std::string& st : splitList(v)) {
+            std::string upper = "JOB_STATE_";
+            for (char c : st)
+              upper += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+            v1::JobState js;
+            if (!v1::JobState_Parse(upper, &js) || js == v1::JOB_STATE_UNSPECIFIED)
+              throw badQuery(name, "'" + st +
+                                       "' is not one of queued, running, succeeded, failed, "
+                                       "cancelled");
+            req.add_states(js);
+          }
+        } else if (name == "tag") {
+          req.set_tag(v);
+        } else if (name == "sweep") {
+          req.set_sweep_id(v);
+        } else if (name == "scene") {
+          req.set_scene(v);
+        } else if (name == "page_size") {
+          req.set_page_size(count(name, v, 1000));
+        } else if (name == "page_token") {
+          req.set_page_token(v);
+        } else if (name.rfind("param.", 0) == 0) {
+          addRange(name, v, req.mutable_params());
+        } else {
+          throw badQuery(name,
+                         "unknown (known: state, tag, sweep, scene, param.KEY=MIN:MAX, "
+                         "page_size, page_token)");
+        }
+      }
       return toJson(store_.listJobs(req)).dump();
     }
+    if (path == "/results") {
+      // QueryResults: scene, tag, sweep, param.KEY=MIN:MAX, names (comma-separated), limit.
+      v1::QueryResultsRequest req;
+      for (const auto& [name, v] : query) {
+        if (name == "scene") {
+          req.set_scene(v);
+        } else if (name == "tag") {
+          req.set_tag(v);
+        } else if (name == "sweep") {
+          req.set_sweep_id(v);
+        } else if (name == "names") {
+          for (const std::string& n : splitList(v)) req.add_names(n);
+        } else if (name == "limit") {
+          req.set_limit(count(name, v, 100000));
+        } else if (name.rfind("param.", 0) == 0) {
+          addRange(name, v, req.mutable_params());
+        } else {
+          throw badQuery(name,
+                         "unknown (known: scene, tag, sweep, param.KEY=MIN:MAX, names, "
+                         "limit)");
+        }
+      }
+      return toJson(store_.queryResults(req)).dump();
+    }
+    if (!query.empty() && path.rfind("/jobs/", 0) == 0)
+      throw badQuery(query.front().first, "a job's pages take no query parameters");
     if (path.rfind("/jobs/", 0) == 0) {
       std::string rest = path.substr(6);
       std::string what;

@@ -15,6 +15,7 @@
 #include <random>
 #include <sstream>
 #include <thread>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -54,8 +55,8 @@ Proc sh(const std::string& cmd) {
 
 class Foamd {
  public:
-  Foamd(fs::path db, int port, int workers = 1)
-      : db_(std::move(db)), port_(port), workers_(workers) {
+  Foamd(fs::path db, int port, int workers = 1, std::vector<std::string> extra = {})
+      : db_(std::move(db)), port_(port), workers_(workers), extra_(std::move(extra)) {
     start();
   }
   ~Foamd() { stop(SIGTERM); }
@@ -66,8 +67,12 @@ class Foamd {
       const std::string log = (db_.parent_path() / "foamd.log").string();
       freopen(log.c_str(), "a", stderr);
       freopen(log.c_str(), "a", stdout);
-      execl(FOAMD_EXE, FOAMD_EXE, "--listen", listen.c_str(), "--db", db_.c_str(), "--workers",
-            std::to_string(workers_).c_str(), static_cast<char*>(nullptr));
+      const std::string workers = std::to_string(workers_);
+      std::vector<const char*> argv{FOAMD_EXE,   "--listen",  listen.c_str(), "--db",
+                                    db_.c_str(), "--workers", workers.c_str()};
+      for (const std::string& e : extra_) argv.push_back(e.c_str());
+      argv.push_back(nullptr);
+      execv(FOAMD_EXE, const_cast<char* const*>(argv.data()));
       _exit(127);
     }
   }
@@ -86,6 +91,7 @@ class Foamd {
   fs::path db_;
   int port_;
   int workers_;
+  std::vector<std::string> extra_;
   pid_t pid_ = -1;
 };
 
@@ -284,5 +290,29 @@ TEST(Cli, SigtermRequeuesRunningJobs) {
   const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("resuming from checkpoint at t = "), std::string::npos) << text;
   EXPECT_EQ(text.find("cannot resume"), std::string::npos) << text;
+  fs::remove_all(dir);
+}
+
+TEST(Cli, TlsAndTokenFromFlagsAndEnvironment) {
+  const fs::path dir = tempDir();
+  const std::string cert = std::string(SERVER_TEST_DATA) + "/test-cert.pem";
+  const std::string key = std::string(SERVER_TEST_DATA) + "/test-key.pem";
+  const fs::path token = dir / "token";
+  std::ofstream(token) << "t0ken\n";
+  const int port = freePort();
+  Foamd d(dir / "foamd.db", port, 1,
+          {"--tls-cert", cert, "--tls-key", key, "--token-file", token.string()});
+  const std::string foam = d.foam();
+  const std::string tls = " --tls-ca " + cert;
+  int rc = -1;
+  for (int i = 0; i < 100 && rc != 0; ++i) {
+    rc = sh(foam + tls + " --token-file " + token.string() + " list 2>/dev/null").rc;
+    if (rc != 0) std::this_thread::sleep_for(100ms);
+  }
+  EXPECT_EQ(rc, 0) << "foam list over TLS with the token";
+  EXPECT_EQ(sh(foam + tls + " list 2>/dev/null").rc, 4);  // no token: unauthenticated
+  EXPECT_EQ(sh("FOAM_TLS_CA=" + cert + " FOAM_TOKEN=t0ken " + foam + " list 2>/dev/null").rc, 0);
+  EXPECT_EQ(sh(foam + " --token-file " + token.string() + " list 2>/dev/null").rc, 3);  // plain
+  d.stop(SIGTERM);
   fs::remove_all(dir);
 }

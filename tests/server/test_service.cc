@@ -1,13 +1,24 @@
 // foamd in-process on a loopback port: the gRPC API end to end (store, pool, service).
+#include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <filesystem>
+#include <fstream>
+#include <future>
 #include <random>
+#include <sstream>
 #include <thread>
 
 #include "activefoam/v1/service.grpc.pb.h"
+#include "http.h"
 #include "pool.h"
 #include "service.h"
 #include "store.h"
@@ -38,9 +49,30 @@ v1::SubmitJobRequest tinyCell(double duration_s = 5) {
   return r;
 }
 
+std::string readText(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (!in) ADD_FAILURE() << "cannot read " << p;
+  return ss.str();
+}
+
+grpc::ByteBuffer bytes(const std::string& s) {
+  grpc::Slice slice(s);
+  return grpc::ByteBuffer(&slice, 1);
+}
+
+std::string bytes(const grpc::ByteBuffer& b) {
+  std::vector<grpc::Slice> slices;
+  (void)b.Dump(&slices);
+  std::string out;
+  for (const auto& s : slices) out.append(reinterpret_cast<const char*>(s.begin()), s.size());
+  return out;
+}
+
 class ServiceTest : public ::testing::Test {
  protected:
-  void startServer(bool start_pool = true, const std::string& token = "") {
+  void startServer(bool start_pool = true, const std::string& token = "", bool tls = false) {
     db_ = tempDb();
     store_ = std::make_unique<Store>(db_.string());
     PoolOptions po;
@@ -50,13 +82,25 @@ class ServiceTest : public ::testing::Test {
     ServerConfig config;
     config.listen = "127.0.0.1:0";
     config.token = token;
+    if (tls) {
+      config.tls_cert = readText(fs::path(SERVER_TEST_DATA) / "test-cert.pem");
+      config.tls_key = readText(fs::path(SERVER_TEST_DATA) / "test-key.pem");
+    }
     server_ = std::make_unique<FoamServer>(*store_, *pool_, config);
     server_->start();
     if (start_pool) pool_->start();
-    const std::string addr = "127.0.0.1:" + std::to_string(server_->port());
-    auto creds = token.empty() ? grpc::InsecureChannelCredentials()
-                               : grpc::experimental::LocalCredentials(LOCAL_TCP);
-    stub_ = v1::Foam::NewStub(grpc::CreateChannel(addr, creds));
+    addr_ = "127.0.0.1:" + std::to_string(server_->port());
+    std::shared_ptr<grpc::ChannelCredentials> creds;
+    if (tls) {
+      grpc::SslCredentialsOptions o;
+      o.pem_root_certs = readText(fs::path(SERVER_TEST_DATA) / "test-cert.pem");
+      creds = grpc::SslCredentials(o);
+    } else {
+      creds = token.empty() ? grpc::InsecureChannelCredentials()
+                            : grpc::experimental::LocalCredentials(LOCAL_TCP);
+    }
+    channel_ = grpc::CreateChannel(addr_, creds);
+    stub_ = v1::Foam::NewStub(channel_);
   }
   void TearDown() override {
     if (server_) server_->shutdown();
@@ -128,6 +172,8 @@ class ServiceTest : public ::testing::Test {
   std::unique_ptr<Pool> pool_;
   std::unique_ptr<FoamServer> server_;
   std::unique_ptr<v1::Foam::Stub> stub_;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::string addr_;
 };
 
 bool terminal(const v1::Job& j) {
@@ -535,4 +581,164 @@ TEST(Store, PriorityThenAgeAndRequeueAfterRestart) {
   EXPECT_EQ(c2->job.attempts(), 2);
   EXPECT_EQ(s.claimNext()->job.id(), low);
   fs::remove_all(db.parent_path());
+}
+
+namespace {
+
+// The standard services, called without generated stubs (their messages hand-encoded: the
+// Debian gRPC library already holds the reflection descriptors).
+grpc::Status healthCheck(grpc::GenericStub& stub, const std::string& service, std::string* reply) {
+  std::string req;
+  if (!service.empty()) req = std::string("\x0a") + static_cast<char>(service.size()) + service;
+  const grpc::ByteBuffer request = bytes(req);
+  grpc::ByteBuffer response;
+  grpc::ClientContext c;
+  c.set_deadline(std::chrono::system_clock::now() + 10s);
+  std::promise<grpc::Status> done;
+  stub.UnaryCall(&c, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &request, &response,
+                 [&](grpc::Status st) { done.set_value(st); });
+  const grpc::Status st = done.get_future().get();
+  *reply = bytes(response);
+  return st;
+}
+
+}  // namespace
+
+TEST_F(ServiceTest, HealthAndReflectionAnswer) {
+  startServer(false);
+  grpc::GenericStub generic(channel_);
+  std::string reply;
+  // HealthCheckResponse{status: SERVING} is the two bytes 08 01.
+  ASSERT_TRUE(healthCheck(generic, "", &reply).ok());
+  EXPECT_EQ(reply, std::string("\x08\x01", 2));
+  ASSERT_TRUE(healthCheck(generic, "activefoam.v1.Foam", &reply).ok());
+  EXPECT_EQ(reply, std::string("\x08\x01", 2));
+  EXPECT_EQ(healthCheck(generic, "no.such.Service", &reply).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+
+  // Reflection (v1alpha, what Debian's library serves): list_services names our API.
+  grpc::CompletionQueue cq;
+  grpc::ClientContext c;
+  c.set_deadline(std::chrono::system_clock::now() + 10s);
+  auto call = generic.PrepareCall(
+      &c, "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo", &cq);
+  auto next = [&] {
+    void* tag = nullptr;
+    bool ok = false;
+    return cq.Next(&tag, &ok) && ok;
+  };
+  call->StartCall(reinterpret_cast<void*>(1));
+  ASSERT_TRUE(next());
+  call->Write(bytes(std::string("\x3a\x00", 2)), reinterpret_cast<void*>(2));  // list_services ""
+  ASSERT_TRUE(next());
+  call->WritesDone(reinterpret_cast<void*>(3));
+  ASSERT_TRUE(next());
+  grpc::ByteBuffer response;
+  call->Read(&response, reinterpret_cast<void*>(4));
+  ASSERT_TRUE(next());
+  const std::string listed = bytes(response);
+  EXPECT_NE(listed.find("activefoam.v1.Foam"), std::string::npos);
+  EXPECT_NE(listed.find("grpc.health.v1.Health"), std::string::npos);
+  grpc::Status st;
+  call->Finish(&st, reinterpret_cast<void*>(5));
+  ASSERT_TRUE(next());
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  cq.Shutdown();
+  void* tag;
+  bool ok;
+  while (cq.Next(&tag, &ok)) {
+  }
+}
+
+TEST_F(ServiceTest, TlsWithTokenRefusesPlainTextAndWrongTokens) {
+  startServer(false, "s3cret", /*tls=*/true);
+  v1::ListJobsRequest lr;
+  v1::ListJobsResponse resp;
+  auto right = ctx("s3cret");
+  const grpc::Status ok = stub_->ListJobs(right.get(), lr, &resp);
+  EXPECT_TRUE(ok.ok()) << ok.error_message();
+  auto wrong = ctx("guess");
+  EXPECT_EQ(stub_->ListJobs(wrong.get(), lr, &resp).error_code(),
+            grpc::StatusCode::UNAUTHENTICATED);
+  // A client speaking plain text, or one not trusting the certificate, gets nowhere.
+  auto plain = v1::Foam::NewStub(grpc::CreateChannel(addr_, grpc::InsecureChannelCredentials()));
+  auto c1 = ctx("s3cret");
+  c1->set_deadline(std::chrono::system_clock::now() + 3s);
+  EXPECT_FALSE(plain->ListJobs(c1.get(), lr, &resp).ok());
+  auto untrusting = v1::Foam::NewStub(
+      grpc::CreateChannel(addr_, grpc::SslCredentials(grpc::SslCredentialsOptions())));
+  auto c2 = ctx("s3cret");
+  c2->set_deadline(std::chrono::system_clock::now() + 3s);
+  EXPECT_FALSE(untrusting->ListJobs(c2.get(), lr, &resp).ok());
+}
+
+TEST_F(ServiceTest, HttpServesJobsResultsAndMetricsWithFilters) {
+  startServer();
+  std::vector<std::string> ids;
+  for (double gamma : {0.4, 0.6}) {
+    v1::SubmitJobRequest r = tinyCell();
+    r.mutable_spec()->mutable_cells()->set_gamma(gamma);
+    r.set_tag(gamma < 0.5 ? "low" : "high");
+    ids.push_back(submit(r));
+  }
+  for (const auto& id : ids) waitFor(id, terminal);
+  HttpEndpoint http(*store_, *pool_, "127.0.0.1:0");
+  int code = 0;
+  std::string type;
+  auto get = [&](const std::string& path) {
+    const std::string body = http.handle(path, code, type);
+    return nlohmann::json::parse(body);
+  };
+  EXPECT_EQ(get("/jobs").at("jobs").size(), 2u);
+  EXPECT_EQ(code, 200);
+  auto j = get("/jobs?tag=high");
+  ASSERT_EQ(j.at("jobs").size(), 1u);
+  EXPECT_EQ(j.at("jobs")[0].at("id"), ids[1]);
+  EXPECT_EQ(get("/jobs?state=succeeded,failed&param.gamma=0.3:0.5").at("jobs").size(), 1u);
+  EXPECT_EQ(get("/jobs?state=queued").at("jobs").size(), 0u);
+  j = get("/jobs?page_size=1");
+  EXPECT_EQ(j.at("jobs").size(), 1u);
+  EXPECT_FALSE(j.at("next_page_token").get<std::string>().empty());
+  j = get("/jobs?page_size=1&page_token=" + j.at("next_page_token").get<std::string>());
+  EXPECT_EQ(j.at("jobs").size(), 1u);
+  j = get("/results?param.gamma=0.5:&names=aspect_ratio");
+  ASSERT_EQ(j.at("rows").size(), 1u);
+  EXPECT_EQ(j.at("rows")[0].at("job_id"), ids[1]);
+  EXPECT_EQ(get("/jobs/" + ids[0]).at("id"), ids[0]);
+  EXPECT_FALSE(get("/jobs/" + ids[0] + "/samples").at("rows").empty());
+  // Bad queries name the parameter; unknown pages are 404.
+  for (const char* bad : {"/jobs?state=sleeping", "/jobs?page_size=0", "/jobs?colour=red",
+                          "/results?param.gamma=abc", "/jobs?param.=1"}) {
+    const std::string err = get(bad).at("error");
+    EXPECT_EQ(code, 400) << bad;
+    EXPECT_NE(err.find("query parameter"), std::string::npos) << bad << ": " << err;
+  }
+  get("/jobs/nope");
+  EXPECT_EQ(code, 404);
+  const std::string metrics = http.handle("/metrics", code, type);
+  EXPECT_NE(metrics.find("foamd_jobs{state=\"JOB_STATE_SUCCEEDED\"} 2"), std::string::npos)
+      << metrics;
+  EXPECT_NE(metrics.find("foamd_steps_total"), std::string::npos);
+
+  // Over the socket: HTTP/1.0, GET only.
+  auto request = [&](const std::string& line) {
+    const int fd = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_port = htons(static_cast<std::uint16_t>(http.port()));
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+    const std::string req = line + "\r\nHost: x\r\n\r\n";
+    EXPECT_EQ(send(fd, req.data(), req.size(), 0), static_cast<ssize_t>(req.size()));
+    std::string resp;
+    char buf[4096];
+    for (ssize_t n; (n = recv(fd, buf, sizeof buf, 0)) > 0;) resp.append(buf, n);
+    close(fd);
+    return resp;
+  };
+  const std::string r1 = request("GET /jobs?tag=low HTTP/1.0");
+  EXPECT_EQ(r1.rfind("HTTP/1.0 200 OK", 0), 0u) << r1;
+  EXPECT_NE(r1.find(ids[0]), std::string::npos);
+  EXPECT_EQ(r1.find(ids[1]), std::string::npos);
+  EXPECT_EQ(request("POST /jobs HTTP/1.0").rfind("HTTP/1.0 405", 0), 0u);
 }
