@@ -3,9 +3,13 @@
 
 #include <zlib.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <optional>
 #include <stdexcept>
 #include <type_traits>
+#include <utility>
 
 #include <spdlog/spdlog.h>
 
@@ -145,7 +149,12 @@ void Pool::runJob(const Claimed& claimed, Running& flag) {
 
   const auto t0 = Clock::now();
   auto last_progress = t0 - std::chrono::hours(1);
-  std::int64_t last_step = 0;
+  // Steps counted from where this attempt starts (a resumed run does not recount the earlier
+  // ones), and the ETA from the pace since the first progress report (spheroid preparation
+  // and the earlier attempts are not in it).
+  std::int64_t last_step =
+      resume ? std::llround(claimed.checkpoint_t_s / spec.numerics.dt_s) : std::int64_t{0};
+  std::optional<std::pair<Clock::time_point, double>> pace_from;
   RunObserver obs;
   obs.cancel = &flag.cancel;
   obs.on_sample = [&](const Sample& s) { store_.addSample(id, columns, s.values); };
@@ -164,6 +173,7 @@ void Pool::runJob(const Claimed& claimed, Running& flag) {
     stats_.steps_total += step - last_step;
     last_step = step;
     const auto now = Clock::now();
+    if (!pace_from) pace_from.emplace(now, t_s);
     if (std::chrono::duration<double>(now - last_progress).count() < options_.progress_every_s)
       return;
     last_progress = now;
@@ -174,7 +184,9 @@ void Pool::runJob(const Claimed& claimed, Running& flag) {
     p.set_step(step);
     p.set_fraction(f);
     p.set_wall_s(wall);
-    p.set_eta_s(f > 0 ? wall * (1 - f) / f : -1);
+    const double done = t_s - pace_from->second;
+    const double pace = std::chrono::duration<double>(now - pace_from->first).count();
+    p.set_eta_s(done > 0 ? pace / done * std::max(0.0, spec.duration_s - t_s) : -1);
     store_.addProgress(id, p);
   };
   // Periodic, atomic checkpoints (one transaction replaces the previous one), and one when the
