@@ -4,8 +4,9 @@
 # The job is a small fusion (examples/fusion.toml): θ(t) per sample, θ_eq and τ_f from the fits.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-./scripts/build.sh release
-bin=build/release
+# DEMO_SKIP_BUILD=1 DEMO_BUILD_DIR=DIR: use an existing build (the ctest that runs this script).
+[ -n "${DEMO_SKIP_BUILD:-}" ] || ./scripts/build.sh release
+bin="${DEMO_BUILD_DIR:-build/release}"
 work="$(mktemp -d)"
 port="$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')"
 echo "== foamd --listen 127.0.0.1:$port --db $work/foamd.db   (log: $work/foamd.log)"
