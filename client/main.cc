@@ -243,12 +243,12 @@ std::string exportSnapshots(v1::Foam::Stub& stub,
     v1::SnapshotData sd;
     if (!sd.ParseFromString(data))
       return "snapshot " + std::to_string(info.index()) + ": not a SnapshotData message";
-    activefoam::Snapshot snap;
+    activefoam::VtkMesh snap;
     snap.t_s = sd.t_s();
     snap.step = sd.step();
     if (sd.x_size() % 3 != 0 || sd.tri_size() % 3 != 0)
       return "snapshot " + std::to_string(info.index()) + ": malformed coordinates";
-    snap.x = Eigen::Map<const Eigen::Matrix3Xd>(sd.x().data(), 3, sd.x_size() / 3);
+    snap.points.assign(sd.x().begin(), sd.x().end());
     for (int k = 0; k + 2 < sd.tri_size(); k += 3)
       snap.tri.push_back({sd.tri(k), sd.tri(k + 1), sd.tri(k + 2)});
     snap.vertex_cell.assign(sd.vertex_cell().begin(), sd.vertex_cell().end());

@@ -161,6 +161,18 @@ nlohmann::json summaryToJson(const RunSummary& summary, const SceneSpec& resolve
   return j;
 }
 
+VtkMesh toVtkMesh(const Snapshot& snap) {
+  VtkMesh m;
+  m.t_s = snap.t_s;
+  m.step = snap.step;
+  m.points.assign(snap.x.data(), snap.x.data() + snap.x.size());
+  m.tri.assign(snap.tri.begin(), snap.tri.end());
+  m.vertex_cell = snap.vertex_cell;
+  m.cell_pressure = snap.cell_pressure;
+  m.cell_label = snap.cell_label;
+  return m;
+}
+
 std::string utcNow() {
   const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
   std::tm tm{};
@@ -269,7 +281,7 @@ void RunOutput::onSnapshot(const Snapshot& snap) {
     char name[32];
     std::snprintf(name, sizeof name, "snap_%06zu.vtp", series_.size());
     std::ostringstream vtp;
-    writeVtp(vtp, snap);
+    writeVtp(vtp, toVtkMesh(snap));
     writeFileAtomic(sdir / name, vtp.str());
     series_.emplace_back(snap.t_s, name);
     std::ostringstream pvd;

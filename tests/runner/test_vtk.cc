@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "activefoam/run_output.h"
 #include "activefoam/vtk.h"
 
 namespace activefoam {
@@ -186,7 +187,7 @@ Snapshot twoTetrahedra() {
 TEST(Vtk, PolyDataIsWellFormedAndComplete) {
   const Snapshot snap = twoTetrahedra();
   std::ostringstream out;
-  writeVtp(out, snap);
+  writeVtp(out, toVtkMesh(snap));
   std::unique_ptr<Element> root;
   ASSERT_NO_THROW(root = XmlReader(out.str()).document()) << out.str();
 
@@ -252,7 +253,7 @@ TEST(Vtk, PolyDataIsWellFormedAndComplete) {
 TEST(Vtk, EmptySnapshotAndMissingPerCellData) {
   Snapshot empty;
   std::ostringstream out;
-  writeVtp(out, empty);
+  writeVtp(out, toVtkMesh(empty));
   auto root = XmlReader(out.str()).document();
   EXPECT_EQ(root->find("Piece")->attr("NumberOfPoints"), "0");
   EXPECT_EQ(root->find("Piece")->attr("NumberOfPolys"), "0");
@@ -261,7 +262,7 @@ TEST(Vtk, EmptySnapshotAndMissingPerCellData) {
   bare.cell_pressure.clear();
   bare.cell_label.clear();
   std::ostringstream out2;
-  writeVtp(out2, bare);
+  writeVtp(out2, toVtkMesh(bare));
   root = XmlReader(out2.str()).document();
   for (double v : numbers(root->find("DataArray", "pressure"))) EXPECT_EQ(v, 0);
 }
@@ -270,10 +271,13 @@ TEST(Vtk, InconsistentSnapshotsAreRejected) {
   Snapshot s = twoTetrahedra();
   s.vertex_cell.pop_back();
   std::ostringstream out;
-  EXPECT_THROW(writeVtp(out, s), std::invalid_argument);
+  EXPECT_THROW(writeVtp(out, toVtkMesh(s)), std::invalid_argument);
   s = twoTetrahedra();
   s.tri.push_back({0, 1, 8});
-  EXPECT_THROW(writeVtp(out, s), std::invalid_argument);
+  EXPECT_THROW(writeVtp(out, toVtkMesh(s)), std::invalid_argument);
+  VtkMesh m = toVtkMesh(twoTetrahedra());
+  m.points.pop_back();  // not whole points
+  EXPECT_THROW(writeVtp(out, m), std::invalid_argument);
 }
 
 TEST(Vtk, CollectionIndex) {

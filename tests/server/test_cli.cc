@@ -215,8 +215,6 @@ TEST(Cli, FusionJobResultsPlotAndExport) {
   fs::remove_all(dir);
 }
 
-// kill -9 mid-run, restart: the accepted jobs are all there and finish, with the results of an
-// uninterrupted run of the same spec and seed.
 // kill -9 mid-run: the restarted server re-queues the job and resumes it from its last checkpoint
 // (or from scratch if none was written yet); either way the results equal an uninterrupted run.
 TEST(Cli, KillDashNineThenRestartFinishesEveryJobWithTheSameResults) {

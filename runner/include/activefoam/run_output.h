@@ -14,6 +14,7 @@
 
 #include "activefoam/run.h"
 #include "activefoam/spec.h"
+#include "activefoam/vtk.h"
 
 namespace activefoam {
 
@@ -48,6 +49,9 @@ struct SummaryContext {
 };
 nlohmann::json summaryToJson(const RunSummary& summary, const SceneSpec& resolved,
                              const SummaryContext& context);
+
+// An engine snapshot as the VTK writer's plain data.
+VtkMesh toVtkMesh(const Snapshot& snap);
 
 // ISO 8601 UTC time of now, e.g. "2026-11-22T10:53:26Z".
 std::string utcNow();

@@ -1,10 +1,9 @@
 // VTK XML PolyData / collection writers (see vtk.h).
 #include "activefoam/vtk.h"
 
+#include <charconv>
 #include <cmath>
 #include <stdexcept>
-
-#include "activefoam/spec.h"
 
 namespace activefoam {
 namespace {
@@ -36,9 +35,13 @@ std::string xmlEscape(const std::string& s) {
   return out;
 }
 
-// VTK's ASCII reader does not take "nan"/"inf"; write 0 for them (a failed step's snapshot).
+// Shortest round-trip form. VTK's ASCII reader does not take "nan"/"inf"; write 0 for them (a
+// failed step's snapshot).
 std::string num(double v) {
-  return std::isfinite(v) ? formatNumber(v) : "0";
+  if (!std::isfinite(v)) return "0";
+  char buf[64];
+  const auto res = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, res.ptr);
 }
 
 // n values of item(i), `per_line` to a line, indented to sit inside a DataArray.
@@ -52,8 +55,11 @@ void writeList(std::ostream& os, std::size_t n, std::size_t per_line, F item) {
 
 }  // namespace
 
-void writeVtp(std::ostream& os, const Snapshot& snap) {
-  const auto np = static_cast<std::size_t>(snap.x.cols());
+void writeVtp(std::ostream& os, const VtkMesh& snap) {
+  if (snap.points.size() % 3 != 0)
+    throw std::invalid_argument("writeVtp: " + std::to_string(snap.points.size()) +
+                                " coordinates are not whole points");
+  const std::size_t np = snap.points.size() / 3;
   const std::size_t nt = snap.tri.size();
   if (!snap.vertex_cell.empty() && snap.vertex_cell.size() != np)
     throw std::invalid_argument("writeVtp: vertex_cell has " +
@@ -113,17 +119,15 @@ void writeVtp(std::ostream& os, const Snapshot& snap) {
   os << "      <Points>\n"
      << "        <DataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\" "
         "format=\"ascii\">\n";
-  for (std::size_t i = 0; i < np; ++i) {
-    const auto c = static_cast<Eigen::Index>(i);
-    os << "          " << num(snap.x(0, c)) << ' ' << num(snap.x(1, c)) << ' ' << num(snap.x(2, c))
-       << '\n';
-  }
+  for (std::size_t i = 0; i < np; ++i)
+    os << "          " << num(snap.points[3 * i]) << ' ' << num(snap.points[3 * i + 1]) << ' '
+       << num(snap.points[3 * i + 2]) << '\n';
   os << "        </DataArray>\n"
      << "      </Points>\n";
 
   os << "      <Polys>\n"
      << "        <DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">\n";
-  for (const Tri& t : snap.tri) os << "          " << t[0] << ' ' << t[1] << ' ' << t[2] << '\n';
+  for (const auto& t : snap.tri) os << "          " << t[0] << ' ' << t[1] << ' ' << t[2] << '\n';
   os << "        </DataArray>\n"
      << "        <DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n";
   writeList(os, nt, 16, [](std::size_t t) { return 3 * (t + 1); });
