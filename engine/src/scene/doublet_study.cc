@@ -1,0 +1,58 @@
+#include "activefoam/doublet_study.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "activefoam/observables.h"
+#include "activefoam/simulation.h"
+
+namespace activefoam {
+
+SceneSpec doubletStudySpec(const NumericsParams& numerics) {
+  SceneSpec s;
+  s.scene = SceneKind::Doublet;
+  s.cells.radius_gamma_k = 0;  // equal radii
+  s.cells.p_a = 0;             // passive: the contact mechanics alone
+  s.numerics = numerics;
+  return resolve(s);
+}
+
+DoubletEquilibrium measureDoubletEquilibrium(const SceneSpec& spec, double duration_s,
+                                             double window_s) {
+  Simulation sim(spec);
+  DoubletEquilibrium o;
+  const double dt = spec.numerics.dt_s;
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::int64_t n = std::llround(duration_s / dt);
+  const std::int64_t window_from = std::llround((duration_s - window_s) / dt);
+  const std::int64_t every = std::max<std::int64_t>(1, std::llround(5.0 / dt));
+  double sum = 0, iters = 0;
+  int count = 0;
+  for (std::int64_t k = 0; k < n; ++k) {
+    const StepReport r = sim.step();
+    if (!r.ok()) {
+      o.failure = std::string(toString(r.failure));
+      o.reason = r.reason;
+      break;
+    }
+    iters += r.cg.iterations;
+    for (int c = 0; c < sim.cells().numCells(); ++c)
+      o.volume_error_max = std::max(o.volume_error_max, std::abs(sim.geometry().cell_volume[c] -
+                                                                 sim.cells().target_volume[c]) /
+                                                            sim.cells().target_volume[c]);
+    if (sim.steps() >= window_from && sim.steps() % every == 0) {
+      sum += doubletContactAngleDeg(sim.cells(), sim.contacts());
+      ++count;
+    }
+  }
+  o.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  o.theta_c_deg = count ? sum / count : std::nan("");
+  o.theta_c_end_deg = doubletContactAngleDeg(sim.cells(), sim.contacts());
+  o.t_end_s = sim.time();
+  o.steps = sim.steps();
+  o.cg_iters_mean = sim.steps() ? iters / static_cast<double>(sim.steps()) : 0;
+  return o;
+}
+
+}  // namespace activefoam
