@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Error against cost of a study_accuracy run, one point per configuration, the Pareto front
+"""θ_c(t) RMS error against cost of a study_accuracy run, one point per configuration, the Pareto front
 drawn through the configurations no other beats on both (PNG, gnuplot).
 
     bench/plot_study.py STUDY.csv OUT.png [TITLE]
@@ -56,7 +56,7 @@ def main():
             name = f"{tmp}/{knob}.dat"
             with open(name, "w") as out:
                 for r in pts:
-                    err = max(float(r["theta_error_deg"]), 0.01)
+                    err = max(float(r["trajectory_rms_deg"]), 0.01)
                     out.write(f"{float(r['wall_per_sim_hour_s'])} {err} \"{label(r)}\"\n")
             plots.append(f"'{name}' using 1:2 with points pt 7 ps 1.2 lc rgb '{colour}' "
                          f"title '{knob}' noenhanced")
@@ -68,7 +68,7 @@ def main():
         with open(fname, "w") as out:
             for r in front:
                 out.write(f"{float(r['wall_per_sim_hour_s'])} "
-                          f"{max(float(r['theta_error_deg']), 0.01)}\n")
+                          f"{max(float(r['trajectory_rms_deg']), 0.01)}\n")
         if front:
             plots.insert(0, f"'{fname}' using 1:2 with steps lw 2 dt 2 lc rgb '#444444' "
                             f"title 'Pareto front' noenhanced")
@@ -78,7 +78,7 @@ def main():
             f"set output '{png}'",
             f"set title '{title}{subtitle}' noenhanced",
             "set xlabel 'wall time per simulated hour (s, one core)'",
-            "set ylabel '|θ_c − θ_c(reference)| (°)'",
+            "set ylabel 'θ_c(t) RMS error against the reference (°)'",
             "set logscale xy",
             "set grid",
             "set key outside right top",

@@ -26,7 +26,7 @@ DoubletEquilibrium measureDoubletEquilibrium(const SceneSpec& spec, double durat
   const auto t0 = std::chrono::steady_clock::now();
   const std::int64_t n = std::llround(duration_s / dt);
   const std::int64_t window_from = std::llround((duration_s - window_s) / dt);
-  const std::int64_t every = std::max<std::int64_t>(1, std::llround(5.0 / dt));
+  double next_sample_t = 5;
   double sum = 0, iters = 0;
   int count = 0;
   for (std::int64_t k = 0; k < n; ++k) {
@@ -41,9 +41,14 @@ DoubletEquilibrium measureDoubletEquilibrium(const SceneSpec& spec, double durat
       o.volume_error_max = std::max(o.volume_error_max, std::abs(sim.geometry().cell_volume[c] -
                                                                  sim.cells().target_volume[c]) /
                                                             sim.cells().target_volume[c]);
-    if (sim.steps() >= window_from && sim.steps() % every == 0) {
-      sum += doubletContactAngleDeg(sim.cells(), sim.contacts());
-      ++count;
+    if (sim.time() >= next_sample_t - 1e-9 * dt) {  // every 5 s (to within Δt)
+      next_sample_t += 5;
+      const double theta = doubletContactAngleDeg(sim.cells(), sim.contacts());
+      o.theta_c_series_deg.push_back(theta);
+      if (sim.steps() >= window_from) {
+        sum += theta;
+        ++count;
+      }
     }
   }
   o.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
