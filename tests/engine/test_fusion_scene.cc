@@ -102,6 +102,16 @@ TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
   other.duration_s = 500;
   other.sample_every_s = 7;
   EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
+  // Nor are the fusion run's solver settings (a study varies them from the same aggregates);
+  // the mesh is.
+  other = s;
+  other.numerics.dt_s = 0.1;
+  other.numerics.cg_tol = 1e-6;
+  other.numerics.preconditioner = PreconditionerKind::BlockJacobi;
+  other.numerics.contact_quadrature = ContactQuadrature::Centroid;
+  EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
+  other.numerics.triangles_per_cell = s.numerics.triangles_per_cell == 80 ? 320 : 80;
+  EXPECT_NE(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
 
   // A damaged file reads as absent: prepared again, and the file is replaced.
   ASSERT_EQ(std::distance(fs::directory_iterator(dir.path), fs::directory_iterator()), 1);

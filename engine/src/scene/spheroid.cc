@@ -115,6 +115,18 @@ SceneSpec spheroidPrepSpec(const SceneSpec& spec, std::int64_t n_cells, std::uin
   p.scene_params.compact_rate_per_s = spec.scene_params.compact_rate_per_s;
   p.numerics.dt_s = spec.scene_params.prep_dt_s;
   p.numerics.integrator = IntegratorKind::ContactImplicit;
+  // The solver settings are the preparation's own (the defaults): a prepared spheroid is an
+  // initial condition, and runs that differ only in Δt, ε_CG, preconditioner, quadrature or
+  // failure limits (a speed/accuracy study, fidelity presets) start from the same aggregates.
+  // The mesh settings (triangles, remeshing) shape the cells and stay.
+  const NumericsParams d;
+  p.numerics.cg_tol = d.cg_tol;
+  p.numerics.cg_max_iter = d.cg_max_iter;
+  p.numerics.preconditioner = d.preconditioner;
+  p.numerics.contact_quadrature = d.contact_quadrature;
+  p.numerics.max_volume_error = d.max_volume_error;
+  p.numerics.max_penetration_um = d.max_penetration_um;
+  p.numerics.max_oscillating_steps = d.max_oscillating_steps;
   p.duration_s = spec.scene_params.prep_max_s;
   p.sample_every_s = kWindowS;
   p.snapshot_every_s = 0;
