@@ -78,7 +78,7 @@ def main():
             f"set output '{png}'",
             f"set title '{title}{subtitle}' noenhanced",
             "set xlabel 'wall time per simulated hour (s, one core)'",
-            "set ylabel 'θ_c(t) RMS error against the reference (°)'",
+            "set ylabel 'RMS error of the angle trajectory against the reference (°)'",
             "set logscale xy",
             "set grid",
             "set key outside right top",
