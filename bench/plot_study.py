@@ -45,7 +45,10 @@ def main():
     title = sys.argv[3] if len(sys.argv) > 3 else "doublet: error against cost"
     with open(src) as f:
         rows = [r for r in csv.DictReader(f) if r["knob"] != "reference"]
-    failed = [f"{label(r)} ({r['outcome']})" for r in rows if r["outcome"] != "ok"]
+    failed = {}
+    for r in rows:
+        if r["outcome"] != "ok":
+            failed.setdefault(r["outcome"], []).append(label(r))
     ok = [r for r in rows if r["outcome"] == "ok"]
     with tempfile.TemporaryDirectory() as tmp:
         blocks, plots = [], []
@@ -72,11 +75,12 @@ def main():
         if front:
             plots.insert(0, f"'{fname}' using 1:2 with steps lw 2 dt 2 lc rgb '#444444' "
                             f"title 'Pareto front' noenhanced")
-        subtitle = ("; failed: " + ", ".join(failed)) if failed else ""
+        subtitle = "".join(f"\\n{kind}: " + ", ".join(names) for kind, names in failed.items())
+        title = title.replace('"', "'")
         script = [
-            "set terminal pngcairo size 1000,650 enhanced font 'DejaVu Sans,11'",
+            "set terminal pngcairo size 1100,700 enhanced font 'DejaVu Sans,11'",
             f"set output '{png}'",
-            f"set title '{title}{subtitle}' noenhanced",
+            f'set title "{title}{subtitle}" noenhanced',
             "set xlabel 'wall time per simulated hour (s, one core)'",
             "set ylabel 'RMS error of the angle trajectory against the reference (°)'",
             "set logscale xy",
