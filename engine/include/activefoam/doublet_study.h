@@ -25,9 +25,10 @@ struct DoubletEquilibrium {
   std::string reason;
 };
 
-// The doublet spec with the given numerics (cells passive, equal radii; α and the rest at their
-// defaults), resolved.
-SceneSpec doubletStudySpec(const NumericsParams& numerics);
+// The doublet spec with the given numerics (equal radii; α and the rest at their defaults),
+// resolved: passive cells unless pa_reduced = p_a r/2γ > 0, k_AB scaled by k_factor.
+SceneSpec doubletStudySpec(const NumericsParams& numerics, double pa_reduced = 0,
+                           double k_factor = 1);
 
 // Runs `spec` (a doublet) for duration_s, records θ_c every 5 s and averages it over the last
 // window_s.

@@ -9,11 +9,12 @@
 
 namespace activefoam {
 
-SceneSpec doubletStudySpec(const NumericsParams& numerics) {
+SceneSpec doubletStudySpec(const NumericsParams& numerics, double pa_reduced, double k_factor) {
   SceneSpec s;
   s.scene = SceneKind::Doublet;
   s.cells.radius_gamma_k = 0;  // equal radii
-  s.cells.p_a = 0;             // passive: the contact mechanics alone
+  s.cells.p_a = pa_reduced * 2 * s.cells.gamma / s.cells.radius_mean_um;
+  s.cells.k_contact *= k_factor;
   s.numerics = numerics;
   return resolve(s);
 }
