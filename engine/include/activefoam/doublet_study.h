@@ -26,7 +26,8 @@ struct DoubletEquilibrium {
 };
 
 // The doublet spec with the given numerics (equal radii; α and the rest at their defaults),
-// resolved: passive cells unless pa_reduced = p_a r/2γ > 0, k_AB scaled by k_factor.
+// resolved: passive cells unless pa_reduced = p_a r/2γ > 0, k_AB scaled by k_factor, the gap
+// within the contact range h0 of that k_AB.
 SceneSpec doubletStudySpec(const NumericsParams& numerics, double pa_reduced = 0,
                            double k_factor = 1);
 
