@@ -1,0 +1,188 @@
+// Stability map (issue 6): for each integrator, the largest stable Δt on the doublet as a function
+// of the contact stiffness k_AB and of the motility p_a r/2γ, with the failure kind that ends the
+// next larger Δt (blow-up, CG stall, inverted triangles, volume drift, contact oscillation,
+// interpenetration, or `separated`: the cells ended out of contact range).
+//
+// A cell of the map: the α = 0.4375 doublet from a gap of min(50 nm, 0.8 h0), equal radii, run for
+// max(1000 steps, `duration` s of simulated time) at each Δt of the integrator's ladder; "stable"
+// = no failure detected. The largest stable Δt is the largest rung below which every rung was
+// stable. Each run is forked (a blow-up cannot take the study down).
+//
+// Run on the 2-core machine (about 20 minutes):
+//   OMP_NUM_THREADS=1 build/release/bench/study_stability_map docs/study [duration_s]
+// Writes DIR/stability-map.csv (every run) and DIR/stability-map.md.
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "activefoam/doublet_study.h"
+#include "activefoam/simulation.h"
+
+using namespace activefoam;
+
+namespace {
+
+struct Outcome {
+  char failure[64] = "";
+  double t_end = 0, wall = 0;
+  long long steps = 0;
+};
+
+SceneSpec mapSpec(IntegratorKind integrator, double dt, double k_factor, double pa_reduced) {
+  NumericsParams n;
+  n.integrator = integrator;
+  n.dt_s = dt;
+  return doubletStudySpec(n, pa_reduced, k_factor);
+}
+
+Outcome runOne(const SceneSpec& s, double duration) {
+  Outcome o;
+  Simulation sim(s);
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::int64_t n = std::max<std::int64_t>(1000, std::llround(duration / s.numerics.dt_s));
+  for (std::int64_t k = 0; k < n; ++k) {
+    const StepReport r = sim.step();
+    if (!r.ok()) {
+      std::snprintf(o.failure, sizeof o.failure, "%s", std::string(toString(r.failure)).c_str());
+      break;
+    }
+  }
+  o.wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  // Cells that an explicit contact spring has thrown out of range end without contact: not a
+  // stable doublet, whatever the step checks said.
+  if (o.failure[0] == '\0' && sim.contacts().pairs.empty())
+    std::snprintf(o.failure, sizeof o.failure, "separated");
+  o.t_end = sim.time();
+  o.steps = sim.steps();
+  return o;
+}
+
+Outcome runIsolated(const SceneSpec& s, double duration) {
+  int fds[2];
+  if (pipe(fds) != 0) std::exit(1);
+  const pid_t pid = fork();
+  if (pid == 0) {
+    close(fds[0]);
+    const Outcome o = runOne(s, duration);
+    _exit(write(fds[1], &o, sizeof o) == static_cast<ssize_t>(sizeof o) ? 0 : 1);
+  }
+  close(fds[1]);
+  Outcome o;
+  const ssize_t got = read(fds[0], &o, sizeof o);
+  close(fds[0]);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  if (got != static_cast<ssize_t>(sizeof o) || !WIFEXITED(status) || WEXITSTATUS(status)) {
+    o = Outcome{};
+    std::snprintf(o.failure, sizeof o.failure, "crashed");
+  }
+  return o;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    std::fprintf(stderr, "usage: study_stability_map OUT_DIR [duration_s]\n");
+    return 2;
+  }
+  const std::filesystem::path dir = argv[1];
+  const double duration = argc > 2 ? std::atof(argv[2]) : 200;
+  std::filesystem::create_directories(dir);
+  const std::vector<double> k_factors = {0.25, 1, 4};
+  const std::vector<double> pas = {0, 0.33, 1};
+  struct Ladder {
+    IntegratorKind integrator;
+    std::vector<double> dts;
+  };
+  const std::vector<Ladder> ladders = {
+      {IntegratorKind::SemiImplicit, {0.0025, 0.005, 0.01, 0.02, 0.04}},
+      {IntegratorKind::ContactImplicit, {0.1, 0.25, 0.5, 1, 2, 4}}};
+
+  std::ofstream csv(dir / "stability-map.csv");
+  csv << "integrator,k_factor,k_contact,pa_reduced,dt_s,outcome,t_end_s,steps,wall_s\n";
+  struct Cell {
+    double largest = 0;
+    std::string next_failure;
+    double next_dt = 0;
+  };
+  std::vector<std::vector<std::vector<Cell>>> map(
+      ladders.size(),
+      std::vector<std::vector<Cell>>(k_factors.size(), std::vector<Cell>(pas.size())));
+  for (std::size_t li = 0; li < ladders.size(); ++li)
+    for (std::size_t ki = 0; ki < k_factors.size(); ++ki)
+      for (std::size_t pi = 0; pi < pas.size(); ++pi) {
+        Cell& cell = map[li][ki][pi];
+        int failures = 0;
+        bool all_stable = true;
+        for (double dt : ladders[li].dts) {
+          const SceneSpec s = mapSpec(ladders[li].integrator, dt, k_factors[ki], pas[pi]);
+          const Outcome o = runIsolated(s, duration);
+          const bool ok = o.failure[0] == '\0';
+          csv << toString(ladders[li].integrator) << ',' << k_factors[ki] << ','
+              << s.cells.k_contact << ',' << pas[pi] << ',' << dt << ','
+              << (ok ? "stable" : o.failure) << ',' << o.t_end << ',' << o.steps << ',' << o.wall
+              << '\n';
+          csv.flush();
+          std::fprintf(stderr, "%s k×%g pa %g dt %g: %s (t = %g s, %.1f s)\n",
+                       std::string(toString(ladders[li].integrator)).c_str(), k_factors[ki],
+                       pas[pi], dt, ok ? "stable" : o.failure, o.t_end, o.wall);
+          if (ok && all_stable) cell.largest = dt;
+          if (!ok && all_stable) {
+            cell.next_failure = o.failure;
+            cell.next_dt = dt;
+          }
+          all_stable = all_stable && ok;
+          if (!ok && ++failures >= 2) break;  // the trend is clear; larger steps fail too
+        }
+      }
+
+  std::ofstream md(dir / "stability-map.md");
+  const CellParams d;
+  md << "# Stability map: largest stable Δt on the doublet\n\n"
+     << "The α = 0.4375 doublet (equal radii r = " << d.radius_mean_um
+     << " µm, 320 triangles), run for max(1000 steps, " << duration
+     << " s) at each Δt of a ladder, from a gap of min(50 nm, 0.8 h0); stable = no failure "
+        "detected (non-finite, CG not converged, inverted triangle, volume drift, contact "
+        "oscillation, interpenetration) and the cells still in contact at the end (else "
+        "`separated`). Each entry is "
+        "the largest Δt below which every rung ran stable, and in brackets the failure that "
+        "ended the next rung. k_AB in units of the default "
+     << d.k_contact << " nN/µm³; motility as p_a r/2γ (0.33 is the supplement's).\n\n"
+     << "Generated by `OMP_NUM_THREADS=1 build/release/bench/study_stability_map " << dir.string()
+     << " " << duration << "`; every run in stability-map.csv.\n\n";
+  for (std::size_t li = 0; li < ladders.size(); ++li) {
+    md << "## " << toString(ladders[li].integrator) << " (ladder:";
+    for (double dt : ladders[li].dts) md << ' ' << dt;
+    md << " s)\n\n| k_AB × | ";
+    for (double pa : pas) md << "p_a r/2γ = " << pa << " | ";
+    md << "\n|---|";
+    for (std::size_t pi = 0; pi < pas.size(); ++pi) md << "---|";
+    md << '\n';
+    for (std::size_t ki = 0; ki < k_factors.size(); ++ki) {
+      md << "| " << k_factors[ki] << " | ";
+      for (std::size_t pi = 0; pi < pas.size(); ++pi) {
+        const Cell& c = map[li][ki][pi];
+        if (c.largest > 0)
+          md << c.largest << " s";
+        else
+          md << "< " << ladders[li].dts.front() << " s";
+        if (!c.next_failure.empty()) md << " (" << c.next_failure << " at " << c.next_dt << " s)";
+        md << " | ";
+      }
+      md << '\n';
+    }
+    md << '\n';
+  }
+  return 0;
+}
