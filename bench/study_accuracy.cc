@@ -17,10 +17,6 @@
 //   python3 bench/plot_study.py docs/study/doublet.csv docs/study/doublet-pareto.png
 // Writes DIR/doublet.csv (one row per configuration) and DIR/doublet.md (the table, the Pareto
 // front marked).
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -34,6 +30,7 @@
 #include <vector>
 
 #include "activefoam/doublet_study.h"
+#include "forked.h"
 
 using namespace activefoam;
 
@@ -95,31 +92,11 @@ Outcome runConfig(const Config& c, double duration) {
   return o;
 }
 
-// Runs one configuration in a child process: its own peak RSS, and a crash cannot take the
-// study down.
 Row runIsolated(const Config& c, double duration) {
   Row row{c, {}, 0, false};
-  int fds[2];
-  if (pipe(fds) != 0) {
-    std::perror("pipe");
-    std::exit(1);
-  }
-  const pid_t pid = fork();
-  if (pid == 0) {
-    close(fds[0]);
-    const Outcome o = runConfig(c, duration);
-    const ssize_t w = write(fds[1], &o, sizeof o);
-    _exit(w == static_cast<ssize_t>(sizeof o) ? 0 : 1);
-  }
-  close(fds[1]);
-  const ssize_t got = read(fds[0], &row.o, sizeof row.o);
-  close(fds[0]);
-  int status = 0;
-  rusage ru{};
-  wait4(pid, &status, 0, &ru);
-  row.rss_mb = static_cast<double>(ru.ru_maxrss) / 1024.0;
-  if (got != static_cast<ssize_t>(sizeof row.o) || !WIFEXITED(status) || WEXITSTATUS(status)) {
-    row.o = Outcome{};
+  if (auto o = bench::runForked([&] { return runConfig(c, duration); }, &row.rss_mb)) {
+    row.o = *o;
+  } else {
     std::snprintf(row.o.failure, sizeof row.o.failure, "crashed");
     row.o.theta = row.o.theta_end = std::nan("");
   }

@@ -11,9 +11,6 @@
 // Run on the 2-core machine (about 20 minutes):
 //   OMP_NUM_THREADS=1 build/release/bench/study_stability_map docs/study [duration_s]
 // Writes DIR/stability-map.csv (every run) and DIR/stability-map.md.
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -27,6 +24,7 @@
 
 #include "activefoam/doublet_study.h"
 #include "activefoam/simulation.h"
+#include "forked.h"
 
 using namespace activefoam;
 
@@ -68,25 +66,10 @@ Outcome runOne(const SceneSpec& s, double duration) {
 }
 
 Outcome runIsolated(const SceneSpec& s, double duration) {
-  int fds[2];
-  if (pipe(fds) != 0) std::exit(1);
-  const pid_t pid = fork();
-  if (pid == 0) {
-    close(fds[0]);
-    const Outcome o = runOne(s, duration);
-    _exit(write(fds[1], &o, sizeof o) == static_cast<ssize_t>(sizeof o) ? 0 : 1);
-  }
-  close(fds[1]);
-  Outcome o;
-  const ssize_t got = read(fds[0], &o, sizeof o);
-  close(fds[0]);
-  int status = 0;
-  waitpid(pid, &status, 0);
-  if (got != static_cast<ssize_t>(sizeof o) || !WIFEXITED(status) || WEXITSTATUS(status)) {
-    o = Outcome{};
-    std::snprintf(o.failure, sizeof o.failure, "crashed");
-  }
-  return o;
+  if (auto o = bench::runForked([&] { return runOne(s, duration); })) return *o;
+  Outcome crashed;
+  std::snprintf(crashed.failure, sizeof crashed.failure, "crashed");
+  return crashed;
 }
 
 }  // namespace

@@ -89,6 +89,23 @@ void addRange(const std::string& name, const std::string& v,
   *out->Add() = r;
 }
 
+// The filters /jobs and /results share (ListJobs and QueryResults have the same fields for
+// them); false when `name` is not one of them.
+template <class Request>
+bool commonFilter(const std::string& name, const std::string& v, Request& req) {
+  if (name == "scene")
+    req.set_scene(v);
+  else if (name == "tag")
+    req.set_tag(v);
+  else if (name == "sweep")
+    req.set_sweep_id(v);
+  else if (name.rfind("param.", 0) == 0)
+    addRange(name, v, req.mutable_params());
+  else
+    return false;
+  return true;
+}
+
 // Splits "/path?a=1&b=2" into the path and decoded (name, value) pairs.
 std::string splitQuery(const std::string& target,
                        std::vector<std::pair<std::string, std::string>>& query) {
@@ -185,6 +202,7 @@ std::string HttpEndpoint::handle(const std::string& target, int& code, std::stri
       v1::ListJobsRequest req;
       req.set_page_size(1000);
       for (const auto& [name, v] : query) {
+        if (commonFilter(name, v, req)) continue;
         if (name == "state") {
           for (const std::string& st : splitList(v)) {
             std::string upper = "JOB_STATE_";
@@ -197,18 +215,10 @@ std::string HttpEndpoint::handle(const std::string& target, int& code, std::stri
                                        "cancelled");
             req.add_states(js);
           }
-        } else if (name == "tag") {
-          req.set_tag(v);
-        } else if (name == "sweep") {
-          req.set_sweep_id(v);
-        } else if (name == "scene") {
-          req.set_scene(v);
         } else if (name == "page_size") {
           req.set_page_size(count(name, v, 1000));
         } else if (name == "page_token") {
           req.set_page_token(v);
-        } else if (name.rfind("param.", 0) == 0) {
-          addRange(name, v, req.mutable_params());
         } else {
           throw badQuery(name,
                          "unknown (known: state, tag, sweep, scene, param.KEY=MIN:MAX, "
@@ -221,18 +231,11 @@ std::string HttpEndpoint::handle(const std::string& target, int& code, std::stri
       // QueryResults: scene, tag, sweep, param.KEY=MIN:MAX, names (comma-separated), limit.
       v1::QueryResultsRequest req;
       for (const auto& [name, v] : query) {
-        if (name == "scene") {
-          req.set_scene(v);
-        } else if (name == "tag") {
-          req.set_tag(v);
-        } else if (name == "sweep") {
-          req.set_sweep_id(v);
-        } else if (name == "names") {
+        if (commonFilter(name, v, req)) continue;
+        if (name == "names") {
           for (const std::string& n : splitList(v)) req.add_names(n);
         } else if (name == "limit") {
           req.set_limit(count(name, v, 100000));
-        } else if (name.rfind("param.", 0) == 0) {
-          addRange(name, v, req.mutable_params());
         } else {
           throw badQuery(name,
                          "unknown (known: scene, tag, sweep, param.KEY=MIN:MAX, names, "
