@@ -61,12 +61,10 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
 // caught).
 // Degenerate triangles (zero normal) never face anything. Runs in parallel (OpenMP) over
 // overlapping cell pairs; the result does not depend on the thread count.
-// facing_only = false drops the facing test: the friction matrix's pattern holds pairs that may
-// come to face each other within the skin (rim triangles turn as a contact spreads).
 std::vector<std::pair<int, int>> findContactCandidates(const Eigen::Matrix3Xd& x,
                                                        const std::vector<Tri>& tri,
                                                        const std::vector<int>& tri_cell,
-                                                       double margin, bool facing_only = true);
+                                                       double margin);
 
 // The O(T²) oracle with the same contract.
 std::vector<std::pair<int, int>> findContactCandidatesBruteForce(const Eigen::Matrix3Xd& x,

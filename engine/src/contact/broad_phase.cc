@@ -105,7 +105,7 @@ std::vector<std::pair<int, int>> findContactCandidatesBruteForce(const Eigen::Ma
 std::vector<std::pair<int, int>> findContactCandidates(const Eigen::Matrix3Xd& x,
                                                        const std::vector<Tri>& tri,
                                                        const std::vector<int>& tri_cell,
-                                                       double margin, bool facing_only) {
+                                                       double margin) {
   const int T = static_cast<int>(tri.size());
   if (T < 2) return {};
   const TriData d = triangleData(x, tri, tri_cell, margin);
@@ -193,7 +193,7 @@ std::vector<std::pair<int, int>> findContactCandidates(const Eigen::Matrix3Xd& x
       if (A.empty()) continue;
       gather(c2, B);
       auto test = [&](int s, int t) {
-        if (overlaps(d.box[s], d.box[t]) && (!facing_only || d.normal[s].dot(d.normal[t]) < 0))
+        if (overlaps(d.box[s], d.box[t]) && d.normal[s].dot(d.normal[t]) < 0)
           local.push_back(packPair(s, t));
       };
       // Two-list sweep: every pair whose intervals overlap is visited exactly once, from the

@@ -70,9 +70,7 @@ SolveStats LinearSolver::pcg(const Multiply& mul, const Eigen::VectorXd& b, Eige
 }
 
 SolveStats LinearSolver::solve(const BlockMatrix& a, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
-  inv_.resize(a.numBlocks());
-  for (int i = 0; i < a.numBlocks(); ++i) setPreconditioner(i, a.diagonalBlock(i));
-  return pcg([&](const double* in, double* out) { a.multiply(in, out); }, b, x);
+  return solve([&](const double* in, double* out) { a.multiply(in, out); }, a, b, x);
 }
 
 SolveStats LinearSolver::solve(const Product& a, const BlockMatrix& diagonal,
