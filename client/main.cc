@@ -92,6 +92,29 @@ int rpcError(const grpc::Status& s, const std::string& what) {
   }
 }
 
+// "preset draft (Δt 0.5 s, 320 triangles, ε_CG 0.001), chosen for the accuracy target contact
+// angle ≤ 2°" from a job's resolved spec.
+std::string fidelityText(const std::string& spec_json) {
+  try {
+    const nlohmann::json spec = nlohmann::json::parse(spec_json);
+    const nlohmann::json& n = spec.at("numerics");
+    std::ostringstream os;
+    os << "preset " << n.value("preset", std::string("?")) << " (" << n.value("integrator", "")
+       << ", Δt " << n.value("dt_s", 0.0) << " s, " << n.value("triangles_per_cell", 0)
+       << " triangles, ε_CG " << n.value("cg_tol", 0.0) << ")";
+    // Unset targets are null in a resolved spec.
+    const nlohmann::json a = spec.value("accuracy", nlohmann::json::object());
+    const bool angle = a.contains("contact_angle_deg") && a["contact_angle_deg"].is_number();
+    const bool path = a.contains("trajectory_deg") && a["trajectory_deg"].is_number();
+    if (angle || path) os << ", chosen for the accuracy target";
+    if (angle) os << " contact angle ≤ " << a["contact_angle_deg"].get<double>() << "°";
+    if (path) os << " θ(t) RMS ≤ " << a["trajectory_deg"].get<double>() << "°";
+    return os.str();
+  } catch (const std::exception&) {
+    return "?";
+  }
+}
+
 std::string stateName(v1::JobState s) {
   std::string n = v1::JobState_Name(s);
   n = n.substr(std::string("JOB_STATE_").size());
@@ -367,6 +390,16 @@ int main(int argc, char** argv) {
   submit->add_option("SPEC", spec_file, "spec file (TOML or JSON, DESIGN.md §10; - = stdin)");
   submit->add_option("--scene", scene, "scene (cell|doublet|spheroid|fusion) instead of a file");
   submit->add_option("--set", settings, "override a key: --set cells.alpha=0.5 (repeatable)");
+  std::string preset;
+  std::vector<std::string> accuracy;
+  const char* kPresetHelp =
+      "fidelity preset: draft | standard (the default) | reference (docs/study/presets.md); "
+      "--set numerics.* keys win over it";
+  const char* kAccuracyHelp =
+      "accuracy target instead of numerics, e.g. --accuracy contact_angle_deg=2 or "
+      "trajectory_deg=5: foamd runs the cheapest preset that promises it (repeatable)";
+  submit->add_option("--preset", preset, kPresetHelp);
+  submit->add_option("--accuracy", accuracy, kAccuracyHelp);
   submit->add_option("--priority", priority, "higher runs first");
   submit->add_option("--tag", tag, "free text to filter on");
   submit->add_option("--idempotency-key", idem,
@@ -422,6 +455,8 @@ int main(int argc, char** argv) {
   sweep->add_option("SPEC", spec_file, "base spec file");
   sweep->add_option("--scene", scene);
   sweep->add_option("--set", settings);
+  sweep->add_option("--preset", preset, kPresetHelp);
+  sweep->add_option("--accuracy", accuracy, kAccuracyHelp);
   sweep->add_option("--grid", grid, "key=v1,v2,... (repeatable; cartesian product)");
   sweep->add_option("--seeds", seeds, "seeds (each parameter set runs once per seed)")
       ->delimiter(',');
@@ -445,6 +480,10 @@ int main(int argc, char** argv) {
     return kUsage;
   }
   conn.connect();
+
+  // --preset and --accuracy are settings like --set ones (the spec's order does not matter).
+  if (!preset.empty()) settings.insert(settings.begin(), "numerics.preset=" + preset);
+  for (const auto& a : accuracy) settings.insert(settings.begin(), "accuracy." + a);
 
   auto specText = [&]() -> std::string {
     if (spec_file.empty()) return "";
@@ -542,6 +581,7 @@ int main(int argc, char** argv) {
                 << "finished:  " << j.finished_utc() << "\n"
                 << "attempts:  " << j.attempts() << "\n"
                 << "engine:    " << j.engine_version() << "\n";
+      std::cout << "fidelity:  " << fidelityText(j.spec_json()) << "\n";
       if (!j.reason().empty()) std::cout << "reason:    " << j.reason() << "\n";
       if (!j.tag().empty()) std::cout << "tag:       " << j.tag() << "\n";
       if (!j.sweep_id().empty()) std::cout << "sweep:     " << j.sweep_id() << "\n";

@@ -316,6 +316,9 @@ int main(int argc, char** argv) {
     for (const SpecError& e : errors) std::cerr << "foam-run: invalid spec: " << e.str() << "\n";
     return kExitUsage;
   }
+  // foamd refuses these; foam-run runs them (measuring where methods fail is a study's job).
+  for (const SpecError& e : measuredUnstable(spec))
+    std::cerr << "foam-run: warning: " << e.str() << "; running anyway\n";
 
   // ---- the output folder
   const fs::path dir = args.out;

@@ -258,8 +258,10 @@ class FoamService final : public v1::Foam::CallbackService {
           resp->set_created(created);
           if (auto j = store_.getJob(id)) *resp->mutable_job() = *j;
           if (created) {
-            spdlog::info("job {}: submitted ({}, seed {}, priority {})", id,
-                         toString(job.spec.scene), job.spec.seed, job.priority);
+            spdlog::info("job {}: submitted ({}, seed {}, priority {}, preset {}{})", id,
+                         toString(job.spec.scene), job.spec.seed, job.priority,
+                         toString(job.spec.numerics.preset),
+                         job.spec.accuracy.any() ? " chosen for its accuracy target" : "");
             pool_.wake();
           }
           return Status::OK;

@@ -107,6 +107,7 @@ std::vector<SpecError> applyTyped(const v1::SceneSpec& typed, SceneSpec& spec, b
   }
   if (typed.has_cells()) applyMessage(typed.cells(), "cells.", spec, errors);
   if (typed.has_numerics()) applyMessage(typed.numerics(), "numerics.", spec, errors);
+  if (typed.has_accuracy()) applyMessage(typed.accuracy(), "accuracy.", spec, errors);
   if (scene_msg) applyMessage(*scene_msg, "scene.", spec, errors);
   return errors;
 }
@@ -162,6 +163,12 @@ ConvertResult convertSpec(const v1::SceneSpec& typed, std::string_view spec_text
     out.errors = ready.errors;
     return out;
   }
+  // A job the stability study says fails would cost its user a queue slot and a failed run:
+  // refused here with the measured limit (foam-run, the studies' tool, only warns).
+  if (auto unstable = measuredUnstable(*ready.spec); !unstable.empty()) {
+    out.errors = unstable;
+    return out;
+  }
   if (!sceneAvailable(ready.spec->scene)) {
     std::string avail;
     for (SceneKind k :
@@ -210,6 +217,8 @@ v1::SceneSpec toProto(const SceneSpec& spec) {
         m = out.mutable_cells();
       else if (table == "numerics")
         m = out.mutable_numerics();
+      else if (table == "accuracy")
+        m = out.mutable_accuracy();
       else
         m = scene_msg;
     }

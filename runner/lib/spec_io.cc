@@ -29,7 +29,8 @@ std::string join(std::string_view prefix, std::string_view key) {
   return prefix.empty() ? std::string(key) : std::string(prefix) + "." + std::string(key);
 }
 
-// A table of keys: "cells", "numerics", "scene" (every key "<group>.<leaf>" lives in one).
+// A table of keys: "cells", "numerics", "scene", "accuracy" (every key "<group>.<leaf>" lives in
+// one).
 bool isGroup(std::string_view key) {
   for (const SpecField& f : specFields())
     if (f.key.size() > key.size() && f.key.compare(0, key.size(), key) == 0 &&
@@ -45,9 +46,9 @@ std::string expected(const SpecField& f) {
 
 SpecError unknownTable(const std::string& key) {
   std::string msg = "unknown table '" + key + "'";
-  for (std::string_view g : {"cells", "numerics", "scene"})
+  for (std::string_view g : {"cells", "numerics", "scene", "accuracy"})
     if (editDistance(g, key) <= 2) msg += " (did you mean [" + std::string(g) + "]?)";
-  msg += "; the tables are [cells], [numerics], [scene]";
+  msg += "; the tables are [cells], [numerics], [scene], [accuracy]";
   return {key, msg};
 }
 

@@ -1,6 +1,8 @@
 // Two cells in contact: Young–Dupré contact angle, conservation, stability of the integrators.
 #include <cmath>
 #include <iostream>
+#include <set>
+#include <string_view>
 
 #include <gtest/gtest.h>
 
@@ -166,5 +168,53 @@ TEST(Doublet, SemiImplicitIsStableWithASmallEnoughStep) {
     const StepReport r = sim.step();
     ASSERT_TRUE(r.ok()) << r.reason;
   }
+  EXPECT_GT(sim.contacts().pairs.size(), 0u);
+}
+
+TEST(Doublet, TermsWhoseParametersVanishAreNotBuilt) {
+  auto terms = [](const SceneSpec& s) {
+    const Simulation sim(s);
+    const std::vector<std::string_view> n = sim.termNames();
+    return std::set<std::string_view>(n.begin(), n.end());
+  };
+  SceneSpec s = doubletSpec(0.4375);  // passive: p_a = 0
+  EXPECT_FALSE(terms(s).count("active_migration"));
+  EXPECT_TRUE(terms(s).count("contact_adhesion"));
+  s.cells.p_a = 0.0372;
+  EXPECT_TRUE(terms(s).count("active_migration"));
+  // Without friction the friction term is built only where it carries the contact-implicit
+  // stiffness Δt K_c.
+  s.cells.xi = 0;
+  s.cells.xi_normal = 0.0;
+  s.cells.xi_tangential = 0.0;
+  EXPECT_TRUE(terms(s).count("contact_friction"));
+  s.numerics.integrator = IntegratorKind::SemiImplicit;
+  EXPECT_FALSE(terms(s).count("contact_friction"));
+  s.cells.xi_tangential = 0.1;
+  EXPECT_TRUE(terms(s).count("contact_friction"));
+  EXPECT_FALSE(terms(cellSpec()).count("contact_adhesion"));  // one cell: no contact terms
+}
+
+TEST(Doublet, ContactsAfterEveryStepAreThoseOfTheFinalMeshes) {
+  // A step detects contacts once, after any remesh of that step: the list it leaves must be the
+  // one a fresh detection on the final meshes finds, remesh steps included.
+  SceneSpec s = doubletSpec(0.4375);
+  s.numerics.remesh_every_s = 10 * s.numerics.dt_s;  // often, while the junction opens
+  Simulation sim(s);
+  const ContactLaw law{s.cells.k_contact, contactRangeH0(s.cells)};
+  int remesh_steps = 0;
+  for (int k = 0; k < 2000; ++k) {
+    const StepReport r = sim.step();
+    ASSERT_TRUE(r.ok()) << r.reason;
+    remesh_steps += r.remesh_ops > 0;
+    ContactList fresh;
+    detectContacts(sim.cells(), sim.geometry(), law, s.numerics.contact_quadrature, fresh);
+    ASSERT_EQ(fresh.pairs.size(), sim.contacts().pairs.size()) << "step " << k;
+    for (std::size_t i = 0; i < fresh.pairs.size(); ++i) {
+      ASSERT_EQ(fresh.pairs[i].ta, sim.contacts().pairs[i].ta) << "step " << k;
+      ASSERT_EQ(fresh.pairs[i].tb, sim.contacts().pairs[i].tb) << "step " << k;
+    }
+  }
+  EXPECT_GT(remesh_steps, 0);
   EXPECT_GT(sim.contacts().pairs.size(), 0u);
 }

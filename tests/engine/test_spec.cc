@@ -406,6 +406,137 @@ TEST(Spec, EnumNamesAreTheChoices) {
   EXPECT_EQ(toString(IntegratorKind::SemiImplicit), "semi-implicit");
   EXPECT_EQ(toString(PreconditionerKind::BlockJacobi), "block-jacobi");
   EXPECT_EQ(toString(ContactQuadrature::Dunavant7), "dunavant7");
+  EXPECT_EQ(toString(FidelityPreset::Reference), "reference");
+}
+
+// ---- fidelity presets and accuracy targets (issue 6) -------------------------------------------
+
+TEST(SpecPresets, TheDefaultsAreTheStandardPreset) {
+  NumericsParams n;
+  n.dt_s = 7;
+  n.triangles_per_cell = 80;
+  applyPreset(n, FidelityPreset::Standard);
+  EXPECT_EQ(n, NumericsParams{});
+  EXPECT_EQ(SceneSpec{}.numerics.preset, FidelityPreset::Standard);
+}
+
+TEST(SpecPresets, CheapestFirstAndEachBuysAccuracy) {
+  const auto& p = fidelityPresets();
+  ASSERT_EQ(p.size(), 3u);
+  EXPECT_EQ(p[0].preset, FidelityPreset::Draft);
+  EXPECT_EQ(p[2].preset, FidelityPreset::Reference);
+  for (std::size_t k = 1; k < p.size(); ++k) {
+    EXPECT_GT(p[k].doublet_wall_per_sim_hour_s, p[k - 1].doublet_wall_per_sim_hour_s);
+    EXPECT_LE(p[k].trajectory_error_deg, p[k - 1].trajectory_error_deg);
+    EXPECT_LE(p[k].contact_angle_error_deg, p[k - 1].contact_angle_error_deg);
+  }
+}
+
+TEST(SpecPresets, ExplicitKeysWinInWhateverOrderTheyArrive) {
+  SceneSpec a, b;
+  ASSERT_EQ(setField(a, "numerics.preset", std::string("reference")), std::nullopt);
+  ASSERT_EQ(setField(a, "numerics.dt_s", 0.25), std::nullopt);
+  ASSERT_EQ(setField(b, "numerics.dt_s", 0.25), std::nullopt);
+  ASSERT_EQ(setField(b, "numerics.preset", std::string("reference")), std::nullopt);
+  for (const SceneSpec& s : {a, b}) {
+    EXPECT_EQ(s.numerics.preset, FidelityPreset::Reference);
+    EXPECT_EQ(s.numerics.dt_s, 0.25);
+    EXPECT_EQ(s.numerics.triangles_per_cell, 1280);
+  }
+  SceneSpec d;
+  ASSERT_EQ(setField(d, "numerics.preset", std::string("draft")), std::nullopt);
+  EXPECT_EQ(d.numerics.dt_s, presetInfo(FidelityPreset::Draft).dt_s);
+  EXPECT_EQ(d.numerics.triangles_per_cell, 320);
+  EXPECT_TRUE(validate(d).empty()) << joined(validate(d));
+}
+
+TEST(SpecPresets, AnAccuracyTargetPicksTheCheapestPresetThatMeetsIt) {
+  auto pick = [](std::optional<double> angle, std::optional<double> trajectory) {
+    SceneSpec s;
+    if (angle) {
+      EXPECT_EQ(setField(s, "accuracy.contact_angle_deg", *angle), std::nullopt);
+    }
+    if (trajectory) {
+      EXPECT_EQ(setField(s, "accuracy.trajectory_deg", *trajectory), std::nullopt);
+    }
+    EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+    return resolve(s);
+  };
+  const auto& draft = presetInfo(FidelityPreset::Draft);
+  const auto& standard = presetInfo(FidelityPreset::Standard);
+  const auto& reference = presetInfo(FidelityPreset::Reference);
+  EXPECT_EQ(pick(draft.contact_angle_error_deg + 1, {}).numerics.preset, FidelityPreset::Draft);
+  EXPECT_EQ(pick({}, standard.trajectory_error_deg).numerics.preset, FidelityPreset::Standard);
+  const SceneSpec r = pick(reference.contact_angle_error_deg, standard.trajectory_error_deg);
+  EXPECT_EQ(r.numerics.preset, FidelityPreset::Reference);
+  EXPECT_EQ(r.numerics.triangles_per_cell, reference.triangles_per_cell);
+  EXPECT_EQ(r.numerics.dt_s, reference.dt_s);
+  EXPECT_EQ(resolve(r), r);  // idempotent
+  // The choice is recorded: the resolved spec, read back key by key, validates and runs the same.
+  SceneSpec back;
+  for (const SpecField& f : specFields())
+    if (const auto v = getField(r, f.key)) {
+      ASSERT_EQ(setField(back, f.key, *v), std::nullopt);
+    }
+  EXPECT_TRUE(validate(back).empty()) << joined(validate(back));
+  EXPECT_EQ(resolve(back), r);
+}
+
+TEST(SpecPresets, UnreachableTargetsAndConflictingNumericsAreErrorsNamingTheKey) {
+  {
+    SceneSpec s;
+    ASSERT_EQ(setField(s, "accuracy.trajectory_deg", 0.01), std::nullopt);
+    const auto errors = validate(s);
+    ASSERT_TRUE(hasErrorFor(errors, "accuracy.trajectory_deg")) << joined(errors);
+    EXPECT_NE(errors[0].message.find("allowed ["), std::string::npos) << errors[0].message;
+  }
+  {
+    SceneSpec s;  // the target picks draft (Δt 0.5 s); Δt 0.1 s given as well
+    ASSERT_EQ(setField(s, "accuracy.contact_angle_deg", 5.0), std::nullopt);
+    ASSERT_EQ(setField(s, "numerics.dt_s", 0.1), std::nullopt);
+    const auto errors = validate(s);
+    ASSERT_TRUE(hasErrorFor(errors, "numerics.dt_s")) << joined(errors);
+    EXPECT_NE(errors[0].message.find("'draft'"), std::string::npos) << errors[0].message;
+  }
+  {
+    SceneSpec s;  // an explicit preset other than the target's choice
+    ASSERT_EQ(setField(s, "accuracy.trajectory_deg", 3.0), std::nullopt);
+    ASSERT_EQ(setField(s, "numerics.preset", std::string("draft")), std::nullopt);
+    EXPECT_TRUE(hasErrorFor(validate(s), "numerics.preset")) << joined(validate(s));
+  }
+  {
+    SceneSpec s;  // explicit values that agree with the choice are fine
+    ASSERT_EQ(setField(s, "accuracy.contact_angle_deg", 5.0), std::nullopt);
+    ASSERT_EQ(setField(s, "numerics.dt_s", presetInfo(FidelityPreset::Draft).dt_s), std::nullopt);
+    EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+  }
+}
+
+TEST(SpecPresets, MeasuredUnstableSettingsNameTheTimeStepAndItsLimit) {
+  SceneSpec s;
+  s.scene = SceneKind::Doublet;
+  s.numerics.integrator = IntegratorKind::SemiImplicit;
+  auto e = measuredUnstable(s);  // Δt 0.1 s
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_EQ(e[0].field, "numerics.dt_s");
+  s.numerics.dt_s = 0.005;
+  EXPECT_TRUE(measuredUnstable(s).empty());
+  s.cells.k_contact *= 4;  // the explicit spring's limit scales like 1/k_AB
+  EXPECT_EQ(measuredUnstable(s).size(), 1u);
+  s.cells.k_contact /= 4;
+  s.numerics.integrator = IntegratorKind::ContactImplicit;
+  for (const PresetInfo& p : fidelityPresets()) {
+    applyPreset(s.numerics, p.preset);
+    EXPECT_TRUE(measuredUnstable(s).empty()) << toString(p.preset);  // motile doublet
+  }
+  s.numerics.dt_s = 1;
+  EXPECT_EQ(measuredUnstable(s).size(), 1u);  // motile
+  s.cells.p_a = 0;
+  s.numerics.triangles_per_cell = 320;
+  EXPECT_TRUE(measuredUnstable(s).empty());
+  s.scene = SceneKind::Cell;  // no contacts: none of these limits
+  s.numerics.dt_s = 5;
+  EXPECT_TRUE(measuredUnstable(s).empty());
 }
 
 }  // namespace

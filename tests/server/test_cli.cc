@@ -155,6 +155,45 @@ TEST(Cli, SubmitWaitThenResultsJson) {
   fs::remove_all(dir);
 }
 
+TEST(Cli, PresetsAndAccuracyTargetsAreRecordedAndUnstableStepsRefused) {
+  const fs::path dir = tempDir();
+  Foamd d(dir / "foamd.db", freePort());
+  const std::string base = d.foam() +
+                           " submit --scene doublet --set duration_s=5 --set sample_every_s=2.5"
+                           " --set snapshot_every_s=0 --set cells.p_a=0";
+  Proc r;
+  for (int i = 0; i < 50; ++i) {  // the server may still be starting
+    r = sh(base + " --accuracy contact_angle_deg=2 --wait 2>/dev/null");
+    if (r.rc != 3) break;
+    std::this_thread::sleep_for(100ms);
+  }
+  ASSERT_EQ(r.rc, 0) << r.out;
+  Proc show = sh(d.foam() + " show " + firstLine(r.out));
+  EXPECT_NE(show.out.find("fidelity:  preset draft (contact-implicit, Δt 0.5 s, 320 triangles"),
+            std::string::npos)
+      << show.out;
+  EXPECT_NE(show.out.find("chosen for the accuracy target contact angle ≤ 2°"), std::string::npos)
+      << show.out;
+
+  r = sh(base + " --preset reference --set numerics.triangles_per_cell=80 2>/dev/null");
+  ASSERT_EQ(r.rc, 0) << r.out;
+  show = sh(d.foam() + " show " + firstLine(r.out));
+  EXPECT_NE(show.out.find("preset reference (contact-implicit, Δt 0.1 s, 80 triangles"),
+            std::string::npos)
+      << show.out;
+
+  // Semi-implicit at the default Δt: the stability study saw it fail; refused, naming the key.
+  r = sh(base + " --set numerics.integrator=semi-implicit 2>&1");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("numerics.dt_s"), std::string::npos) << r.out;
+  // A target no preset promises.
+  r = sh(base + " --accuracy trajectory_deg=0.01 2>&1");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("accuracy.trajectory_deg"), std::string::npos) << r.out;
+  d.stop(SIGTERM);
+  fs::remove_all(dir);
+}
+
 // A small fusion job through foamd: fits and fusion observables in its results, the prepared
 // spheroids cached next to the database, `foam plot` draws θ(t) as a PNG and `foam export`
 // writes the snapshots for ParaView.

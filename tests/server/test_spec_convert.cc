@@ -105,3 +105,60 @@ TEST(SpecConvert, MissingSceneAndUnavailableSceneNameTheSceneKey) {
     EXPECT_NE(r.errors[0].message.find("not available"), std::string::npos);
   }
 }
+
+TEST(SpecConvert, AnAccuracyTargetPicksAPresetAndTheStoredSpecRecordsIt) {
+  v1::SceneSpec m;
+  m.mutable_doublet();
+  m.set_duration_s(10);
+  m.set_sample_every_s(1);
+  m.mutable_accuracy()->set_contact_angle_deg(2);
+  const ConvertResult r = convertSpec(m);
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_EQ(r.spec->numerics.preset, FidelityPreset::Draft);
+  EXPECT_EQ(r.spec->numerics.dt_s, presetInfo(FidelityPreset::Draft).dt_s);
+  const v1::SceneSpec stored = toProto(*r.spec);
+  EXPECT_EQ(stored.numerics().preset(), v1::FIDELITY_PRESET_DRAFT);
+  EXPECT_EQ(stored.accuracy().contact_angle_deg(), 2);
+  const ConvertResult again = convertSpec(stored);  // a re-queued job reads it back
+  ASSERT_TRUE(again.ok()) << errorText(again.errors);
+  EXPECT_EQ(*again.spec, *r.spec);
+
+  v1::SceneSpec p;  // a preset by name, one key of it overridden by a setting
+  p.mutable_doublet();
+  p.set_duration_s(10);
+  p.set_sample_every_s(1);
+  p.mutable_numerics()->set_preset(v1::FIDELITY_PRESET_REFERENCE);
+  const ConvertResult ref = convertSpec(p, "", {"numerics.dt_s=0.2"});
+  ASSERT_TRUE(ref.ok()) << errorText(ref.errors);
+  EXPECT_EQ(ref.spec->numerics.triangles_per_cell, 1280);
+  EXPECT_EQ(ref.spec->numerics.dt_s, 0.2);
+
+  m.mutable_accuracy()->set_trajectory_deg(0.01);  // finer than any preset
+  const ConvertResult bad = convertSpec(m);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.errors[0].field, "accuracy.trajectory_deg");
+}
+
+TEST(SpecConvert, SettingsTheStabilityStudyMeasuredToFailAreRefusedNamingTheLimit) {
+  v1::SceneSpec m;
+  m.mutable_doublet();
+  m.set_duration_s(10);
+  m.set_sample_every_s(1);
+  m.mutable_numerics()->set_integrator(v1::INTEGRATOR_SEMI_IMPLICIT);
+  ConvertResult r = convertSpec(m);  // Δt 0.1 s: the explicit contact spring fails at 10 ms
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.errors[0].field, "numerics.dt_s");
+  EXPECT_NE(r.errors[0].message.find("allowed (0, 0.01) s"), std::string::npos)
+      << r.errors[0].message;
+  m.mutable_numerics()->set_dt_s(0.005);
+  r = convertSpec(m);
+  EXPECT_TRUE(r.ok()) << errorText(r.errors);
+  m.mutable_numerics()->set_integrator(v1::INTEGRATOR_CONTACT_IMPLICIT);
+  m.mutable_numerics()->set_dt_s(1);  // motile by default: contact-oscillation from 1 s
+  r = convertSpec(m);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.errors[0].field, "numerics.dt_s");
+  m.mutable_cells()->set_p_a(0);
+  r = convertSpec(m);
+  EXPECT_TRUE(r.ok()) << errorText(r.errors);
+}

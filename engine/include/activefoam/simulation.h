@@ -72,6 +72,13 @@ class Simulation {
   double pressure(int c) const { return pressure_->pressure(cells_, geo_, c); }
   const PhaseTimes& phaseTimes() const { return times_; }
   std::int64_t remeshOps() const { return remesh_ops_; }
+  // The force terms built for this spec, in evaluation order (terms whose parameters vanish are
+  // not built).
+  std::vector<std::string_view> termNames() const {
+    std::vector<std::string_view> names;
+    for (const auto& t : terms_) names.push_back(t->name());
+    return names;
+  }
 
   // Pieces of a step, exposed for tests and benchmarks. Geometry must be current.
   void detect();                              // contacts of the current geometry

@@ -19,6 +19,15 @@ enum class SceneKind { Cell, Doublet, Spheroid, Fusion };
 enum class IntegratorKind { SemiImplicit, ContactImplicit };
 enum class PreconditionerKind { Jacobi, BlockJacobi };
 enum class ContactQuadrature { Exact, Dunavant7, Centroid };
+// Fidelity presets (issue 6, docs/study/): named numerics from the speed/accuracy study.
+enum class FidelityPreset { Draft, Standard, Reference };
+
+// The numerics keys a preset sets, as bits: which of them a spec set explicitly. Provenance, not
+// a value: two specs with the same values are equal whatever their pins.
+struct PresetPins {
+  std::uint32_t bits = 0;
+  friend bool operator==(const PresetPins&, const PresetPins&) { return true; }
+};
 
 struct CellParams {
   double radius_mean_um = 8.88;     // mean cell radius r
@@ -44,7 +53,13 @@ struct CellParams {
   friend bool operator==(const CellParams&, const CellParams&) = default;
 };
 
+// The defaults are the `standard` preset's values.
 struct NumericsParams {
+  // Setting the preset (setField "numerics.preset") sets dt_s, integrator, cg_tol,
+  // preconditioner, triangles_per_cell and contact_quadrature to its values, except those set
+  // explicitly (`pinned`), in whatever order the keys arrive.
+  FidelityPreset preset = FidelityPreset::Standard;
+  PresetPins pinned;
   double dt_s = 0.1;
   IntegratorKind integrator = IntegratorKind::ContactImplicit;
   double cg_tol = 1e-3;
@@ -80,6 +95,16 @@ struct SceneParams {
   friend bool operator==(const SceneParams&, const SceneParams&) = default;
 };
 
+// An accuracy target instead of numerical settings: resolve() picks the cheapest preset whose
+// stated errors (fidelityPresets()) meet every target given.
+struct AccuracyTarget {
+  std::optional<double> contact_angle_deg;  // error of the equilibrium contact angle, °
+  std::optional<double> trajectory_deg;     // RMS error of the contact angle's approach θ(t), °
+  bool any() const { return contact_angle_deg || trajectory_deg; }
+
+  friend bool operator==(const AccuracyTarget&, const AccuracyTarget&) = default;
+};
+
 struct SceneSpec {
   SceneKind scene = SceneKind::Fusion;
   std::uint64_t seed = 1;
@@ -89,6 +114,7 @@ struct SceneSpec {
   CellParams cells;
   NumericsParams numerics;
   SceneParams scene_params;  // the [scene] table
+  AccuracyTarget accuracy;   // the [accuracy] table
 
   // Exact, field by field (doubles compared by value): what a round trip must keep.
   friend bool operator==(const SceneSpec&, const SceneSpec&) = default;
@@ -154,9 +180,17 @@ bool sceneAvailable(SceneKind scene);
 // Every range and cross-field rule. Empty when the spec can run.
 std::vector<SpecError> validate(const SceneSpec& spec);
 
-// Fills derived defaults (τ_K, τ_r, ξ⊥/ξ∥) and applies reduced parameters, so the result states
-// exactly what runs. Idempotent. Call validate() first.
+// Fills derived defaults (τ_K, τ_r, ξ⊥/ξ∥), applies reduced parameters and turns an accuracy
+// target into its preset, so the result states exactly what runs. Idempotent. Call validate()
+// first.
 SceneSpec resolve(const SceneSpec& spec);
+
+// Settings the stability study measured to fail (docs/study/stability-map.md,
+// docs/study/doublet.md), each naming numerics.dt_s and the limit: with contacts, the
+// semi-implicit integrator at Δt ≥ 10 ms × (71.1 nN/µm³ / k_AB) (the explicit contact spring),
+// the contact-implicit one at Δt ≥ 2 s, or ≥ 1 s with motility or 1280 triangles per cell
+// (contact-oscillation). The server refuses them; foam-run, the studies' tool, warns.
+std::vector<SpecError> measuredUnstable(const SceneSpec& spec);
 
 // Every key's value in table order, as text: two specs with the same fingerprint run
 // identically (checkpoints and the spheroid cache compare it).
@@ -169,6 +203,38 @@ std::string_view toString(SceneKind);
 std::string_view toString(IntegratorKind);
 std::string_view toString(PreconditionerKind);
 std::string_view toString(ContactQuadrature);
+std::string_view toString(FidelityPreset);
+
+// ---- fidelity presets
+// ----------------------------------------------------------------------------
+
+struct PresetInfo {
+  FidelityPreset preset;
+  // The numerics it sets.
+  double dt_s;
+  IntegratorKind integrator;
+  double cg_tol;
+  PreconditionerKind preconditioner;
+  std::int64_t triangles_per_cell;
+  ContactQuadrature contact_quadrature;
+  // Stated errors: the largest the speed/accuracy study measured (docs/study/doublet.md, against
+  // the Δt = 0.025 s, ε_CG = 1e-6, 1280-triangle reference) plus the study's noise floor, rounded
+  // up. tests/scenes/test_presets.cc checks that every preset meets them.
+  double contact_angle_error_deg;      // equilibrium contact angle
+  double trajectory_error_deg;         // RMS over the approach θ(t)
+  double doublet_wall_per_sim_hour_s;  // measured cost on the doublet (one core), for the table
+};
+
+// Every preset, cheapest first.
+const std::vector<PresetInfo>& fidelityPresets();
+const PresetInfo& presetInfo(FidelityPreset preset);
+
+// Sets the preset and every numerics value it controls that `n.pinned` does not hold.
+void applyPreset(NumericsParams& n, FidelityPreset preset);
+
+// The cheapest preset whose stated errors meet every target given; nullopt when none does (or
+// no target is given).
+std::optional<FidelityPreset> presetForTarget(const AccuracyTarget& target);
 
 // Number of cells the scene builds: cell 1, doublet 2, spheroid n_cells, fusion a + b.
 std::int64_t sceneCellCount(const SceneSpec& spec);

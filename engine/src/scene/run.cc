@@ -283,7 +283,8 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
     if (obs.on_sample) {
       if (!fusion) values = sceneObservables(sim, nullptr);
       Sample s;
-      s.values = {sim.time(), static_cast<double>(sim.steps()), wall(),
+      // Wall time of the whole run, earlier processes of a resumed one included.
+      s.values = {sim.time(), static_cast<double>(sim.steps()), wall_before + wall(),
                   window_steps ? window_iters / window_steps : 0.0, window_vol};
       for (const auto& [name, value] : values) s.values.push_back(value);
       obs.on_sample(s);

@@ -120,6 +120,8 @@ SceneSpec spheroidPrepSpec(const SceneSpec& spec, std::int64_t n_cells, std::uin
   // failure limits (a speed/accuracy study, fidelity presets) start from the same aggregates.
   // The mesh settings (triangles, remeshing) shape the cells and stay.
   const NumericsParams d;
+  p.numerics.preset = d.preset;  // a name for values set here and below
+  p.accuracy = {};
   p.numerics.cg_tol = d.cg_tol;
   p.numerics.cg_max_iter = d.cg_max_iter;
   p.numerics.preconditioner = d.preconditioner;

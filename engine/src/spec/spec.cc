@@ -14,8 +14,9 @@ namespace activefoam {
 namespace {
 
 // Where a key's value lives in a SceneSpec.
-using Slot = std::variant<double*, std::optional<double>*, std::int64_t*, std::uint64_t*,
-                          SceneKind*, IntegratorKind*, PreconditionerKind*, ContactQuadrature*>;
+using Slot =
+    std::variant<double*, std::optional<double>*, std::int64_t*, std::uint64_t*, SceneKind*,
+                 IntegratorKind*, PreconditionerKind*, ContactQuadrature*, FidelityPreset*>;
 
 // An extra per-key rule beyond the range: returns an error message, empty when the value is fine.
 using ExtraRule = std::string (*)(double v);
@@ -129,6 +130,11 @@ const std::vector<Entry>& entries() {
                       "reduced: L_η/r = √(η/ξ)/r; when given, ξ = η/(value · r)²", true),
                  [](SceneSpec& s) -> Slot { return &s.cells.l_eta_reduced; }});
     // ---- [numerics]
+    t.push_back({choice("numerics.preset", {"draft", "standard", "reference"},
+                        "fidelity preset: sets dt_s, integrator, cg_tol, preconditioner, "
+                        "triangles_per_cell and contact_quadrature, except those given "
+                        "explicitly (errors and costs: docs/study/presets.md)"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.preset; }});
     t.push_back({real("numerics.dt_s", kOpen, 0, 10, kClosed, "s", "time step Δt"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.dt_s; }});
     t.push_back({choice("numerics.integrator", {"semi-implicit", "contact-implicit"},
@@ -198,6 +204,17 @@ const std::vector<Entry>& entries() {
                       "fusion: a spheroid is prepared (compact) when its radius of "
                       "gyration changes by less than this (relative, per second) over 60 s"),
                  [](SceneSpec& s) -> Slot { return &s.scene_params.compact_rate_per_s; }});
+    // ---- [accuracy]
+    t.push_back({real("accuracy.contact_angle_deg", kOpen, 0, 90, kClosed, "°",
+                      "accuracy target instead of numerics: largest acceptable error of the "
+                      "equilibrium contact angle; the cheapest preset that promises it runs",
+                      true),
+                 [](SceneSpec& s) -> Slot { return &s.accuracy.contact_angle_deg; }});
+    t.push_back({real("accuracy.trajectory_deg", kOpen, 0, 90, kClosed, "°",
+                      "accuracy target instead of numerics: largest acceptable RMS error of the "
+                      "contact angle on its way to equilibrium, θ(t)",
+                      true),
+                 [](SceneSpec& s) -> Slot { return &s.accuracy.trajectory_deg; }});
     return t;
   }();
   return table;
@@ -220,7 +237,8 @@ Overload(F...) -> Overload<F...>;
 template <class E>
 constexpr bool kIsChoiceEnum =
     std::is_same_v<E, SceneKind> || std::is_same_v<E, IntegratorKind> ||
-    std::is_same_v<E, PreconditionerKind> || std::is_same_v<E, ContactQuadrature>;
+    std::is_same_v<E, PreconditionerKind> || std::is_same_v<E, ContactQuadrature> ||
+    std::is_same_v<E, FidelityPreset>;
 
 std::string describe(const SpecValue& v) {
   return std::visit(Overload{[](double d) { return formatNumber(d); },
@@ -262,9 +280,28 @@ std::string_view lastSegment(std::string_view key) {
   return dot == std::string_view::npos ? key : key.substr(dot + 1);
 }
 
+// The numerics keys a preset controls, with their PresetPins bits.
+constexpr std::uint32_t kPinPreset = 1u << 6;
+std::uint32_t pinBit(std::string_view key) {
+  static constexpr std::pair<std::string_view, std::uint32_t> kBits[] = {
+      {"numerics.dt_s", 1u << 0},
+      {"numerics.integrator", 1u << 1},
+      {"numerics.cg_tol", 1u << 2},
+      {"numerics.preconditioner", 1u << 3},
+      {"numerics.triangles_per_cell", 1u << 4},
+      {"numerics.contact_quadrature", 1u << 5},
+      {"numerics.preset", kPinPreset}};
+  for (const auto& [k, bit] : kBits)
+    if (k == key) return bit;
+  return 0;
+}
+
 // Derived quantities without any checks (resolve's arithmetic).
 SceneSpec resolveUnchecked(const SceneSpec& spec) {
   SceneSpec r = spec;
+  if (r.accuracy.any()) {
+    if (const auto p = presetForTarget(r.accuracy)) applyPreset(r.numerics, *p);
+  }
   CellParams& c = r.cells;
   if (c.tau_gamma_s) {
     c.eta = *c.tau_gamma_s * c.gamma;
@@ -342,7 +379,10 @@ std::string suggestKey(std::string_view unknown) {
 
 // ---- set / get ---------------------------------------------------------------------------------
 
-std::optional<SpecError> setField(SceneSpec& spec, std::string_view key, const SpecValue& value) {
+namespace {
+
+std::optional<SpecError> setFieldValue(SceneSpec& spec, std::string_view key,
+                                       const SpecValue& value) {
   const Entry* e = findEntry(key);
   if (!e) return unknownKey(key);
   const SpecField& f = e->field;
@@ -388,6 +428,16 @@ std::optional<SpecError> setField(SceneSpec& spec, std::string_view key, const S
                       },
                       [](auto*) {}},
              e->slot(spec));
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<SpecError> setField(SceneSpec& spec, std::string_view key, const SpecValue& value) {
+  if (auto e = setFieldValue(spec, key, value)) return e;
+  const std::uint32_t bit = pinBit(key);
+  spec.numerics.pinned.bits |= bit;
+  if (bit == kPinPreset) applyPreset(spec.numerics, spec.numerics.preset);
   return std::nullopt;
 }
 
@@ -529,6 +579,50 @@ std::vector<SpecError> validate(const SceneSpec& spec) {
     }
   }
 
+  // An accuracy target chooses the numerics: explicit values must agree with its preset.
+  if (spec.accuracy.any() && ok({"accuracy.contact_angle_deg", "accuracy.trajectory_deg"})) {
+    const std::vector<PresetInfo>& presets = fidelityPresets();
+    const std::optional<FidelityPreset> chosen = presetForTarget(spec.accuracy);
+    if (!chosen) {
+      auto finest = [&](double PresetInfo::*err) {
+        double best = presets[0].*err;
+        for (const PresetInfo& p : presets) best = std::min(best, p.*err);
+        return best;
+      };
+      const double ca = finest(&PresetInfo::contact_angle_error_deg);
+      const double tr = finest(&PresetInfo::trajectory_error_deg);
+      if (spec.accuracy.contact_angle_deg && *spec.accuracy.contact_angle_deg < ca)
+        error("accuracy.contact_angle_deg",
+              formatNumber(*spec.accuracy.contact_angle_deg) +
+                  "° is finer than any preset promises; allowed [" + formatNumber(ca) +
+                  ", 90] ° (the finest: `reference`, docs/study/presets.md)");
+      if (spec.accuracy.trajectory_deg && *spec.accuracy.trajectory_deg < tr)
+        error("accuracy.trajectory_deg",
+              formatNumber(*spec.accuracy.trajectory_deg) +
+                  "° is finer than any preset promises; allowed [" + formatNumber(tr) +
+                  ", 90] ° (the finest: `reference`, docs/study/presets.md)");
+    } else {
+      NumericsParams want = spec.numerics;
+      want.pinned.bits = 0;
+      applyPreset(want, *chosen);
+      const std::string name(toString(*chosen));
+      for (const char* key : {"numerics.preset", "numerics.dt_s", "numerics.integrator",
+                              "numerics.cg_tol", "numerics.preconditioner",
+                              "numerics.triangles_per_cell", "numerics.contact_quadrature"}) {
+        if (!(spec.numerics.pinned.bits & pinBit(key))) continue;
+        SceneSpec w = spec;
+        w.numerics = want;
+        const std::optional<SpecValue> given = getField(spec, key), target = getField(w, key);
+        if (given != target)
+          error(key,
+                "is given together with an accuracy target, which chooses the numerics "
+                "itself (the target picks preset '" +
+                    name + "', where " + std::string(key) + " = " + describe(*target) +
+                    "); give one or the other");
+      }
+    }
+  }
+
   // Values derived from reduced forms and default rules must land in their keys' ranges.
   if (errors.empty()) {
     const SceneSpec r = resolveUnchecked(spec);
@@ -552,6 +646,42 @@ std::vector<SpecError> validate(const SceneSpec& spec) {
               "unset, and its default 5 τ_shell");
   }
   return errors;
+}
+
+std::vector<SpecError> measuredUnstable(const SceneSpec& spec) {
+  std::vector<SpecError> out;
+  if (sceneCellCount(spec) < 2) return out;  // the limits are those of the contacts
+  const NumericsParams& n = spec.numerics;
+  const double k_default = CellParams{}.k_contact;
+  double limit = 0;
+  std::string why;
+  if (n.integrator == IntegratorKind::SemiImplicit) {
+    // Failing rungs of the map: 40 / 10 / 2.5 ms at k_AB × 0.25 / 1 / 4 — the explicit spring's
+    // limit scales like 1/k_AB.
+    limit = 0.01 * k_default / spec.cells.k_contact;
+    why =
+        "the semi-implicit integrator treats the contact springs explicitly and was measured "
+        "to fail from " +
+        formatNumber(limit) + " s at k_AB = " + formatNumber(spec.cells.k_contact) + " nN/µm³";
+  } else {
+    const bool motile = spec.cells.p_a > 0 || spec.cells.pa_reduced.value_or(0) > 0;
+    const bool fine = n.triangles_per_cell >= 1280;
+    limit = motile || fine ? 1.0 : 2.0;
+    why = std::string("the contact-implicit integrator was measured to fail from ") +
+          formatNumber(limit) + " s" +
+          (motile ? " with motility"
+           : fine ? " with 1280 triangles per cell"
+                  : "");
+  }
+  if (n.dt_s >= limit)
+    out.push_back({"numerics.dt_s", formatNumber(n.dt_s) + " s is beyond the stable range: " + why +
+                                        " (contact-oscillation; docs/study/stability-map.md)"
+                                        "; allowed (0, " +
+                                        formatNumber(limit) + ") s" +
+                                        (n.integrator == IntegratorKind::SemiImplicit
+                                             ? ", or use numerics.integrator = contact-implicit"
+                                             : "")});
+  return out;
 }
 
 // ---- resolve and derived quantities ------------------------------------------------------------
@@ -640,6 +770,70 @@ std::string_view toString(PreconditionerKind k) {
       return "block-jacobi";
   }
   return "?";
+}
+
+std::string_view toString(FidelityPreset p) {
+  switch (p) {
+    case FidelityPreset::Draft:
+      return "draft";
+    case FidelityPreset::Standard:
+      return "standard";
+    case FidelityPreset::Reference:
+      return "reference";
+  }
+  return "?";
+}
+
+// ---- fidelity presets
+// ----------------------------------------------------------------------------
+
+const std::vector<PresetInfo>& fidelityPresets() {
+  // From docs/study/doublet.md (the doublet's Pareto front; measured errors in brackets):
+  //   draft      Δt 0.5 s, 320 triangles  (θ_c 0.33°, θ(t) RMS 9.8°;   3 s per simulated hour)
+  //   standard   Δt 0.1 s, 320 triangles  (θ_c 0.47°, θ(t) RMS 8.3°;  14 s) — the supplement's
+  //              Δt, 5× below the contact-implicit limit with motility (stability-map.md)
+  //   reference  Δt 0.1 s, 1280 triangles (θ_c 0.12°, θ(t) RMS 0.5°;  67 s)
+  // Among 320-triangle settings the error sits at the mesh's floor (7–10° RMS) whatever Δt ≤ 1 s:
+  // draft buys its 5× speed with no measurable loss on the doublet, but it runs at the stability
+  // limit with motility (1 s fails), which is why it is not the default.
+  static const std::vector<PresetInfo> presets = {
+      {FidelityPreset::Draft, 0.5, IntegratorKind::ContactImplicit, 1e-3,
+       PreconditionerKind::Jacobi, 320, ContactQuadrature::Exact, 1.0, 12.0, 3},
+      {FidelityPreset::Standard, 0.1, IntegratorKind::ContactImplicit, 1e-3,
+       PreconditionerKind::Jacobi, 320, ContactQuadrature::Exact, 1.0, 10.0, 14},
+      {FidelityPreset::Reference, 0.1, IntegratorKind::ContactImplicit, 1e-3,
+       PreconditionerKind::Jacobi, 1280, ContactQuadrature::Exact, 0.5, 2.0, 67},
+  };
+  return presets;
+}
+
+const PresetInfo& presetInfo(FidelityPreset preset) {
+  for (const PresetInfo& p : fidelityPresets())
+    if (p.preset == preset) return p;
+  return fidelityPresets()[1];
+}
+
+void applyPreset(NumericsParams& n, FidelityPreset preset) {
+  const PresetInfo& p = presetInfo(preset);
+  const std::uint32_t pins = n.pinned.bits;
+  auto free = [&](const char* key) { return !(pins & pinBit(key)); };
+  n.preset = preset;
+  if (free("numerics.dt_s")) n.dt_s = p.dt_s;
+  if (free("numerics.integrator")) n.integrator = p.integrator;
+  if (free("numerics.cg_tol")) n.cg_tol = p.cg_tol;
+  if (free("numerics.preconditioner")) n.preconditioner = p.preconditioner;
+  if (free("numerics.triangles_per_cell")) n.triangles_per_cell = p.triangles_per_cell;
+  if (free("numerics.contact_quadrature")) n.contact_quadrature = p.contact_quadrature;
+}
+
+std::optional<FidelityPreset> presetForTarget(const AccuracyTarget& target) {
+  if (!target.any()) return std::nullopt;
+  for (const PresetInfo& p : fidelityPresets()) {
+    if (target.contact_angle_deg && p.contact_angle_error_deg > *target.contact_angle_deg) continue;
+    if (target.trajectory_deg && p.trajectory_error_deg > *target.trajectory_deg) continue;
+    return p.preset;
+  }
+  return std::nullopt;
 }
 
 std::string_view toString(ContactQuadrature q) {
