@@ -33,6 +33,7 @@
 
 #include "activefoam/v1/service.grpc.pb.h"
 #include "activefoam/vtk.h"
+#include "report.h"
 
 namespace v1 = activefoam::v1;
 
@@ -463,6 +464,22 @@ int main(int argc, char** argv) {
   sweep->add_option("--tag", tag);
   sweep->add_flag("--wait", wait, "follow every job; exit 0 only if all succeeded");
 
+  auto* report = app.add_subcommand(
+      "report",
+      "run foam-run for a job placed outside foamd's pool (a Slurm task) and report its "
+      "outputs to foamd; exits with foam-run's status (deploy/slurm/README.md)");
+  activefoam::client::ReportArgs rargs;
+  report->add_option("JOB", rargs.job_id, "job id")->required();
+  report->add_option("RUN", rargs.run_dir, "foam-run's --out folder")->required();
+  report->add_option("COMMAND", rargs.command, "-- foam-run SPEC --out RUN ...")->required();
+  report->add_option("--attempt", rargs.attempt, "the executor's handle of this task")->required();
+  report->add_option("--every", rargs.every_s, "seconds between reads of the folder")
+      ->check(CLI::Range(0.05, 3600.0));
+  report
+      ->add_option("--give-up-after", rargs.give_up_after_s,
+                   "seconds of foamd being unreachable before giving up (exit 75)")
+      ->check(CLI::Range(1.0, 1e7));
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -494,6 +511,10 @@ int main(int argc, char** argv) {
     }
     return readFile(spec_file);
   };
+
+  if (*report)
+    return activefoam::client::reportTask(
+        *conn.stub, [&] { return conn.ctx(120); }, rargs);
 
   try {
     if (*submit) {
@@ -582,6 +603,7 @@ int main(int argc, char** argv) {
                 << "attempts:  " << j.attempts() << "\n"
                 << "engine:    " << j.engine_version() << "\n";
       std::cout << "fidelity:  " << fidelityText(j.spec_json()) << "\n";
+      if (!j.executor_ref().empty()) std::cout << "executor:  " << j.executor_ref() << "\n";
       if (!j.reason().empty()) std::cout << "reason:    " << j.reason() << "\n";
       if (!j.tag().empty()) std::cout << "tag:       " << j.tag() << "\n";
       if (!j.sweep_id().empty()) std::cout << "sweep:     " << j.sweep_id() << "\n";

@@ -123,7 +123,7 @@ std::string splitQuery(const std::string& target,
 
 }  // namespace
 
-HttpEndpoint::HttpEndpoint(Store& store, Pool& pool, const std::string& listen)
+HttpEndpoint::HttpEndpoint(Store& store, Executor& pool, const std::string& listen)
     : store_(store), pool_(pool) {
   const auto colon = listen.rfind(':');
   if (colon == std::string::npos) throw std::runtime_error("--http: expected HOST:PORT");

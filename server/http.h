@@ -7,14 +7,15 @@
 #include <string>
 #include <thread>
 
-#include "pool.h"
+#include "executor.h"
 #include "store.h"
 
 namespace activefoam::server {
 
 class HttpEndpoint {
  public:
-  HttpEndpoint(Store& store, Pool& pool, const std::string& listen);  // throws when it cannot bind
+  HttpEndpoint(Store& store, Executor& pool,
+               const std::string& listen);  // throws when it cannot bind
   ~HttpEndpoint();
   int port() const { return port_; }
 
@@ -24,7 +25,7 @@ class HttpEndpoint {
  private:
   void loop();
   Store& store_;
-  Pool& pool_;
+  Executor& pool_;
   int fd_ = -1;
   int port_ = 0;
   std::atomic<bool> stop_{false};

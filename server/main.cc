@@ -24,6 +24,7 @@
 #include "http.h"
 #include "pool.h"
 #include "service.h"
+#include "slurm.h"
 #include "store.h"
 
 namespace fs = std::filesystem;
@@ -82,6 +83,38 @@ int main(int argc, char** argv) {
   app.add_option("--spheroid-cache", spheroid_cache,
                  "directory of prepared spheroids reused by fusion jobs (default: 'spheroids' "
                  "next to the database)");
+  std::string executor = "pool";
+  SlurmOptions slurm;
+  app.add_option("--executor", executor,
+                 "where jobs run: pool (engine workers in foamd) or slurm (batch tasks on a "
+                 "Slurm cluster; deploy/slurm/README.md)")
+      ->check(CLI::IsMember({"pool", "slurm"}))
+      ->capture_default_str();
+  app.add_option("--slurm-dir", slurm.work_dir,
+                 "slurm: work directory on a filesystem shared with the compute nodes (specs, "
+                 "checkpoints, outputs; never the database)");
+  app.add_option("--slurm-partition", slurm.partition, "slurm: partition (default: the cluster's)");
+  app.add_option("--slurm-foam-run", slurm.foam_run,
+                 "slurm: foam-run as the compute nodes see it (default: next to foamd)");
+  app.add_option("--slurm-foam", slurm.foam,
+                 "slurm: the foam client as the compute nodes see it (default: next to foamd)");
+  app.add_option("--slurm-report-to", slurm.report_to,
+                 "slurm: HOST:PORT the tasks report to (default: --listen)");
+  app.add_option("--slurm-token-file", slurm.token_file,
+                 "slurm: token file as the compute nodes see it (default: --token-file)");
+  app.add_option("--slurm-tls-ca", slurm.tls_ca,
+                 "slurm: CA the tasks trust for foamd's TLS certificate (default: --tls-cert)");
+  app.add_option("--slurm-sbatch-arg", slurm.sbatch_args,
+                 "slurm: extra sbatch argument, e.g. --slurm-sbatch-arg=--time=24:00:00 "
+                 "(repeatable)");
+  app.add_option("--slurm-checkpoint-every-s", slurm.checkpoint_every_s,
+                 "slurm: wall-clock seconds between a task's checkpoints (foam-run "
+                 "--checkpoint-every): what a requeued task recomputes at most")
+      ->check(CLI::Range(1.0, 1e6))
+      ->capture_default_str();
+  app.add_option("--slurm-poll-s", slurm.poll_every_s, "slurm: seconds between squeue polls")
+      ->check(CLI::Range(0.1, 3600.0))
+      ->capture_default_str();
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error")->capture_default_str();
   app.set_config("--config", "", "TOML config file (keys = long flag names)");
   app.set_version_flag("--version", std::string("foamd ") + ACTIVEFOAM_VERSION);
@@ -116,8 +149,11 @@ int main(int argc, char** argv) {
     so.keep_snapshots = keep_snapshots;
     Store store(db, so);
     spdlog::info("foamd {}: store {} (schema {})", ACTIVEFOAM_VERSION, db, store.schemaVersion());
-    if (const int n = store.requeueRunning("foamd restarted while it was running; re-queued"))
-      spdlog::warn("store: {} job(s) were running when foamd stopped; re-queued", n);
+    // The pool's runs died with the last foamd (they resume from their checkpoints); Slurm
+    // tasks outlive it and are reconciled by the executor.
+    if (executor == "pool")
+      if (const int n = store.requeueRunning("foamd restarted while it was running; re-queued"))
+        spdlog::warn("store: {} job(s) were running when foamd stopped; re-queued", n);
 
     PoolOptions po;
     po.workers = workers;
@@ -127,18 +163,40 @@ int main(int argc, char** argv) {
       const fs::path dir = fs::path(db).parent_path();
       po.spheroid_cache_dir = ((dir.empty() ? fs::path(".") : dir) / "spheroids").string();
     }
-    Pool pool(store, po);
-    FoamServer server(store, pool, config);
+    std::unique_ptr<Executor> pool;
+    if (executor == "slurm") {
+      const fs::path here = fs::read_symlink("/proc/self/exe").parent_path();
+      auto sibling = [&](const std::string& given, const char* name, const char* build_dir) {
+        if (given != name) return given;
+        for (const fs::path& p : {here / name, here / ".." / build_dir / name})
+          if (fs::exists(p)) return fs::canonical(p).string();
+        return given;
+      };
+      slurm.foam = sibling(slurm.foam, "foam", "client");
+      slurm.foam_run = sibling(slurm.foam_run, "foam-run", "runner");
+      if (slurm.report_to.empty()) slurm.report_to = listen;
+      if (slurm.token_file.empty() && !token_file.empty())
+        slurm.token_file = fs::absolute(token_file).string();
+      if (slurm.tls_ca.empty() && !cert.empty()) slurm.tls_ca = fs::absolute(cert).string();
+      if (!slurm.work_dir.empty()) slurm.work_dir = fs::absolute(slurm.work_dir).string();
+      spdlog::info("foamd: slurm executor: work dir {}, partition {}, tasks report to {}",
+                   slurm.work_dir, slurm.partition.empty() ? "(default)" : slurm.partition,
+                   slurm.report_to);
+      pool = std::make_unique<SlurmExecutor>(store, slurm);
+    } else {
+      pool = std::make_unique<Pool>(store, po);
+    }
+    FoamServer server(store, *pool, config);
     server.start();
     std::unique_ptr<HttpEndpoint> endpoint;
-    if (!http.empty()) endpoint = std::make_unique<HttpEndpoint>(store, pool, http);
-    pool.start();
+    if (!http.empty()) endpoint = std::make_unique<HttpEndpoint>(store, *pool, http);
+    pool->start();
 
     int sig = 0;
     sigwait(&sigs, &sig);
     spdlog::info("foamd: {} received, shutting down", sig == SIGTERM ? "SIGTERM" : "SIGINT");
     server.shutdown();
-    pool.stop(true);  // running jobs → queued (resume from their checkpoints)
+    pool->stop(true);  // pool: running jobs → queued (resume from their checkpoints)
     endpoint.reset();
     store.flush();
     spdlog::info("foamd: stopped");

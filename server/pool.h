@@ -13,6 +13,7 @@
 #include <thread>
 #include <vector>
 
+#include "executor.h"
 #include "store.h"
 
 namespace activefoam::server {
@@ -24,29 +25,22 @@ struct PoolOptions {
   std::string spheroid_cache_dir;  // prepared spheroids of fusion jobs ("" = not kept)
 };
 
-struct PoolStats {
-  std::atomic<std::int64_t> steps_total{0};
-  std::atomic<std::int64_t> jobs_succeeded{0};
-  std::atomic<std::int64_t> jobs_failed{0};
-  std::atomic<std::int64_t> jobs_cancelled{0};
-  std::atomic<int> running{0};
-};
-
-class Pool {
+class Pool : public Executor {
  public:
   Pool(Store& store, PoolOptions options);
-  ~Pool();  // = stop(true)
+  ~Pool() override;  // = stop(true)
 
-  void start();
+  std::string_view name() const override { return "pool"; }
+  void start() override;
   // Something was queued: wake an idle worker.
-  void wake();
+  void wake() override;
   // A running job: raise its cancel flag (it ends as cancelled). Returns false if not running here.
-  bool cancel(const std::string& id, const std::string& reason);
+  bool cancel(const std::string& id, const std::string& reason) override;
   // Shutdown: raise every flag; running jobs go back to queued (with their last checkpoint).
-  void stop(bool requeue_running);
+  void stop(bool requeue_running) override;
 
-  int workers() const { return static_cast<int>(threads_.size()); }
-  const PoolStats& stats() const { return stats_; }
+  int workers() const override { return static_cast<int>(threads_.size()); }
+  const PoolStats& stats() const override { return stats_; }
 
  private:
   struct Running {

@@ -14,6 +14,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "activefoam/run.h"
 #include "activefoam/spec_io.h"
 #include "activefoam/v1/service.grpc.pb.h"
 #include "spec_convert.h"
@@ -231,7 +232,7 @@ class SnapshotReactor : public grpc::ServerWriteReactor<v1::SnapshotChunk> {
 
 class FoamService final : public v1::Foam::CallbackService {
  public:
-  FoamService(Store& store, Pool& pool) : store_(store), pool_(pool) {
+  FoamService(Store& store, Executor& pool) : store_(store), pool_(pool) {
     store_.setEventListener([this](const std::string& id) { hub_.notify(id); });
   }
   ~FoamService() override { store_.setEventListener(nullptr); }
@@ -420,8 +421,64 @@ class FoamService final : public v1::Foam::CallbackService {
     return Status::OK;
   }
 
+  ServerUnaryReactor* ReportTask(CallbackServerContext* ctx, const v1::ReportTaskRequest* req,
+                                 v1::ReportTaskResponse* resp) override {
+    return done(ctx, guarded([&] { return reportTask(*req, *resp); }));
+  }
+
+  Status reportTask(const v1::ReportTaskRequest& req, v1::ReportTaskResponse& resp) {
+    const std::optional<v1::Job> j = store_.getJob(req.job_id());
+    if (!j) return Status(StatusCode::NOT_FOUND, "no job '" + req.job_id() + "'");
+    if (j->state() == v1::JOB_STATE_RUNNING && j->executor_ref().empty())
+      // Claimed and submitted, but the executor has not recorded the task yet (a task can start
+      // before sbatch answers): the reporter retries.
+      return Status(StatusCode::UNAVAILABLE, "job '" + j->id() + "' is not placed yet; retry");
+    if (j->state() != v1::JOB_STATE_RUNNING || j->executor_ref() != req.attempt()) {
+      // Cancelled, finished, or handed to another task since (re-queued): this task stops.
+      resp.set_stop(true);
+      return Status::OK;
+    }
+    SceneKind scene = SceneKind::Cell;
+    for (SceneKind k :
+         {SceneKind::Cell, SceneKind::Doublet, SceneKind::Spheroid, SceneKind::Fusion})
+      if (toString(k) == j->scene()) scene = k;
+    const std::vector<std::string> columns = sampleColumns(scene);
+    if (req.samples_size() > 0 &&
+        std::vector<std::string>(req.columns().begin(), req.columns().end()) != columns)
+      return Status(StatusCode::FAILED_PRECONDITION,
+                    "columns: the task's samples.csv columns differ from this foamd's for scene " +
+                        j->scene() + " (engine versions differ?)");
+    if (req.snapshots_size() != req.snapshot_infos_size())
+      return Status(StatusCode::INVALID_ARGUMENT, "snapshot_infos: one per snapshot");
+    std::vector<std::vector<double>> samples;
+    for (const v1::Sample& s : req.samples()) {
+      if (static_cast<std::size_t>(s.values_size()) != columns.size())
+        return Status(StatusCode::INVALID_ARGUMENT,
+                      "samples: " + std::to_string(s.values_size()) + " values for " +
+                          std::to_string(columns.size()) + " columns");
+      samples.emplace_back(s.values().begin(), s.values().end());
+    }
+    std::vector<std::pair<v1::SnapshotInfo, std::string>> snapshots;
+    for (int k = 0; k < req.snapshots_size(); ++k)
+      snapshots.emplace_back(req.snapshot_infos(k), req.snapshots(k));
+    std::optional<v1::Progress> progress;
+    if (req.has_progress()) progress = req.progress();
+    const Store::Held held = store_.ingestReport(j->id(), columns, req.first_sample(), samples,
+                                                 req.first_snapshot(), snapshots, progress);
+    resp.set_samples_held(held.samples);
+    resp.set_snapshots_held(held.snapshots);
+    if (req.finished()) {
+      if (!pool_.taskFinished(*j, req))
+        return Status(StatusCode::FAILED_PRECONDITION,
+                      "this foamd runs jobs with its " + std::string(pool_.name()) +
+                          " executor, which takes no task reports");
+      resp.set_stop(true);
+    }
+    return Status::OK;
+  }
+
   Store& store_;
-  Pool& pool_;
+  Executor& pool_;
   Hub hub_;
 };
 
@@ -429,14 +486,14 @@ class FoamService final : public v1::Foam::CallbackService {
 
 struct FoamServer::Impl {
   Store& store;
-  Pool& pool;
+  Executor& pool;
   ServerConfig config;
   std::unique_ptr<FoamService> service;
   std::unique_ptr<grpc::Server> server;
   int port = 0;
 };
 
-FoamServer::FoamServer(Store& store, Pool& pool, ServerConfig config)
+FoamServer::FoamServer(Store& store, Executor& pool, ServerConfig config)
     : impl_(new Impl{store, pool, std::move(config), nullptr, nullptr, 0}) {}
 
 FoamServer::~FoamServer() {

@@ -6,7 +6,7 @@
 #include <memory>
 #include <string>
 
-#include "pool.h"
+#include "executor.h"
 #include "store.h"
 
 namespace activefoam::server {
@@ -21,7 +21,7 @@ struct ServerConfig {
 
 class FoamServer {
  public:
-  FoamServer(Store& store, Pool& pool, ServerConfig config);
+  FoamServer(Store& store, Executor& pool, ServerConfig config);
   ~FoamServer();
   // Binds and starts serving; throws std::runtime_error when it cannot bind.
   void start();

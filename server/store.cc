@@ -146,12 +146,16 @@ CREATE TABLE checkpoints(job_id TEXT PRIMARY KEY, t_s REAL NOT NULL, data BLOB N
 CREATE TABLE sweeps(id TEXT PRIMARY KEY, name TEXT NOT NULL DEFAULT '', idem_key TEXT UNIQUE,
   created_utc TEXT NOT NULL, n_jobs INTEGER NOT NULL);
 )sql",
+    // 1 → 2: executors other than the pool (Slurm) record where a running job runs.
+    R"sql(
+ALTER TABLE jobs ADD COLUMN executor_ref TEXT NOT NULL DEFAULT '';
+)sql",
 };
 
 const char* kJobCols =
     "id, state, reason, failure_kind, scene, seed, priority, tag, sweep_id, spec_json, "
     "engine_version, created_utc, started_utc, finished_utc, progress, t_s, steps, attempts, "
-    "last_seq";
+    "last_seq, executor_ref";
 
 v1::Job readJob(Stmt& s) {
   v1::Job j;
@@ -174,6 +178,7 @@ v1::Job readJob(Stmt& s) {
   j.set_steps(s.i64(16));
   j.set_attempts(static_cast<int>(s.i64(17)));
   j.set_last_seq(s.i64(18));
+  j.set_executor_ref(s.text(19));
   return j;
 }
 
@@ -604,6 +609,113 @@ std::optional<Claimed> Store::claimNext() {
   });
 }
 
+std::vector<Claimed> Store::claimQueued(int max) {
+  return write([&](Tx& tx) {
+    std::vector<std::string> ids;
+    Stmt q(tx.db, "SELECT id FROM jobs WHERE state = ? ORDER BY priority DESC, seqno ASC LIMIT ?");
+    q.bind(1, static_cast<int>(v1::JOB_STATE_QUEUED)).bind(2, max);
+    while (q.step()) ids.push_back(q.text(0));
+    std::vector<Claimed> out;
+    for (const std::string& id : ids) {
+      Stmt up(tx.db,
+              "UPDATE jobs SET state = ?, attempts = attempts + 1, started_utc = ?, reason = '', "
+              "executor_ref = '' WHERE id = ?");
+      up.bind(1, static_cast<int>(v1::JOB_STATE_RUNNING)).bind(2, utcNowText()).bind(3, id);
+      up.run();
+      tx.stateEvent(id);
+      Claimed c;
+      c.job = requireJob(tx.db, id);
+      Stmt ck(tx.db, "SELECT t_s FROM checkpoints WHERE job_id = ?");
+      ck.bind(1, id);
+      if (ck.step()) c.checkpoint_t_s = ck.dbl(0);
+      out.push_back(std::move(c));
+    }
+    return out;
+  });
+}
+
+void Store::setExecutorRef(const std::string& id, const std::string& ref) {
+  write([&](Tx& tx) {
+    Stmt up(tx.db, "UPDATE jobs SET executor_ref = ? WHERE id = ?");
+    up.bind(1, ref).bind(2, id).run();
+    tx.stateEvent(id);
+  });
+}
+
+Store::Held Store::ingestReport(
+    const std::string& id, const std::vector<std::string>& columns, std::int64_t first_sample,
+    const std::vector<std::vector<double>>& samples, int first_snapshot,
+    const std::vector<std::pair<v1::SnapshotInfo, std::string>>& snapshots,
+    const std::optional<v1::Progress>& progress) {
+  return write([&](Tx& tx) {
+    Held held;
+    Stmt n(tx.db, "SELECT COALESCE(MAX(idx), -1) + 1 FROM samples WHERE job_id = ?");
+    n.bind(1, id);
+    n.step();
+    held.samples = n.i64(0);
+    for (std::size_t k = 0; k < samples.size(); ++k) {
+      const std::int64_t idx = first_sample + static_cast<std::int64_t>(k);
+      if (idx != held.samples) continue;  // held already (or a gap: wait for the earlier ones)
+      const std::vector<double>& values = samples[k];
+      const double t = values.empty() ? 0.0 : values[0];
+      Stmt ins(tx.db, "INSERT INTO samples(job_id, idx, t_s, vals) VALUES (?,?,?,?)");
+      ins.bind(1, id).bind(2, idx).bind(3, t).blob(4, packDoubles(values)).run();
+      if (idx == 0) {
+        Stmt c(tx.db, "UPDATE jobs SET columns_json = ? WHERE id = ?");
+        c.bind(1, nlohmann::json(columns).dump()).bind(2, id).run();
+      }
+      v1::JobEvent ev;
+      ev.mutable_sample()->set_t_s(t);
+      for (double v : values) ev.mutable_sample()->add_values(v);
+      for (const std::string& c : columns) ev.add_columns(c);
+      tx.event(id, std::move(ev));
+      ++held.samples;
+    }
+    Stmt m(tx.db, "SELECT COALESCE(MAX(idx), -1) + 1 FROM snapshots WHERE job_id = ?");
+    m.bind(1, id);
+    m.step();
+    held.snapshots = static_cast<int>(m.i64(0));
+    for (std::size_t k = 0; k < snapshots.size(); ++k) {
+      const int idx = first_snapshot + static_cast<int>(k);
+      if (idx != held.snapshots) continue;
+      v1::SnapshotInfo info = snapshots[k].first;
+      info.set_index(idx);
+      Stmt ins(tx.db,
+               "INSERT INTO snapshots(job_id, idx, t_s, step, bytes, vertices, triangles, "
+               "compression, data) VALUES (?,?,?,?,?,?,?,'zlib',?)");
+      ins.bind(1, id)
+          .bind(2, idx)
+          .bind(3, info.t_s())
+          .bind(4, info.step())
+          .bind(5, info.bytes())
+          .bind(6, info.vertices())
+          .bind(7, info.triangles())
+          .blob(8, snapshots[k].second)
+          .run();
+      if (options_.keep_snapshots > 0) {
+        Stmt del(tx.db, "DELETE FROM snapshots WHERE job_id = ? AND idx <= ?");
+        del.bind(1, id).bind(2, idx - options_.keep_snapshots).run();
+      }
+      v1::JobEvent ev;
+      *ev.mutable_snapshot() = info;
+      tx.event(id, std::move(ev));
+      ++held.snapshots;
+    }
+    if (progress) {
+      Stmt up(tx.db, "UPDATE jobs SET progress = ?, t_s = ?, steps = ? WHERE id = ?");
+      up.bind(1, progress->fraction())
+          .bind(2, progress->t_s())
+          .bind(3, progress->step())
+          .bind(4, id)
+          .run();
+      v1::JobEvent ev;
+      *ev.mutable_progress() = *progress;
+      tx.event(id, std::move(ev));
+    }
+    return held;
+  });
+}
+
 v1::Job Store::cancel(const std::string& id, const std::string& reason) {
   return write([&](Tx& tx) -> v1::Job {
     v1::Job j = requireJob(tx.db, id);
@@ -781,6 +893,15 @@ std::optional<v1::Job> Store::getJob(const std::string& id) {
   return loadJob(rdb_, id);
 }
 
+std::vector<v1::Job> Store::runningJobs() {
+  std::lock_guard lock(rmu_);
+  Stmt s(rdb_, std::string("SELECT ") + kJobCols + " FROM jobs WHERE state = ? ORDER BY seqno");
+  s.bind(1, static_cast<int>(v1::JOB_STATE_RUNNING));
+  std::vector<v1::Job> out;
+  while (s.step()) out.push_back(readJob(s));
+  return out;
+}
+
 v1::ListJobsResponse Store::listJobs(const v1::ListJobsRequest& req) {
   Where w;
   if (req.states_size() > 0) {
@@ -831,7 +952,7 @@ v1::ListJobsResponse Store::listJobs(const v1::ListJobsRequest& req) {
       break;
     }
     *out.add_jobs() = readJob(q);
-    last = q.i64(19);
+    last = q.i64(20);  // seqno, after kJobCols
     ++n;
   }
   return out;

@@ -27,7 +27,7 @@ struct sqlite3;
 
 namespace activefoam::server {
 
-inline constexpr int kSchemaVersion = 1;
+inline constexpr int kSchemaVersion = 2;
 
 // A request that cannot be served as asked (bad filter, unknown id, key reuse): the service
 // maps these to gRPC codes.
@@ -79,6 +79,23 @@ class Store {
       const std::string& name, const std::string& idempotency_key, const std::vector<NewJob>& jobs);
   // The next queued job by priority then age, marked running (attempts + 1).
   std::optional<Claimed> claimNext();
+  // Up to `max` queued jobs by priority then age, all marked running (an executor that submits
+  // them in batches: a sweep as one Slurm array).
+  std::vector<Claimed> claimQueued(int max);
+  // Where a running job runs outside the pool ("slurm:123_4"); "" when not (yet) placed.
+  void setExecutorRef(const std::string& id, const std::string& ref);
+  // A task's report (ReportTask): samples from index first_sample and snapshots (zlib
+  // SnapshotData with their infos) from first_snapshot, of which those the store lacks are
+  // added, with their events, in one transaction; then the progress. Returns the counts held.
+  struct Held {
+    std::int64_t samples = 0;
+    int snapshots = 0;
+  };
+  Held ingestReport(const std::string& id, const std::vector<std::string>& columns,
+                    std::int64_t first_sample, const std::vector<std::vector<double>>& samples,
+                    int first_snapshot,
+                    const std::vector<std::pair<v1::SnapshotInfo, std::string>>& snapshots,
+                    const std::optional<v1::Progress>& progress);
   // Queued → cancelled at once; running: returns the job unchanged (the pool stops it).
   v1::Job cancel(const std::string& id, const std::string& reason);
   // Final state of a run, with its results (name, value).
@@ -105,6 +122,7 @@ class Store {
 
   // ---- reads
   std::optional<v1::Job> getJob(const std::string& id);
+  std::vector<v1::Job> runningJobs();
   v1::ListJobsResponse listJobs(const v1::ListJobsRequest& request);
   std::vector<v1::JobEvent> events(const std::string& id, std::int64_t after_seq, int limit);
   v1::JobResults results(const std::string& id, bool with_samples);

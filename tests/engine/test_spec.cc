@@ -512,6 +512,19 @@ TEST(SpecPresets, UnreachableTargetsAndConflictingNumericsAreErrorsNamingTheKey)
   }
 }
 
+TEST(SpecPresets, ThePresetNameAndTargetsAreNotInTheFingerprint) {
+  // Only values run: a target that resolves to the standard preset's values runs as the
+  // defaults do, and shares their checkpoints and prepared spheroids.
+  SceneSpec a;
+  ASSERT_EQ(setField(a, "accuracy.trajectory_deg", 10.0), std::nullopt);
+  a = resolve(a);
+  ASSERT_EQ(a.numerics.preset, FidelityPreset::Standard);
+  EXPECT_EQ(specFingerprint(a), specFingerprint(resolve(SceneSpec{})));
+  SceneSpec b;
+  ASSERT_EQ(setField(b, "numerics.preset", std::string("draft")), std::nullopt);
+  EXPECT_NE(specFingerprint(b), specFingerprint(SceneSpec{}));  // its values differ
+}
+
 TEST(SpecPresets, MeasuredUnstableSettingsNameTheTimeStepAndItsLimit) {
   SceneSpec s;
   s.scene = SceneKind::Doublet;

@@ -302,5 +302,26 @@ TEST(Vtk, TheCheckerCatchesBrokenXml) {
   EXPECT_NO_THROW(XmlReader("<?xml version=\"1.0\"?>\n<a><b/>t</a>\n").document());
 }
 
+TEST(Vtk, ReadVtpGivesBackExactlyWhatWasWritten) {
+  // Slurm tasks report their snapshots from the .vtp files foam-run wrote: the store must get
+  // the same numbers the local pool stores.
+  const Snapshot snap = twoTetrahedra();
+  const VtkMesh m = toVtkMesh(snap);
+  std::ostringstream out;
+  writeVtp(out, m);
+  const VtkMesh back = readVtp(out.str());
+  EXPECT_EQ(back.t_s, m.t_s);
+  EXPECT_EQ(back.step, m.step);
+  EXPECT_EQ(back.points, m.points);  // bit for bit (1/3 included)
+  EXPECT_EQ(back.tri, m.tri);
+  EXPECT_EQ(back.vertex_cell, m.vertex_cell);
+  EXPECT_EQ(back.cell_pressure, m.cell_pressure);
+  EXPECT_EQ(back.cell_label, m.cell_label);
+  std::string broken = out.str();
+  broken.replace(broken.find("Name=\"Points\""), 13, "Name=\"Pts\"");
+  EXPECT_THROW(readVtp(broken), std::invalid_argument);
+  EXPECT_THROW(readVtp("<VTKFile/>"), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace activefoam

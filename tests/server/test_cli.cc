@@ -12,7 +12,10 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <map>
+#include <memory>
 #include <random>
+#include <set>
 #include <sstream>
 #include <thread>
 #include <vector>
@@ -352,4 +355,189 @@ TEST(Cli, TlsAndTokenFromFlagsAndEnvironment) {
   EXPECT_EQ(sh(foam + " --token-file " + token.string() + " list 2>/dev/null").rc, 3);  // plain
   d.stop(SIGTERM);
   fs::remove_all(dir);
+}
+
+// ---- the Slurm executor against a stand-in Slurm (tests/slurm/fake: sbatch runs the array's
+// tasks on this machine; the real single-node Slurm test is tests/slurm/test_slurm.sh) ------
+
+namespace {
+
+struct FakeSlurm {
+  fs::path dir = tempDir();
+  FakeSlurm() {
+    setenv("FAKE_SLURM_STATE", (dir / "state").c_str(), 1);
+    const std::string path = std::string(FAKE_SLURM_DIR) + ":" + std::getenv("PATH");
+    setenv("PATH", path.c_str(), 1);
+  }
+  std::vector<std::string> args() const {
+    return {"--executor",
+            "slurm",
+            "--slurm-dir",
+            (dir / "work").string(),
+            "--slurm-poll-s",
+            "0.2",
+            "--slurm-checkpoint-every-s",
+            "1"};
+  }
+  std::string taskState(const std::string& task) const {
+    std::ifstream f(dir / "state" / (task + ".state"));
+    std::string s;
+    f >> s;
+    return s;
+  }
+};
+
+// `foam show` field ("executor:  slurm:1001_0" → "slurm:1001_0").
+std::string showField(const Foamd& d, const std::string& id, const std::string& field) {
+  const Proc r = sh(d.foam() + " show " + id + " 2>/dev/null");
+  std::istringstream in(r.out);
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind(field + ":", 0) == 0) {
+      std::string v = line.substr(field.size() + 1);
+      return v.substr(v.find_first_not_of(' '));
+    }
+  return "";
+}
+
+std::map<std::uint64_t, nlohmann::json> sweepResults(const Foamd& d, const std::string& sweep) {
+  std::map<std::uint64_t, nlohmann::json> out;
+  const Proc l = sh(d.foam() + " list --sweep " + sweep + " 2>/dev/null");
+  std::istringstream in(l.out);
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    const std::string id = line.substr(0, line.find(' '));
+    nlohmann::json j = results(d, id);
+    out[j["seed"].get<std::uint64_t>()] = j;
+  }
+  return out;
+}
+
+// Results and samples without the wall-clock ones.
+void expectSameRun(const nlohmann::json& a, const nlohmann::json& b) {
+  EXPECT_EQ(a["state"], b["state"]);
+  nlohmann::json ra = a["results"], rb = b["results"];
+  ra.erase("wall_s");
+  rb.erase("wall_s");
+  EXPECT_EQ(ra, rb);
+  ASSERT_EQ(a["samples"].size(), b["samples"].size());
+  const auto cols = a["columns"].get<std::vector<std::string>>();
+  for (std::size_t i = 0; i < a["samples"].size(); ++i)
+    for (std::size_t c = 0; c < cols.size(); ++c)
+      if (cols[c] != "wall_s") {
+        EXPECT_EQ(a["samples"][i][c], b["samples"][i][c]) << cols[c];
+      }
+  EXPECT_EQ(a["snapshots"], b["snapshots"]);
+}
+
+std::string waitForState(const Foamd& d, const std::string& id, const std::string& want,
+                         double timeout_s) {
+  std::string s;
+  for (int i = 0; i < timeout_s * 10; ++i) {
+    s = state(d, id);
+    if (s == want) break;
+    std::this_thread::sleep_for(100ms);
+  }
+  return s;
+}
+
+}  // namespace
+
+TEST(CliSlurm, ASweepRunsAsArrayTasksWithTheLocalPoolsResults) {
+  FakeSlurm slurm;
+  Foamd s(slurm.dir / "db" / "foamd.db", freePort(), 1, slurm.args());
+  Foamd p(slurm.dir / "db2" / "foamd.db", freePort(), 2);
+  const std::string sweep_args =
+      " sweep --scene doublet --set duration_s=30 --set sample_every_s=5"
+      " --set snapshot_every_s=15 --set cells.p_a=0 --seeds 1,2,3,4 --wait 2>/dev/null";
+  Proc rs, rp;
+  for (int i = 0; i < 50; ++i) {  // the servers may still be starting
+    rs = sh(s.foam() + sweep_args);
+    if (rs.rc != 3) break;
+    std::this_thread::sleep_for(100ms);
+  }
+  ASSERT_EQ(rs.rc, 0) << rs.out;
+  for (int i = 0; i < 50; ++i) {
+    rp = sh(p.foam() + sweep_args);
+    if (rp.rc != 3) break;
+    std::this_thread::sleep_for(100ms);
+  }
+  ASSERT_EQ(rp.rc, 0) << rp.out;
+  const auto a = sweepResults(s, firstLine(rs.out));
+  const auto b = sweepResults(p, firstLine(rp.out));
+  ASSERT_EQ(a.size(), 4u);
+  ASSERT_EQ(b.size(), 4u);
+  std::set<std::string> arrays;
+  for (const auto& [seed, j] : a) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    expectSameRun(j, b.at(seed));
+    const std::string ref = showField(s, j["id"], "executor");
+    arrays.insert(ref.substr(0, ref.find('_')));
+  }
+  EXPECT_EQ(arrays.size(), 1u) << "a sweep is one sbatch --array";
+  fs::remove_all(slurm.dir);
+}
+
+TEST(CliSlurm, CancelFailureAndAFoamdRestartMidSweep) {
+  FakeSlurm slurm;
+  const int port = freePort();
+  auto s = std::make_unique<Foamd>(slurm.dir / "db" / "foamd.db", port, 1, slurm.args());
+  const std::string base =
+      " submit --scene doublet --set sample_every_s=5 --set cells.p_a=0"
+      " --set snapshot_every_s=0";
+  // Cancel: a long job, cancelled once it reports progress → CANCELLED, its task scancelled.
+  Proc r;
+  for (int i = 0; i < 50; ++i) {
+    r = sh(s->foam() + base + " --set duration_s=100000 2>/dev/null");
+    if (r.rc != 3) break;
+    std::this_thread::sleep_for(100ms);
+  }
+  ASSERT_EQ(r.rc, 0);
+  const std::string long_id = firstLine(r.out);
+  std::string ref;
+  for (int i = 0; i < 300 && (ref.empty() || showField(*s, long_id, "progress")[0] == '0'); ++i) {
+    ref = showField(*s, long_id, "executor");
+    std::this_thread::sleep_for(100ms);
+  }
+  ASSERT_EQ(ref.rfind("slurm:", 0), 0u) << ref;
+  EXPECT_EQ(sh(s->foam() + " cancel " + long_id + " 2>/dev/null").rc, 0);
+  EXPECT_EQ(waitForState(*s, long_id, "cancelled", 10), "cancelled");
+  EXPECT_EQ(slurm.taskState(ref.substr(6)), "CANCELLED");
+
+  // A task whose run fails: FAILED with the engine's failure and reason.
+  r = sh(s->foam() + base + " --set duration_s=50 --set numerics.max_volume_error=1e-9 --wait");
+  EXPECT_EQ(r.rc, 1) << r.out;
+  const std::string failed_id = firstLine(r.out);
+  EXPECT_NE(showField(*s, failed_id, "reason").find("volume error"), std::string::npos)
+      << showField(*s, failed_id, "reason");
+
+  // foamd killed mid-sweep and restarted: the tasks keep running and retry their reports; the
+  // sweep ends complete.
+  r = sh(s->foam() +
+         " sweep --scene doublet --set duration_s=1500 --set sample_every_s=5"
+         " --set snapshot_every_s=500 --set cells.p_a=0 --seeds 5,6 2>/dev/null");
+  ASSERT_EQ(r.rc, 0);
+  const std::string sweep = firstLine(r.out);
+  std::this_thread::sleep_for(2s);
+  s->stop(SIGKILL);
+  std::this_thread::sleep_for(3s);
+  s = std::make_unique<Foamd>(slurm.dir / "db" / "foamd.db", port, 1, slurm.args());
+  std::map<std::uint64_t, nlohmann::json> done;
+  for (int i = 0; i < 1200; ++i) {
+    std::this_thread::sleep_for(100ms);
+    const Proc l = sh(s->foam() + " list --sweep " + sweep + " 2>/dev/null");
+    if (l.rc == 0 && l.out.find("running") == std::string::npos &&
+        l.out.find("queued") == std::string::npos && l.out.find("succeeded") != std::string::npos)
+      break;
+  }
+  done = sweepResults(*s, sweep);
+  ASSERT_EQ(done.size(), 2u);
+  for (const auto& [seed, j] : done) {
+    EXPECT_EQ(j["state"], "succeeded") << seed;
+    EXPECT_EQ(j["samples"].size(), 301u) << seed;  // 0, 5, ..., 1500 s: none lost, none twice
+    EXPECT_EQ(j["snapshots"], 4) << seed;
+    EXPECT_EQ(j["results"]["t_s"], 1500) << seed;
+  }
+  s->stop(SIGTERM);
+  fs::remove_all(slurm.dir);
 }

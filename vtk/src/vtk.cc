@@ -1,9 +1,14 @@
 // VTK XML PolyData / collection writers (see vtk.h).
 #include "activefoam/vtk.h"
 
+#include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
+#include <string_view>
+#include <system_error>
 
 namespace activefoam {
 namespace {
@@ -147,6 +152,97 @@ void writePvd(std::ostream& os, const std::vector<std::pair<double, std::string>
        << xmlEscape(file) << "\"/>\n";
   os << "  </Collection>\n"
      << "</VTKFile>\n";
+}
+
+namespace {
+
+// The text between <DataArray ... Name="name" ...> and </DataArray>, or nullopt.
+std::optional<std::string_view> dataArray(std::string_view text, std::string_view name) {
+  const std::string key = "Name=\"" + std::string(name) + "\"";
+  std::size_t at = 0;
+  while ((at = text.find("<DataArray", at)) != std::string_view::npos) {
+    const std::size_t close = text.find('>', at);
+    if (close == std::string_view::npos) return std::nullopt;
+    if (text.substr(at, close - at).find(key) != std::string_view::npos) {
+      const std::size_t end = text.find("</DataArray>", close);
+      if (end == std::string_view::npos) return std::nullopt;
+      return text.substr(close + 1, end - close - 1);
+    }
+    at = close;
+  }
+  return std::nullopt;
+}
+
+template <class T>
+std::vector<T> numbers(std::string_view text, std::string_view name) {
+  const auto body = dataArray(text, name);
+  if (!body) throw std::invalid_argument("readVtp: no DataArray '" + std::string(name) + "'");
+  std::vector<T> out;
+  const char* p = body->data();
+  const char* end = p + body->size();
+  while (p < end) {
+    while (p < end && std::isspace(static_cast<unsigned char>(*p))) ++p;
+    if (p == end) break;
+    T v{};
+    const auto res = std::from_chars(p, end, v);
+    if (res.ec != std::errc())
+      throw std::invalid_argument("readVtp: malformed number in '" + std::string(name) + "'");
+    out.push_back(v);
+    p = res.ptr;
+  }
+  return out;
+}
+
+}  // namespace
+
+VtkMesh readVtp(const std::string& text) {
+  VtkMesh m;
+  const auto time = numbers<double>(text, "TIME");
+  const auto step = numbers<std::int64_t>(text, "STEP");
+  if (time.size() != 1 || step.size() != 1)
+    throw std::invalid_argument("readVtp: TIME and STEP must hold one value each");
+  m.t_s = time[0];
+  m.step = step[0];
+  // Point and cell arrays share the name cell_id: the first is PointData's, as written.
+  const std::size_t cells_at = text.find("<CellData");
+  if (cells_at == std::string::npos) throw std::invalid_argument("readVtp: no CellData");
+  const std::string_view all(text);
+  m.points = numbers<double>(all, "Points");
+  if (m.points.size() % 3 != 0) throw std::invalid_argument("readVtp: points are not triples");
+  m.vertex_cell = numbers<int>(all.substr(0, cells_at), "cell_id");
+  const auto conn = numbers<std::int64_t>(all, "connectivity");
+  if (conn.size() % 3 != 0) throw std::invalid_argument("readVtp: polygons are not triangles");
+  const std::size_t np = m.points.size() / 3;
+  if (m.vertex_cell.size() != np)
+    throw std::invalid_argument("readVtp: cell_id has " + std::to_string(m.vertex_cell.size()) +
+                                " entries for " + std::to_string(np) + " points");
+  for (std::size_t t = 0; t < conn.size(); t += 3) {
+    std::array<int, 3> tri{};
+    for (int k = 0; k < 3; ++k) {
+      const std::int64_t v = conn[t + static_cast<std::size_t>(k)];
+      if (v < 0 || static_cast<std::size_t>(v) >= np)
+        throw std::invalid_argument("readVtp: triangle references vertex " + std::to_string(v));
+      tri[static_cast<std::size_t>(k)] = static_cast<int>(v);
+    }
+    m.tri.push_back(tri);
+  }
+  const auto tri_cell = numbers<int>(all.substr(cells_at), "cell_id");
+  const auto label = numbers<int>(all, "spheroid");
+  const auto pressure = numbers<double>(all, "pressure");
+  if (tri_cell.size() != m.tri.size() || label.size() != m.tri.size() ||
+      pressure.size() != m.tri.size())
+    throw std::invalid_argument("readVtp: per-triangle arrays do not match the triangles");
+  int cells = 0;
+  for (int c : m.vertex_cell) cells = std::max(cells, c + 1);
+  m.cell_pressure.assign(static_cast<std::size_t>(cells), 0.0);
+  m.cell_label.assign(static_cast<std::size_t>(cells), 0);
+  for (std::size_t t = 0; t < m.tri.size(); ++t) {
+    const int c = tri_cell[t];
+    if (c < 0 || c >= cells) throw std::invalid_argument("readVtp: triangle cell id out of range");
+    m.cell_pressure[static_cast<std::size_t>(c)] = pressure[t];
+    m.cell_label[static_cast<std::size_t>(c)] = label[t];
+  }
+  return m;
 }
 
 }  // namespace activefoam

@@ -193,7 +193,8 @@ SceneSpec resolve(const SceneSpec& spec);
 std::vector<SpecError> measuredUnstable(const SceneSpec& spec);
 
 // Every key's value in table order, as text: two specs with the same fingerprint run
-// identically (checkpoints and the spheroid cache compare it).
+// identically (checkpoints and the spheroid cache compare it). numerics.preset and the
+// [accuracy] keys are left out: they only choose the values of other keys.
 std::string specFingerprint(const SceneSpec& spec);
 
 // Levenshtein distance (for "did you mean" suggestions on unknown keys and tables).

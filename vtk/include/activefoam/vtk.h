@@ -30,6 +30,12 @@ struct VtkMesh {
 // nor one entry per point, or a triangle references a vertex out of range.
 void writeVtp(std::ostream& os, const VtkMesh& mesh);
 
+// Reads back what writeVtp wrote (ASCII PolyData with the arrays above): points, triangles,
+// per-vertex cell ids, and per cell the pressure and spheroid label (from the triangles' values).
+// Values are exact (writeVtp prints shortest round-trip decimals). Throws std::invalid_argument
+// naming what is missing or malformed.
+VtkMesh readVtp(const std::string& text);
+
 // A ParaView collection: one DataSet per (time, file) in the given order; file names are
 // written as given (relative to the .pvd) and XML-escaped.
 void writePvd(std::ostream& os, const std::vector<std::pair<double, std::string>>& time_and_file);

@@ -1,0 +1,521 @@
+// The Slurm executor (see slurm.h).
+#include "slurm.h"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
+
+#include "activefoam/run.h"
+
+extern char** environ;
+
+namespace activefoam::server {
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+struct ProcResult {
+  int rc = -1;  // exit status; -1 could not start or timed out
+  std::string out, err;
+};
+
+// Runs argv (PATH lookup) and collects stdout and stderr. posix_spawn, not fork: foamd is
+// multithreaded (gRPC), and between fork and exec only async-signal-safe calls are allowed.
+ProcResult runProcess(const std::vector<std::string>& argv, double timeout_s = 60) {
+  ProcResult r;
+  int out_pipe[2], err_pipe[2];
+  if (pipe2(out_pipe, O_CLOEXEC) != 0) return r;
+  if (pipe2(err_pipe, O_CLOEXEC) != 0) {
+    close(out_pipe[0]);
+    close(out_pipe[1]);
+    return r;
+  }
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_adddup2(&fa, out_pipe[1], 1);
+  posix_spawn_file_actions_adddup2(&fa, err_pipe[1], 2);
+  posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  pid_t pid = -1;
+  const int rc = posix_spawnp(&pid, args[0], &fa, nullptr, args.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  close(out_pipe[1]);
+  close(err_pipe[1]);
+  if (rc != 0) {
+    r.err = argv[0] + ": " + std::strerror(rc);
+    close(out_pipe[0]);
+    close(err_pipe[0]);
+    return r;
+  }
+  const auto deadline = Clock::now() + std::chrono::duration<double>(timeout_s);
+  pollfd fds[2] = {{out_pipe[0], POLLIN, 0}, {err_pipe[0], POLLIN, 0}};
+  int open_fds = 2;
+  char buf[4096];
+  bool timed_out = false;
+  while (open_fds > 0) {
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
+    if (left <= 0) {
+      timed_out = true;
+      break;
+    }
+    if (poll(fds, 2, static_cast<int>(left)) < 0 && errno != EINTR) break;
+    for (int k = 0; k < 2; ++k) {
+      if (fds[k].fd < 0 || !(fds[k].revents & (POLLIN | POLLHUP | POLLERR))) continue;
+      const ssize_t n = read(fds[k].fd, buf, sizeof buf);
+      if (n > 0) {
+        (k == 0 ? r.out : r.err).append(buf, static_cast<std::size_t>(n));
+      } else if (n == 0 || errno != EINTR) {
+        close(fds[k].fd);
+        fds[k].fd = -1;
+        --open_fds;
+      }
+    }
+  }
+  for (auto& f : fds)
+    if (f.fd >= 0) close(f.fd);
+  if (timed_out) kill(pid, SIGKILL);
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (timed_out) {
+    r.err += argv[0] + ": timed out after " + std::to_string(timeout_s) + " s";
+    return r;
+  }
+  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return r;
+}
+
+std::string trimmed(std::string s) {
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
+  std::size_t b = 0;
+  while (b < s.size() && std::isspace(static_cast<unsigned char>(s[b]))) ++b;
+  return s.substr(b);
+}
+
+// 'it''s' → shell-safe single-quoted word.
+std::string quoted(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+void writeFileAtomically(const fs::path& path, const std::string& text) {
+  const fs::path tmp = path.string() + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    f << text;
+    f.flush();
+    if (!f) throw std::runtime_error("cannot write " + tmp.string());
+  }
+  fs::rename(tmp, path);
+}
+
+constexpr const char* kRefPrefix = "slurm:";
+
+// "slurm:123_4" → "123_4" (empty if not ours).
+std::string slurmId(const std::string& ref) {
+  return ref.rfind(kRefPrefix, 0) == 0 ? ref.substr(std::strlen(kRefPrefix)) : std::string();
+}
+
+// Job states of task ids ("123_4") from `squeue`, then `sacct` for those squeue no longer lists
+// (finished longer ago than MinJobAge). Missing ids are unknown to both.
+std::map<std::string, SlurmState> queryStates(const SlurmOptions& o,
+                                              const std::set<std::string>& task_ids) {
+  std::map<std::string, SlurmState> out;
+  if (task_ids.empty()) return out;
+  std::set<std::string> arrays;
+  for (const std::string& t : task_ids) arrays.insert(t.substr(0, t.find('_')));
+  std::string list;
+  for (const std::string& a : arrays) list += (list.empty() ? "" : ",") + a;
+  const ProcResult q = runProcess(
+      {o.squeue, "--noheader", "--array", "--states=all", "--format=%i|%T", "--jobs=" + list});
+  if (q.rc == 0) {
+    std::istringstream in(q.out);
+    for (std::string line; std::getline(in, line);) {
+      const auto bar = line.find('|');
+      if (bar == std::string::npos) continue;
+      const std::string id = trimmed(line.substr(0, bar));
+      if (task_ids.count(id)) out[id] = classifySlurmState(trimmed(line.substr(bar + 1)));
+    }
+  }
+  if (out.size() < task_ids.size()) {
+    const ProcResult a = runProcess({o.sacct, "--noheader", "--parsable2", "--allocations",
+                                     "--format=JobID,State", "--jobs=" + list});
+    if (a.rc == 0) {
+      std::istringstream in(a.out);
+      for (std::string line; std::getline(in, line);) {
+        const auto bar = line.find('|');
+        if (bar == std::string::npos) continue;
+        const std::string id = trimmed(line.substr(0, bar));
+        // "CANCELLED by 0" → CANCELLED
+        std::string state = trimmed(line.substr(bar + 1));
+        state = state.substr(0, state.find(' '));
+        if (task_ids.count(id) && !out.count(id)) out[id] = classifySlurmState(state);
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+SlurmState classifySlurmState(const std::string& state) {
+  SlurmState s;
+  s.name = state;
+  static const std::set<std::string> active = {
+      "PENDING",      "RUNNING",     "CONFIGURING",  "COMPLETING", "REQUEUED",
+      "REQUEUE_HOLD", "REQUEUE_FED", "RESIZING",     "SUSPENDED",  "STAGE_OUT",
+      "SIGNALING",    "STOPPED",     "RESV_DEL_HOLD"};
+  static const std::set<std::string> failed = {"FAILED",        "TIMEOUT",      "NODE_FAIL",
+                                               "OUT_OF_MEMORY", "PREEMPTED",    "BOOT_FAIL",
+                                               "DEADLINE",      "SPECIAL_EXIT", "REVOKED"};
+  if (active.count(state))
+    s.kind = SlurmState::Active;
+  else if (state == "COMPLETED")
+    s.kind = SlurmState::Completed;
+  else if (state == "CANCELLED")
+    s.kind = SlurmState::Cancelled;
+  else if (failed.count(state))
+    s.kind = SlurmState::Failed;
+  else
+    s.kind = SlurmState::Unknown;
+  return s;
+}
+
+std::vector<std::pair<std::string, double>> resultsFromSummaryJson(const std::string& text) {
+  const nlohmann::json j = nlohmann::json::parse(text);
+  auto num = [](const nlohmann::json& v) {
+    return v.is_number() ? v.get<double>() : std::nan("");  // null: NaN, as the pool stores it
+  };
+  std::vector<std::pair<std::string, double>> results;
+  const nlohmann::json none = nlohmann::json::object();
+  const nlohmann::json& final_values = j.contains("final_values") ? j["final_values"] : none;
+  for (const auto& [name, v] : final_values.items()) results.emplace_back(name, num(v));
+  results.emplace_back("t_s", num(j.value("t_s", nlohmann::json())));
+  results.emplace_back("steps", num(j.value("steps", nlohmann::json())));
+  results.emplace_back("wall_s", num(j.value("wall_s", nlohmann::json())));
+  results.emplace_back("cg_iters_mean", num(j.value("cg_iters_mean", nlohmann::json())));
+  results.emplace_back("remesh_ops", num(j.value("remesh_ops", nlohmann::json())));
+  const nlohmann::json& fits = j.contains("fits") ? j["fits"] : none;
+  for (const auto& [model, f] : fits.items()) {
+    const bool ok = f.value("ok", false);
+    results.emplace_back(model + "_ok", ok ? 1 : 0);
+    if (!ok) continue;
+    results.emplace_back(model + "_r2", num(f.value("r2", nlohmann::json())));
+    const nlohmann::json& params = f.contains("parameters") ? f["parameters"] : none;
+    for (const auto& [param, p] : params.items()) {
+      const std::string name = fitResultName(model, param);
+      results.emplace_back(name, num(p.value("value", nlohmann::json())));
+      results.emplace_back(name + "_se", num(p.value("std_error", nlohmann::json())));
+    }
+  }
+  return results;
+}
+
+SlurmExecutor::SlurmExecutor(Store& store, SlurmOptions options)
+    : store_(store), options_(std::move(options)) {
+  if (options_.work_dir.empty())
+    throw std::invalid_argument("the slurm executor needs --slurm-dir (a shared directory)");
+  if (options_.report_to.empty())
+    throw std::invalid_argument("the slurm executor needs the address tasks report to");
+  fs::create_directories(fs::path(options_.work_dir) / "jobs");
+  fs::create_directories(fs::path(options_.work_dir) / "arrays");
+}
+
+SlurmExecutor::~SlurmExecutor() {
+  stop(false);
+}
+
+void SlurmExecutor::start() {
+  // Reconcile: a job claimed by an earlier foamd that died before its sbatch returned has no
+  // task; back to the queue. Those with tasks are judged by the first poll (Slurm's state) and
+  // by their reports, which their tasks retry while foamd is away.
+  int requeued = 0, kept = 0;
+  for (const v1::Job& j : store_.runningJobs()) {
+    if (slurmId(j.executor_ref()).empty()) {
+      store_.requeue(j.id(), "foamd restarted before the job reached Slurm; re-queued");
+      ++requeued;
+    } else {
+      ++kept;
+    }
+  }
+  if (requeued + kept > 0)
+    spdlog::info("slurm: {} running job(s) still with Slurm, {} re-queued", kept, requeued);
+  stats_.running = kept;
+  thread_ = std::thread([this] { loop(); });
+}
+
+void SlurmExecutor::wake() {
+  std::lock_guard lock(mu_);
+  ++wake_gen_;
+  cv_.notify_all();
+}
+
+void SlurmExecutor::stop(bool) {
+  {
+    std::lock_guard lock(mu_);
+    stopping_ = true;
+    cv_.notify_all();
+  }
+  if (thread_.joinable()) thread_.join();
+}
+
+void SlurmExecutor::loop() {
+  for (;;) {
+    std::uint64_t gen;
+    {
+      std::lock_guard lock(mu_);
+      if (stopping_) return;
+      gen = wake_gen_;
+    }
+    try {
+      submitQueued();
+      poll();
+    } catch (const std::exception& e) {
+      spdlog::error("slurm: {}", e.what());
+    }
+    std::unique_lock lock(mu_);
+    cv_.wait_for(lock, std::chrono::duration<double>(options_.poll_every_s),
+                 [&] { return stopping_ || wake_gen_ != gen; });
+  }
+}
+
+void SlurmExecutor::submitQueued() {
+  std::vector<Claimed> claimed = store_.claimQueued(1000);  // Slurm's default MaxArraySize
+  if (claimed.empty()) return;
+  // A sweep's jobs as one array; other jobs each as their own.
+  std::map<std::string, std::vector<v1::Job>> groups;
+  for (Claimed& c : claimed) {
+    const std::string key = c.job.sweep_id().empty() ? c.job.id() : c.job.sweep_id();
+    groups[key].push_back(std::move(c.job));
+  }
+  for (const auto& [name, jobs] : groups) submitGroup(name, jobs);
+}
+
+std::string SlurmExecutor::writeTaskScript(const std::string& array_dir) const {
+  std::ostringstream s;
+  s << "#!/bin/bash\n"
+       "# Written by foamd's Slurm executor (template: deploy/slurm/foam-task.sh). One array\n"
+       "# task runs one job: foam-run computes and checkpoints into the shared work directory,\n"
+       "# foam report sends its outputs to foamd and exits with foam-run's exit status.\n"
+       "set -u\n"
+       "# The engine's OpenMP threads: the CPUs Slurm gave the task, not the node's.\n"
+       "export OMP_NUM_THREADS=${SLURM_CPUS_PER_TASK:-1}\n"
+    << "ARRAY_DIR=" << quoted(array_dir) << "\n"
+    << "WORK_DIR=" << quoted(options_.work_dir) << "\n"
+    << "JOB=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" \"$ARRAY_DIR/jobs\")\n"
+    << "RUN=\"$WORK_DIR/jobs/$JOB\"\n"
+    << "exec " << quoted(options_.foam) << " --server " << quoted(options_.report_to);
+  if (!options_.token_file.empty()) s << " --token-file " << quoted(options_.token_file);
+  if (!options_.tls_ca.empty()) s << " --tls-ca " << quoted(options_.tls_ca);
+  s << " report \"$JOB\" \"$RUN/run\" --attempt "
+       "\"slurm:${SLURM_ARRAY_JOB_ID}_${SLURM_ARRAY_TASK_ID}\" -- "
+    << quoted(options_.foam_run) << " \"$RUN/spec.json\" --out \"$RUN/run\" --resume"
+    << " --checkpoint-every " << options_.checkpoint_every_s << " --quiet\n";
+  return s.str();
+}
+
+void SlurmExecutor::submitGroup(const std::string& name, const std::vector<v1::Job>& jobs) {
+  const fs::path work(options_.work_dir);
+  const fs::path array_dir = work / "arrays" / (name + "-" + std::to_string(::time(nullptr)));
+  std::string failure;
+  try {
+    fs::create_directories(array_dir);
+    std::string list;
+    for (const v1::Job& j : jobs) {
+      const fs::path dir = work / "jobs" / j.id();
+      fs::create_directories(dir);
+      // The resolved spec as stored: foam-run runs exactly what the store says.
+      writeFileAtomically(dir / "spec.json", j.spec_json());
+      list += j.id() + "\n";
+    }
+    writeFileAtomically(array_dir / "jobs", list);
+    writeFileAtomically(array_dir / "task.sh", writeTaskScript(array_dir.string()));
+    fs::permissions(array_dir / "task.sh", fs::perms::owner_all | fs::perms::group_read |
+                                               fs::perms::group_exec | fs::perms::others_read |
+                                               fs::perms::others_exec);
+  } catch (const std::exception& e) {
+    failure = std::string("cannot prepare the task files in ") + work.string() + ": " + e.what();
+  }
+  std::string array_id;
+  if (failure.empty()) {
+    std::vector<std::string> argv = {options_.sbatch,
+                                     "--parsable",
+                                     "--array=0-" + std::to_string(jobs.size() - 1),
+                                     "--job-name=foam-" + name,
+                                     "--requeue",
+                                     "--output=" + (array_dir / "task-%a.out").string()};
+    if (!options_.partition.empty()) argv.push_back("--partition=" + options_.partition);
+    for (const std::string& a : options_.sbatch_args) argv.push_back(a);
+    argv.push_back((array_dir / "task.sh").string());
+    const ProcResult r = runProcess(argv);
+    array_id = trimmed(r.out.substr(0, r.out.find(';')));
+    if (r.rc != 0 || array_id.empty())
+      failure = "sbatch failed (exit " + std::to_string(r.rc) + "): " + trimmed(r.err);
+  }
+  if (!failure.empty()) {
+    spdlog::error("slurm: {}: {}", name, failure);
+    for (const v1::Job& j : jobs) {
+      store_.finish(j.id(), v1::JOB_STATE_FAILED, "executor", failure, {}, 0, 0);
+      ++stats_.jobs_failed;
+    }
+    return;
+  }
+  spdlog::info("slurm: submitted {} job(s) as array {} ({})", jobs.size(), array_id, name);
+  std::vector<std::string> late_cancels;
+  for (std::size_t k = 0; k < jobs.size(); ++k) {
+    const std::string task = array_id + "_" + std::to_string(k);
+    store_.setExecutorRef(jobs[k].id(), kRefPrefix + task);
+    std::lock_guard lock(mu_);
+    if (cancelled_unplaced_.erase(jobs[k].id())) late_cancels.push_back(task);
+  }
+  stats_.running += static_cast<int>(jobs.size() - late_cancels.size());
+  for (const std::string& task : late_cancels) runProcess({options_.scancel, task});
+}
+
+bool SlurmExecutor::cancel(const std::string& id, const std::string& reason) {
+  const std::optional<v1::Job> j = store_.getJob(id);
+  if (!j || j->state() != v1::JOB_STATE_RUNNING) return false;
+  const std::string task = slurmId(j->executor_ref());
+  if (task.empty()) {
+    std::lock_guard lock(mu_);
+    cancelled_unplaced_.insert(id);  // scancelled once sbatch has answered
+  } else {
+    const ProcResult r = runProcess({options_.scancel, task});
+    if (r.rc != 0) spdlog::warn("slurm: scancel {}: {}", task, trimmed(r.err));
+    --stats_.running;
+  }
+  // Recorded now: the task's reporter is told to stop at its next report, and Slurm says
+  // CANCELLED for it from here on.
+  store_.finish(id, v1::JOB_STATE_CANCELLED, "cancelled", reason, {}, j->t_s(), j->steps());
+  ++stats_.jobs_cancelled;
+  spdlog::info("job {}: cancelled ({})", id, task.empty() ? "before reaching Slurm" : task);
+  return true;
+}
+
+bool SlurmExecutor::taskFinished(const v1::Job& job, const v1::ReportTaskRequest& report) {
+  const std::string& id = job.id();
+  const int rc = report.exit_code();
+  if (rc == 130 || rc == 143) {
+    // foam-run was interrupted (scancel, preemption, time limit): Slurm's state says which.
+    spdlog::info("job {}: task {} interrupted; waiting for Slurm's verdict", id, report.attempt());
+    return true;
+  }
+  std::vector<std::pair<std::string, double>> results;
+  nlohmann::json summary;
+  if (!report.summary_json().empty()) {
+    try {
+      summary = nlohmann::json::parse(report.summary_json());
+      results = resultsFromSummaryJson(report.summary_json());
+    } catch (const std::exception& e) {
+      spdlog::warn("job {}: unreadable summary.json from {}: {}", id, report.attempt(), e.what());
+    }
+  }
+  const double t = summary.value("t_s", job.t_s());
+  const std::int64_t steps = summary.value("steps", job.steps());
+  if (rc == 0 && summary.value("ok", false)) {
+    store_.finish(id, v1::JOB_STATE_SUCCEEDED, "", "", results, t, steps);
+    ++stats_.jobs_succeeded;
+    spdlog::info("job {}: succeeded on Slurm ({})", id, report.attempt());
+  } else if (rc == 3 && summary.contains("failure")) {
+    store_.finish(id, v1::JOB_STATE_FAILED, summary.value("failure", std::string("failed")),
+                  summary.value("reason", std::string()), results, t, steps);
+    ++stats_.jobs_failed;
+    spdlog::warn("job {}: failed on Slurm ({}): {}", id, report.attempt(),
+                 summary.value("reason", std::string()));
+  } else {
+    const std::string kind = rc == 2 ? "invalid-spec" : "exception";
+    store_.finish(id, v1::JOB_STATE_FAILED, kind,
+                  "foam-run exited with status " + std::to_string(rc) + " on Slurm (" +
+                      report.attempt() + ")" +
+                      (report.message().empty() ? "" : ": " + report.message()),
+                  results, t, steps);
+    ++stats_.jobs_failed;
+    spdlog::warn("job {}: foam-run exited with {} on Slurm ({})", id, rc, report.attempt());
+  }
+  --stats_.running;
+  std::lock_guard lock(mu_);
+  ended_since_.erase(id);
+  return true;
+}
+
+void SlurmExecutor::poll() {
+  const std::vector<v1::Job> running = store_.runningJobs();
+  std::set<std::string> tasks;
+  for (const v1::Job& j : running)
+    if (std::string t = slurmId(j.executor_ref()); !t.empty()) tasks.insert(t);
+  const std::map<std::string, SlurmState> states = queryStates(options_, tasks);
+  const auto now = Clock::now();
+  int active = 0;
+  for (const v1::Job& j : running) {
+    const std::string task = slurmId(j.executor_ref());
+    if (task.empty()) continue;
+    const auto it = states.find(task);
+    const SlurmState st = it == states.end() ? SlurmState{} : it->second;
+    if (st.kind == SlurmState::Active) {
+      ++active;
+      std::lock_guard lock(mu_);
+      ended_since_.erase(j.id());
+      continue;
+    }
+    // Ended (or unknown to Slurm) without a final report yet: give the report time to arrive.
+    {
+      std::lock_guard lock(mu_);
+      auto [e, fresh] = ended_since_.emplace(j.id(), now);
+      if (std::chrono::duration<double>(now - e->second).count() < options_.report_grace_s) {
+        ++active;
+        continue;
+      }
+      ended_since_.erase(e);
+    }
+    const fs::path run = fs::path(options_.work_dir) / "jobs" / j.id() / "run";
+    std::error_code ec;
+    const bool has_summary = fs::exists(run / "summary.json", ec);
+    const std::string what = st.kind == SlurmState::Unknown && st.name.empty()
+                                 ? std::string("no longer known to Slurm")
+                                 : "ended " + st.name;
+    if (st.kind == SlurmState::Completed || (st.kind == SlurmState::Unknown && has_summary)) {
+      // Its output folder is complete but foamd never got the final report (foamd was down, or
+      // the reporter gave up): run the task again; foam-run finds the finished run and the
+      // reporter sends the folder.
+      store_.requeue(j.id(), "Slurm task " + task + " " + what +
+                                 " without its final report; re-queued to report its outputs");
+      spdlog::info("job {}: task {} {} without a final report; re-queued", j.id(), task, what);
+    } else if (st.kind == SlurmState::Cancelled) {
+      store_.finish(j.id(), v1::JOB_STATE_CANCELLED, "cancelled",
+                    "Slurm task " + task + " was cancelled outside foamd", {}, j.t_s(), j.steps());
+      ++stats_.jobs_cancelled;
+    } else {
+      std::string kind = st.name.empty() ? "lost" : st.name;
+      std::transform(kind.begin(), kind.end(), kind.begin(),
+                     [](unsigned char c) { return c == '_' ? '-' : std::tolower(c); });
+      store_.finish(j.id(), v1::JOB_STATE_FAILED, "slurm-" + kind,
+                    "Slurm task " + task + " " + what + " (its log: " + options_.work_dir +
+                        "/arrays/.../task-N.out)",
+                    {}, j.t_s(), j.steps());
+      ++stats_.jobs_failed;
+      spdlog::warn("job {}: Slurm task {} {}", j.id(), task, what);
+    }
+  }
+  stats_.running = active;
+}
+
+}  // namespace activefoam::server
