@@ -135,10 +135,17 @@ bad=$(echo "$bad" | head -1)
 [ "$("${S[@]}" show "$bad" | head -1)" = failed ] || fail "bad job is not failed"
 field "$bad" reason "${S[@]}" | grep -q "volume error" || fail "no reason: $(field "$bad" reason "${S[@]}")"
 
-echo "== foamd killed mid-sweep and restarted" >&2
-r_sweep=$("${S[@]}" sweep --scene doublet --set duration_s=1500 --set sample_every_s=5 \
-  --set snapshot_every_s=500 --set cells.p_a=0 --seeds 5,6 2> /dev/null)
-sleep 3
+echo "== a task requeued by Slurm, and foamd killed mid-sweep and restarted" >&2
+r_sweep=$("${S[@]}" sweep --scene doublet --set duration_s=3000 --set sample_every_s=5 \
+  --set snapshot_every_s=1000 --set cells.p_a=0 --seeds 5,6 2> /dev/null)
+first=$("${S[@]}" list --sweep "$r_sweep" | awk 'NR > 1 {print $1}' | tail -1)
+for _ in $(seq 60); do
+  ref=$(field "$first" executor "${S[@]}")
+  [ -n "$ref" ] && [ "$(squeue --noheader --array --format=%T --jobs="${ref#slurm:}")" = RUNNING ] && break
+  sleep 0.5
+done
+sleep 3  # a checkpoint or two
+scontrol requeue "${ref#slurm:}" || fail "scontrol requeue ${ref#slurm:}"
 kill -9 "$spid"
 sleep 3
 start_slurm_foamd
@@ -154,10 +161,10 @@ jobs = [json.loads(line) for line in open(sys.argv[1])]
 assert len(jobs) == 2, len(jobs)
 for j in jobs:
     assert j["state"] == "succeeded", (j["id"], j["state"], j["reason"])
-    assert len(j["samples"]) == 301, len(j["samples"])  # 0, 5, ..., 1500 s: none lost, none twice
-    assert [s[0] for s in j["samples"]] == [5.0 * k for k in range(301)]
+    assert len(j["samples"]) == 601, len(j["samples"])  # 0, 5, ..., 3000 s: none lost, none twice
+    assert [s[0] for s in j["samples"]] == [5.0 * k for k in range(601)]
     assert j["snapshots"] == 4, j["snapshots"]
-print("test_slurm: restart mid-sweep: both jobs complete, 301 samples and 4 snapshots each",
-      file=sys.stderr)
+print("test_slurm: requeue + restart mid-sweep: both jobs complete, 601 samples and 4 "
+      "snapshots each", file=sys.stderr)
 EOF
 echo "test_slurm: PASSED" >&2
