@@ -164,7 +164,9 @@ class Reporter {
         *req.add_samples() = std::move(s);
       }
       req.set_first_snapshot(held_snapshots_);
-      if (held_snapshots_ < f.snapshots) {  // one per request: a snapshot can be megabytes
+      // Samples first; then snapshots one per request, alone: a snapshot can be megabytes and
+      // foamd's message limit is 64 MiB with the Slurm executor.
+      if (req.samples_size() == 0 && held_snapshots_ < f.snapshots) {
         char name[32];
         std::snprintf(name, sizeof name, "snap_%06d.vtp", held_snapshots_);
         auto [info, data] = loadSnapshot(run_ / "snapshots" / name);

@@ -183,6 +183,9 @@ int main(int argc, char** argv) {
                    slurm.work_dir, slurm.partition.empty() ? "(default)" : slurm.partition,
                    slurm.report_to);
       pool = std::make_unique<SlurmExecutor>(store, slurm);
+      // A task's report carries one snapshot (zlib SnapshotData): a 2 x 100-cell fusion at 1280
+      // triangles is ~4 MiB compressed, beyond gRPC's default 4 MiB.
+      config.max_message_bytes = 64 * 1024 * 1024;
     } else {
       pool = std::make_unique<Pool>(store, po);
     }

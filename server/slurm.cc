@@ -420,7 +420,7 @@ bool SlurmExecutor::taskFinished(const v1::Job& job, const v1::ReportTaskRequest
     return true;
   }
   std::vector<std::pair<std::string, double>> results;
-  nlohmann::json summary;
+  nlohmann::json summary = nlohmann::json::object();  // value() needs an object
   if (!report.summary_json().empty()) {
     try {
       summary = nlohmann::json::parse(report.summary_json());

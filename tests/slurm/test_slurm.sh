@@ -135,6 +135,24 @@ bad=$(echo "$bad" | head -1)
 [ "$("${S[@]}" show "$bad" | head -1)" = failed ] || fail "bad job is not failed"
 field "$bad" reason "${S[@]}" | grep -q "volume error" || fail "no reason: $(field "$bad" reason "${S[@]}")"
 
+echo "== a task whose spec is broken on the shared filesystem" >&2
+scontrol update PartitionName=debug State=DOWN
+inj=$("${S[@]}" submit --scene doublet --set duration_s=50 --set sample_every_s=5 \
+  --set cells.p_a=0 2> /dev/null | head -1)
+for _ in $(seq 60); do
+  [ -n "$(field "$inj" executor "${S[@]}")" ] && break
+  sleep 0.5
+done
+echo 'scene = "nonsense"' > "$tmp/work/jobs/$inj/spec.json"
+scontrol update PartitionName=debug State=UP
+for _ in $(seq 120); do
+  [ "$("${S[@]}" show "$inj" | head -1)" = failed ] && break
+  sleep 0.5
+done
+[ "$("${S[@]}" show "$inj" | head -1)" = failed ] || fail "the injected bad spec did not fail the job"
+field "$inj" reason "${S[@]}" | grep -q "invalid spec" ||
+  fail "no reason for the bad spec: $(field "$inj" reason "${S[@]}")"
+
 echo "== a task requeued by Slurm, and foamd killed mid-sweep and restarted" >&2
 r_sweep=$("${S[@]}" sweep --scene doublet --set duration_s=3000 --set sample_every_s=5 \
   --set snapshot_every_s=1000 --set cells.p_a=0 --seeds 5,6 2> /dev/null)
