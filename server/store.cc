@@ -327,6 +327,61 @@ struct Store::Tx {
     ev.mutable_state()->set_last_seq(ev.state().last_seq() + 1);
     event(id, std::move(ev));
   }
+  // Index the next sample / snapshot of a job gets (one past the highest stored).
+  std::int64_t nextIndex(const char* table, const std::string& id) {
+    Stmt n(db,
+           std::string("SELECT COALESCE(MAX(idx), -1) + 1 FROM ") + table + " WHERE job_id = ?");
+    n.bind(1, id);
+    n.step();
+    return n.i64(0);
+  }
+  // Stores sample `idx` of a job with its event (the first also records the columns).
+  void appendSample(const std::string& id, std::int64_t idx,
+                    const std::vector<std::string>& columns, const std::vector<double>& values) {
+    const double t = values.empty() ? 0.0 : values[0];
+    Stmt ins(db, "INSERT INTO samples(job_id, idx, t_s, vals) VALUES (?,?,?,?)");
+    ins.bind(1, id).bind(2, idx).bind(3, t).blob(4, packDoubles(values)).run();
+    if (idx == 0) {
+      Stmt c(db, "UPDATE jobs SET columns_json = ? WHERE id = ?");
+      c.bind(1, nlohmann::json(columns).dump()).bind(2, id).run();
+    }
+    v1::JobEvent ev;
+    ev.mutable_sample()->set_t_s(t);
+    for (double v : values) ev.mutable_sample()->add_values(v);
+    for (const std::string& c : columns) ev.add_columns(c);
+    event(id, std::move(ev));
+  }
+  // Stores snapshot info.index() of a job with its event, keeping the newest `keep` (0 = all).
+  void appendSnapshot(const std::string& id, const v1::SnapshotInfo& info,
+                      const std::string& compression, const std::string& data, int keep) {
+    Stmt ins(db,
+             "INSERT INTO snapshots(job_id, idx, t_s, step, bytes, vertices, triangles, "
+             "compression, data) VALUES (?,?,?,?,?,?,?,?,?)");
+    ins.bind(1, id)
+        .bind(2, info.index())
+        .bind(3, info.t_s())
+        .bind(4, info.step())
+        .bind(5, info.bytes())
+        .bind(6, info.vertices())
+        .bind(7, info.triangles())
+        .bind(8, compression)
+        .blob(9, data)
+        .run();
+    if (keep > 0) {
+      Stmt del(db, "DELETE FROM snapshots WHERE job_id = ? AND idx <= ?");
+      del.bind(1, id).bind(2, info.index() - keep).run();
+    }
+    v1::JobEvent ev;
+    *ev.mutable_snapshot() = info;
+    event(id, std::move(ev));
+  }
+  void setProgress(const std::string& id, const v1::Progress& p) {
+    Stmt up(db, "UPDATE jobs SET progress = ?, t_s = ?, steps = ? WHERE id = ?");
+    up.bind(1, p.fraction()).bind(2, p.t_s()).bind(3, p.step()).bind(4, id).run();
+    v1::JobEvent ev;
+    *ev.mutable_progress() = p;
+    event(id, std::move(ev));
+  }
 };
 
 Store::Store(const std::string& path, StoreOptions options) : path_(path), options_(options) {
@@ -649,69 +704,20 @@ Store::Held Store::ingestReport(
     const std::optional<v1::Progress>& progress) {
   return write([&](Tx& tx) {
     Held held;
-    Stmt n(tx.db, "SELECT COALESCE(MAX(idx), -1) + 1 FROM samples WHERE job_id = ?");
-    n.bind(1, id);
-    n.step();
-    held.samples = n.i64(0);
-    for (std::size_t k = 0; k < samples.size(); ++k) {
-      const std::int64_t idx = first_sample + static_cast<std::int64_t>(k);
-      if (idx != held.samples) continue;  // held already (or a gap: wait for the earlier ones)
-      const std::vector<double>& values = samples[k];
-      const double t = values.empty() ? 0.0 : values[0];
-      Stmt ins(tx.db, "INSERT INTO samples(job_id, idx, t_s, vals) VALUES (?,?,?,?)");
-      ins.bind(1, id).bind(2, idx).bind(3, t).blob(4, packDoubles(values)).run();
-      if (idx == 0) {
-        Stmt c(tx.db, "UPDATE jobs SET columns_json = ? WHERE id = ?");
-        c.bind(1, nlohmann::json(columns).dump()).bind(2, id).run();
-      }
-      v1::JobEvent ev;
-      ev.mutable_sample()->set_t_s(t);
-      for (double v : values) ev.mutable_sample()->add_values(v);
-      for (const std::string& c : columns) ev.add_columns(c);
-      tx.event(id, std::move(ev));
-      ++held.samples;
-    }
-    Stmt m(tx.db, "SELECT COALESCE(MAX(idx), -1) + 1 FROM snapshots WHERE job_id = ?");
-    m.bind(1, id);
-    m.step();
-    held.snapshots = static_cast<int>(m.i64(0));
+    // Only the next index is taken: held already (a repeated report) or beyond a gap (waits for
+    // the earlier ones) is skipped.
+    held.samples = tx.nextIndex("samples", id);
+    for (std::size_t k = 0; k < samples.size(); ++k)
+      if (first_sample + static_cast<std::int64_t>(k) == held.samples)
+        tx.appendSample(id, held.samples++, columns, samples[k]);
+    held.snapshots = static_cast<int>(tx.nextIndex("snapshots", id));
     for (std::size_t k = 0; k < snapshots.size(); ++k) {
-      const int idx = first_snapshot + static_cast<int>(k);
-      if (idx != held.snapshots) continue;
+      if (first_snapshot + static_cast<int>(k) != held.snapshots) continue;
       v1::SnapshotInfo info = snapshots[k].first;
-      info.set_index(idx);
-      Stmt ins(tx.db,
-               "INSERT INTO snapshots(job_id, idx, t_s, step, bytes, vertices, triangles, "
-               "compression, data) VALUES (?,?,?,?,?,?,?,'zlib',?)");
-      ins.bind(1, id)
-          .bind(2, idx)
-          .bind(3, info.t_s())
-          .bind(4, info.step())
-          .bind(5, info.bytes())
-          .bind(6, info.vertices())
-          .bind(7, info.triangles())
-          .blob(8, snapshots[k].second)
-          .run();
-      if (options_.keep_snapshots > 0) {
-        Stmt del(tx.db, "DELETE FROM snapshots WHERE job_id = ? AND idx <= ?");
-        del.bind(1, id).bind(2, idx - options_.keep_snapshots).run();
-      }
-      v1::JobEvent ev;
-      *ev.mutable_snapshot() = info;
-      tx.event(id, std::move(ev));
-      ++held.snapshots;
+      info.set_index(held.snapshots++);
+      tx.appendSnapshot(id, info, "zlib", snapshots[k].second, options_.keep_snapshots);
     }
-    if (progress) {
-      Stmt up(tx.db, "UPDATE jobs SET progress = ?, t_s = ?, steps = ? WHERE id = ?");
-      up.bind(1, progress->fraction())
-          .bind(2, progress->t_s())
-          .bind(3, progress->step())
-          .bind(4, id)
-          .run();
-      v1::JobEvent ev;
-      *ev.mutable_progress() = *progress;
-      tx.event(id, std::move(ev));
-    }
+    if (progress) tx.setProgress(id, *progress);
     return held;
   });
 }
@@ -816,64 +822,19 @@ void Store::dropCheckpoint(const std::string& id) {
 
 void Store::addSample(const std::string& id, const std::vector<std::string>& columns,
                       const std::vector<double>& values) {
-  post([=](Tx& tx) {
-    Stmt n(tx.db, "SELECT COALESCE(MAX(idx), -1) + 1 FROM samples WHERE job_id = ?");
-    n.bind(1, id);
-    n.step();
-    const std::int64_t idx = n.i64(0);
-    const double t = values.empty() ? 0.0 : values[0];
-    Stmt ins(tx.db, "INSERT INTO samples(job_id, idx, t_s, vals) VALUES (?,?,?,?)");
-    ins.bind(1, id).bind(2, idx).bind(3, t).blob(4, packDoubles(values)).run();
-    if (idx == 0) {
-      Stmt c(tx.db, "UPDATE jobs SET columns_json = ? WHERE id = ?");
-      c.bind(1, nlohmann::json(columns).dump()).bind(2, id).run();
-    }
-    v1::JobEvent ev;
-    ev.mutable_sample()->set_t_s(t);
-    for (double v : values) ev.mutable_sample()->add_values(v);
-    for (const std::string& c : columns) ev.add_columns(c);
-    tx.event(id, std::move(ev));
-  });
+  post([=](Tx& tx) { tx.appendSample(id, tx.nextIndex("samples", id), columns, values); });
 }
 
 void Store::addProgress(const std::string& id, const v1::Progress& p) {
-  post([=](Tx& tx) {
-    Stmt up(tx.db, "UPDATE jobs SET progress = ?, t_s = ?, steps = ? WHERE id = ?");
-    up.bind(1, p.fraction()).bind(2, p.t_s()).bind(3, p.step()).bind(4, id).run();
-    v1::JobEvent ev;
-    *ev.mutable_progress() = p;
-    tx.event(id, std::move(ev));
-  });
+  post([=](Tx& tx) { tx.setProgress(id, p); });
 }
 
 void Store::addSnapshot(const std::string& id, const v1::SnapshotInfo& info_in,
                         const std::string& compression, std::string data) {
   post([=, this, data = std::move(data)](Tx& tx) {
     v1::SnapshotInfo info = info_in;
-    Stmt n(tx.db, "SELECT COALESCE(MAX(idx), -1) + 1 FROM snapshots WHERE job_id = ?");
-    n.bind(1, id);
-    n.step();
-    info.set_index(static_cast<int>(n.i64(0)));
-    Stmt ins(tx.db,
-             "INSERT INTO snapshots(job_id, idx, t_s, step, bytes, vertices, triangles, "
-             "compression, data) VALUES (?,?,?,?,?,?,?,?,?)");
-    ins.bind(1, id)
-        .bind(2, info.index())
-        .bind(3, info.t_s())
-        .bind(4, info.step())
-        .bind(5, info.bytes())
-        .bind(6, info.vertices())
-        .bind(7, info.triangles())
-        .bind(8, compression)
-        .blob(9, data)
-        .run();
-    if (options_.keep_snapshots > 0) {
-      Stmt del(tx.db, "DELETE FROM snapshots WHERE job_id = ? AND idx <= ?");
-      del.bind(1, id).bind(2, info.index() - options_.keep_snapshots).run();
-    }
-    v1::JobEvent ev;
-    *ev.mutable_snapshot() = info;
-    tx.event(id, std::move(ev));
+    info.set_index(static_cast<int>(tx.nextIndex("snapshots", id)));
+    tx.appendSnapshot(id, info, compression, data, options_.keep_snapshots);
   });
 }
 
