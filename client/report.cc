@@ -323,6 +323,7 @@ int reportTask(v1::Foam::Stub& stub,
   if (child < 0) return 127;
   Reporter reporter(stub, context, args);
   int forwarded = 0;
+  std::optional<Clock::time_point> signalled_at;
   std::optional<int> exit_code;
   auto stopChild = [&](int sig) {
     kill(child, sig);
@@ -332,7 +333,14 @@ int reportTask(v1::Foam::Stub& stub,
     int status = 0;
     const pid_t r = waitpid(child, &status, WNOHANG);
     if (r == child) exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    if (!exit_code && g_signal && forwarded != g_signal) stopChild(g_signal);
+    // Slurm signals every process of the task, foam-run too; foam-run treats a second signal as
+    // "leave now, without the checkpoint". So forward only when foam-run has not stopped on its
+    // own within a few seconds (the signal was ours alone, e.g. run by hand).
+    if (!exit_code && g_signal && forwarded != g_signal) {
+      if (!signalled_at) signalled_at = Clock::now();
+      if (std::chrono::duration<double>(Clock::now() - *signalled_at).count() > 5)
+        stopChild(g_signal);
+    }
     Reporter::Outcome o = Reporter::Outcome::Ok;
     try {
       o = reporter.sync(exit_code);
@@ -351,7 +359,14 @@ int reportTask(v1::Foam::Stub& stub,
         waitpid(child, &status, 0);
       }
       if (o == Reporter::Outcome::Stop) return 143;
-      return o == Reporter::Outcome::GaveUp ? 75 : 1;
+      if (o == Reporter::Outcome::GaveUp) {
+        // For foamd, when it is back: the run is fine (finished or checkpointed), only its
+        // report is missing; it re-queues the job instead of failing it.
+        std::ofstream(args.run_dir + ".gave-up")
+            << "foamd unreachable for " << args.give_up_after_s << " s\n";
+        return 75;
+      }
+      return 1;
     }
     if (exit_code) return *exit_code;
     std::this_thread::sleep_for(std::chrono::duration<double>(args.every_s));

@@ -174,7 +174,15 @@ int main(int argc, char** argv) {
       };
       slurm.foam = sibling(slurm.foam, "foam", "client");
       slurm.foam_run = sibling(slurm.foam_run, "foam-run", "runner");
-      if (slurm.report_to.empty()) slurm.report_to = listen;
+      if (slurm.report_to.empty()) {
+        const std::string host = listen.substr(0, listen.rfind(':'));
+        if (host == "0.0.0.0" || host == "[::]" || host == "::")
+          throw std::invalid_argument(
+              "--listen " + listen +
+              " is every address of this machine: give --slurm-report-to HOST:PORT, the "
+              "address the compute nodes reach foamd at");
+        slurm.report_to = listen;
+      }
       if (slurm.token_file.empty() && !token_file.empty())
         slurm.token_file = fs::absolute(token_file).string();
       if (slurm.tls_ca.empty() && !cert.empty()) slurm.tls_ca = fs::absolute(cert).string();

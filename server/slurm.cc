@@ -14,6 +14,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 
 #include <spdlog/spdlog.h>
@@ -50,12 +51,20 @@ ProcResult runProcess(const std::vector<std::string>& argv, double timeout_s = 6
   posix_spawn_file_actions_adddup2(&fa, out_pipe[1], 1);
   posix_spawn_file_actions_adddup2(&fa, err_pipe[1], 2);
   posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
+  // foamd blocks SIGTERM/SIGINT in every thread (main waits for them): not its children.
+  posix_spawnattr_t attr;
+  posix_spawnattr_init(&attr);
+  sigset_t none;
+  sigemptyset(&none);
+  posix_spawnattr_setsigmask(&attr, &none);
+  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGMASK);
   std::vector<char*> args;
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
   pid_t pid = -1;
-  const int rc = posix_spawnp(&pid, args[0], &fa, nullptr, args.data(), environ);
+  const int rc = posix_spawnp(&pid, args[0], &fa, &attr, args.data(), environ);
   posix_spawn_file_actions_destroy(&fa);
+  posix_spawnattr_destroy(&attr);
   close(out_pipe[1]);
   close(err_pipe[1]);
   if (rc != 0) {
@@ -136,9 +145,10 @@ std::string slurmId(const std::string& ref) {
 }
 
 // Job states of task ids ("123_4") from `squeue`, then `sacct` for those squeue no longer lists
-// (finished longer ago than MinJobAge). Missing ids are unknown to both.
-std::map<std::string, SlurmState> queryStates(const SlurmOptions& o,
-                                              const std::set<std::string>& task_ids) {
+// (finished longer ago than MinJobAge). Missing ids are unknown to both. nullopt when squeue
+// itself failed (slurmctld restarting, unreachable): nothing can be judged this round.
+std::optional<std::map<std::string, SlurmState>> queryStates(
+    const SlurmOptions& o, const std::set<std::string>& task_ids) {
   std::map<std::string, SlurmState> out;
   if (task_ids.empty()) return out;
   std::set<std::string> arrays;
@@ -147,7 +157,11 @@ std::map<std::string, SlurmState> queryStates(const SlurmOptions& o,
   for (const std::string& a : arrays) list += (list.empty() ? "" : ",") + a;
   const ProcResult q = runProcess(
       {o.squeue, "--noheader", "--array", "--states=all", "--format=%i|%T", "--jobs=" + list});
-  if (q.rc == 0) {
+  if (q.rc != 0) {
+    spdlog::warn("slurm: squeue failed (exit {}): {}", q.rc, trimmed(q.err));
+    return std::nullopt;
+  }
+  {
     std::istringstream in(q.out);
     for (std::string line; std::getline(in, line);) {
       const auto bar = line.find('|');
@@ -299,6 +313,10 @@ void SlurmExecutor::loop() {
 }
 
 void SlurmExecutor::submitQueued() {
+  {
+    std::lock_guard lock(mu_);
+    if (Clock::now() < submit_after_) return;  // after an sbatch failure
+  }
   std::vector<Claimed> claimed = store_.claimQueued(1000);  // Slurm's default MaxArraySize
   if (claimed.empty()) return;
   // A sweep's jobs as one array; other jobs each as their own.
@@ -307,7 +325,16 @@ void SlurmExecutor::submitQueued() {
     const std::string key = c.job.sweep_id().empty() ? c.job.id() : c.job.sweep_id();
     groups[key].push_back(std::move(c.job));
   }
-  for (const auto& [name, jobs] : groups) submitGroup(name, jobs);
+  for (const auto& [name, jobs] : groups) {
+    try {
+      submitGroup(name, jobs);
+    } catch (const std::exception& e) {  // the store: leave none of them running without a task
+      spdlog::error("slurm: {}: {}", name, e.what());
+      for (const v1::Job& j : jobs)
+        if (auto now = store_.getJob(j.id()); now && now->executor_ref().empty())
+          store_.requeue(j.id(), std::string("submission failed: ") + e.what());
+    }
+  }
 }
 
 std::string SlurmExecutor::writeTaskScript(const std::string& array_dir) const {
@@ -322,6 +349,8 @@ std::string SlurmExecutor::writeTaskScript(const std::string& array_dir) const {
     << "ARRAY_DIR=" << quoted(array_dir) << "\n"
     << "WORK_DIR=" << quoted(options_.work_dir) << "\n"
     << "JOB=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" \"$ARRAY_DIR/jobs\")\n"
+    << "[ -n \"$JOB\" ] || { echo \"no job for task $SLURM_ARRAY_TASK_ID in $ARRAY_DIR/jobs\" >&2; "
+       "exit 2; }\n"
     << "RUN=\"$WORK_DIR/jobs/$JOB\"\n"
     << "exec " << quoted(options_.foam) << " --server " << quoted(options_.report_to);
   if (!options_.token_file.empty()) s << " --token-file " << quoted(options_.token_file);
@@ -335,10 +364,15 @@ std::string SlurmExecutor::writeTaskScript(const std::string& array_dir) const {
 
 void SlurmExecutor::submitGroup(const std::string& name, const std::vector<v1::Job>& jobs) {
   const fs::path work(options_.work_dir);
-  const fs::path array_dir = work / "arrays" / (name + "-" + std::to_string(::time(nullptr)));
+  // Unique per submission: a sweep of more than 1000 jobs goes out in several arrays.
+  const fs::path array_dir =
+      work / "arrays" /
+      (name + "-" + jobs.front().id() + "-" + std::to_string(jobs.front().attempts()));
   std::string failure;
   try {
-    fs::create_directories(array_dir);
+    fs::create_directories(array_dir.parent_path());
+    if (!fs::create_directory(array_dir))
+      throw std::runtime_error(array_dir.string() + " exists already");
     std::string list;
     for (const v1::Job& j : jobs) {
       const fs::path dir = work / "jobs" / j.id();
@@ -372,41 +406,50 @@ void SlurmExecutor::submitGroup(const std::string& name, const std::vector<v1::J
       failure = "sbatch failed (exit " + std::to_string(r.rc) + "): " + trimmed(r.err);
   }
   if (!failure.empty()) {
-    spdlog::error("slurm: {}: {}", name, failure);
-    for (const v1::Job& j : jobs) {
-      store_.finish(j.id(), v1::JOB_STATE_FAILED, "executor", failure, {}, 0, 0);
-      ++stats_.jobs_failed;
-    }
+    // Slurm unreachable, a submit limit, a bad partition: back to the queue with the reason
+    // (`foam show` says it), tried again after a pause; `foam cancel` ends them.
+    spdlog::error("slurm: {}: {}; jobs re-queued, next try in 60 s", name, failure);
+    for (const v1::Job& j : jobs) store_.requeue(j.id(), failure + "; re-queued, retrying");
+    std::lock_guard lock(mu_);
+    submit_after_ = Clock::now() + std::chrono::seconds(60);
     return;
   }
   spdlog::info("slurm: submitted {} job(s) as array {} ({})", jobs.size(), array_id, name);
   std::vector<std::string> late_cancels;
-  for (std::size_t k = 0; k < jobs.size(); ++k) {
-    const std::string task = array_id + "_" + std::to_string(k);
-    store_.setExecutorRef(jobs[k].id(), kRefPrefix + task);
-    std::lock_guard lock(mu_);
-    if (cancelled_unplaced_.erase(jobs[k].id())) late_cancels.push_back(task);
+  {
+    std::lock_guard lock(mu_);  // see cancel()
+    for (std::size_t k = 0; k < jobs.size(); ++k) {
+      const std::string task = array_id + "_" + std::to_string(k);
+      store_.setExecutorRef(jobs[k].id(), kRefPrefix + task);
+      if (cancelled_unplaced_.erase(jobs[k].id())) late_cancels.push_back(task);
+    }
   }
   stats_.running += static_cast<int>(jobs.size() - late_cancels.size());
   for (const std::string& task : late_cancels) runProcess({options_.scancel, task});
 }
 
 bool SlurmExecutor::cancel(const std::string& id, const std::string& reason) {
-  const std::optional<v1::Job> j = store_.getJob(id);
-  if (!j || j->state() != v1::JOB_STATE_RUNNING) return false;
-  const std::string task = slurmId(j->executor_ref());
-  if (task.empty()) {
+  std::optional<v1::Job> j;
+  std::string task;
+  {
+    // Under the lock submitGroup records refs with: either the ref is read here, or the id is
+    // in cancelled_unplaced_ before submitGroup looks.
     std::lock_guard lock(mu_);
-    cancelled_unplaced_.insert(id);  // scancelled once sbatch has answered
-  } else {
+    j = store_.getJob(id);
+    if (!j || j->state() != v1::JOB_STATE_RUNNING) return false;
+    task = slurmId(j->executor_ref());
+    if (task.empty()) cancelled_unplaced_.insert(id);  // scancelled once sbatch has answered
+  }
+  if (!task.empty()) {
     const ProcResult r = runProcess({options_.scancel, task});
     if (r.rc != 0) spdlog::warn("slurm: scancel {}: {}", task, trimmed(r.err));
-    --stats_.running;
   }
   // Recorded now: the task's reporter is told to stop at its next report, and Slurm says
-  // CANCELLED for it from here on.
-  store_.finish(id, v1::JOB_STATE_CANCELLED, "cancelled", reason, {}, j->t_s(), j->steps());
-  ++stats_.jobs_cancelled;
+  // CANCELLED for it from here on. A final report that came first wins (finish is once).
+  if (store_.finish(id, v1::JOB_STATE_CANCELLED, "cancelled", reason, {}, j->t_s(), j->steps())) {
+    ++stats_.jobs_cancelled;
+    if (!task.empty()) --stats_.running;
+  }
   spdlog::info("job {}: cancelled ({})", id, task.empty() ? "before reaching Slurm" : task);
   return true;
 }
@@ -431,27 +474,33 @@ bool SlurmExecutor::taskFinished(const v1::Job& job, const v1::ReportTaskRequest
   }
   const double t = summary.value("t_s", job.t_s());
   const std::int64_t steps = summary.value("steps", job.steps());
-  if (rc == 0 && summary.value("ok", false)) {
-    store_.finish(id, v1::JOB_STATE_SUCCEEDED, "", "", results, t, steps);
-    ++stats_.jobs_succeeded;
+  // The summary decides when there is one (a task run again on a finished folder exits 0 for a
+  // failed run too); else foam-run's exit status.
+  const bool ok = summary.value("ok", false);
+  const bool engine_failed = summary.contains("failure") && !ok;
+  bool ended = false;
+  if (rc == 0 && ok) {
+    if ((ended = store_.finish(id, v1::JOB_STATE_SUCCEEDED, "", "", results, t, steps)))
+      ++stats_.jobs_succeeded;
     spdlog::info("job {}: succeeded on Slurm ({})", id, report.attempt());
-  } else if (rc == 3 && summary.contains("failure")) {
-    store_.finish(id, v1::JOB_STATE_FAILED, summary.value("failure", std::string("failed")),
-                  summary.value("reason", std::string()), results, t, steps);
-    ++stats_.jobs_failed;
+  } else if (engine_failed) {
+    if ((ended = store_.finish(id, v1::JOB_STATE_FAILED,
+                               summary.value("failure", std::string("failed")),
+                               summary.value("reason", std::string()), results, t, steps)))
+      ++stats_.jobs_failed;
     spdlog::warn("job {}: failed on Slurm ({}): {}", id, report.attempt(),
                  summary.value("reason", std::string()));
   } else {
     const std::string kind = rc == 2 ? "invalid-spec" : "exception";
-    store_.finish(id, v1::JOB_STATE_FAILED, kind,
-                  "foam-run exited with status " + std::to_string(rc) + " on Slurm (" +
-                      report.attempt() + ")" +
-                      (report.message().empty() ? "" : ": " + report.message()),
-                  results, t, steps);
-    ++stats_.jobs_failed;
+    if ((ended = store_.finish(id, v1::JOB_STATE_FAILED, kind,
+                               "foam-run exited with status " + std::to_string(rc) + " on Slurm (" +
+                                   report.attempt() + ")" +
+                                   (report.message().empty() ? "" : ": " + report.message()),
+                               results, t, steps)))
+      ++stats_.jobs_failed;
     spdlog::warn("job {}: foam-run exited with {} on Slurm ({})", id, rc, report.attempt());
   }
-  --stats_.running;
+  if (ended) --stats_.running;
   std::lock_guard lock(mu_);
   ended_since_.erase(id);
   return true;
@@ -462,14 +511,17 @@ void SlurmExecutor::poll() {
   std::set<std::string> tasks;
   for (const v1::Job& j : running)
     if (std::string t = slurmId(j.executor_ref()); !t.empty()) tasks.insert(t);
-  const std::map<std::string, SlurmState> states = queryStates(options_, tasks);
+  const std::optional<std::map<std::string, SlurmState>> queried = queryStates(options_, tasks);
+  if (!queried) return;  // judged next round; running tasks keep reporting meanwhile
   const auto now = Clock::now();
   int active = 0;
+  std::set<std::string> seen;
   for (const v1::Job& j : running) {
     const std::string task = slurmId(j.executor_ref());
     if (task.empty()) continue;
-    const auto it = states.find(task);
-    const SlurmState st = it == states.end() ? SlurmState{} : it->second;
+    seen.insert(j.id());
+    const auto it = queried->find(task);
+    const SlurmState st = it == queried->end() ? SlurmState{} : it->second;
     if (st.kind == SlurmState::Active) {
       ++active;
       std::lock_guard lock(mu_);
@@ -489,33 +541,43 @@ void SlurmExecutor::poll() {
     const fs::path run = fs::path(options_.work_dir) / "jobs" / j.id() / "run";
     std::error_code ec;
     const bool has_summary = fs::exists(run / "summary.json", ec);
+    // `foam report` leaves this when it gave up on an unreachable foamd (exit 75): the run
+    // itself is fine, checkpointed or finished.
+    const fs::path gave_up = run.string() + ".gave-up";
+    const bool report_lost = fs::exists(gave_up, ec);
     const std::string what = st.kind == SlurmState::Unknown && st.name.empty()
                                  ? std::string("no longer known to Slurm")
                                  : "ended " + st.name;
-    if (st.kind == SlurmState::Completed || (st.kind == SlurmState::Unknown && has_summary)) {
-      // Its output folder is complete but foamd never got the final report (foamd was down, or
-      // the reporter gave up): run the task again; foam-run finds the finished run and the
-      // reporter sends the folder.
-      store_.requeue(j.id(), "Slurm task " + task + " " + what +
-                                 " without its final report; re-queued to report its outputs");
-      spdlog::info("job {}: task {} {} without a final report; re-queued", j.id(), task, what);
+    if (st.kind == SlurmState::Completed || report_lost ||
+        (st.kind == SlurmState::Unknown && has_summary)) {
+      // Its output folder is complete (or checkpointed) but foamd never got the final report:
+      // run the task again; foam-run finishes or finds the finished run, and the reporter
+      // sends the folder.
+      fs::remove(gave_up, ec);
+      if (store_.requeue(j.id(), "Slurm task " + task + " " + what +
+                                     " without its final report; re-queued to report its outputs"))
+        spdlog::info("job {}: task {} {} without a final report; re-queued", j.id(), task, what);
     } else if (st.kind == SlurmState::Cancelled) {
-      store_.finish(j.id(), v1::JOB_STATE_CANCELLED, "cancelled",
-                    "Slurm task " + task + " was cancelled outside foamd", {}, j.t_s(), j.steps());
-      ++stats_.jobs_cancelled;
+      if (store_.finish(j.id(), v1::JOB_STATE_CANCELLED, "cancelled",
+                        "Slurm task " + task + " was cancelled outside foamd", {}, j.t_s(),
+                        j.steps()))
+        ++stats_.jobs_cancelled;
     } else {
       std::string kind = st.name.empty() ? "lost" : st.name;
       std::transform(kind.begin(), kind.end(), kind.begin(),
                      [](unsigned char c) { return c == '_' ? '-' : std::tolower(c); });
-      store_.finish(j.id(), v1::JOB_STATE_FAILED, "slurm-" + kind,
-                    "Slurm task " + task + " " + what + " (its log: " + options_.work_dir +
-                        "/arrays/.../task-N.out)",
-                    {}, j.t_s(), j.steps());
-      ++stats_.jobs_failed;
+      if (store_.finish(j.id(), v1::JOB_STATE_FAILED, "slurm-" + kind,
+                        "Slurm task " + task + " " + what + " (its log: " + options_.work_dir +
+                            "/arrays/*/task-" + task.substr(task.find('_') + 1) + ".out)",
+                        {}, j.t_s(), j.steps()))
+        ++stats_.jobs_failed;
       spdlog::warn("job {}: Slurm task {} {}", j.id(), task, what);
     }
   }
   stats_.running = active;
+  std::lock_guard lock(mu_);
+  for (auto it = ended_since_.begin(); it != ended_since_.end();)  // jobs that ended meanwhile
+    it = seen.count(it->first) ? std::next(it) : ended_since_.erase(it);
 }
 
 }  // namespace activefoam::server

@@ -83,6 +83,7 @@ class SlurmExecutor : public Executor {
   std::uint64_t wake_gen_ = 0;
   std::set<std::string> cancelled_unplaced_;  // cancelled between claim and sbatch
   std::map<std::string, std::chrono::steady_clock::time_point> ended_since_;
+  std::chrono::steady_clock::time_point submit_after_{};  // pause after an sbatch failure
 };
 
 }  // namespace activefoam::server

@@ -647,8 +647,8 @@ std::optional<Claimed> Store::claimNext() {
     if (!q.step()) return std::nullopt;
     const std::string id = q.text(0);
     Stmt up(tx.db,
-            "UPDATE jobs SET state = ?, attempts = attempts + 1, started_utc = ?, reason = '' "
-            "WHERE id = ?");
+            "UPDATE jobs SET state = ?, attempts = attempts + 1, started_utc = ?, reason = '', "
+            "executor_ref = '' WHERE id = ?");
     up.bind(1, static_cast<int>(v1::JOB_STATE_RUNNING)).bind(2, utcNowText()).bind(3, id);
     up.run();
     tx.stateEvent(id);
@@ -743,14 +743,17 @@ v1::Job Store::cancel(const std::string& id, const std::string& reason) {
   });
 }
 
-void Store::finish(const std::string& id, v1::JobState state, const std::string& failure_kind,
+bool Store::finish(const std::string& id, v1::JobState state, const std::string& failure_kind,
                    const std::string& reason,
                    const std::vector<std::pair<std::string, double>>& results, double t_s,
                    std::int64_t steps) {
-  write([&](Tx& tx) {
+  return write([&](Tx& tx) {
+    // Only a running job ends, once: a cancel racing a task's final report (Slurm) must not
+    // turn one outcome into another.
     Stmt up(tx.db,
             "UPDATE jobs SET state = ?, failure_kind = ?, reason = ?, finished_utc = ?, t_s = ?, "
-            "steps = ?, progress = CASE WHEN ? THEN 1 ELSE progress END WHERE id = ?");
+            "steps = ?, progress = CASE WHEN ? THEN 1 ELSE progress END WHERE id = ? AND "
+            "state = ?");
     up.bind(1, static_cast<int>(state))
         .bind(2, failure_kind)
         .bind(3, reason)
@@ -758,8 +761,10 @@ void Store::finish(const std::string& id, v1::JobState state, const std::string&
         .bind(5, t_s)
         .bind(6, steps)
         .bind(7, state == v1::JOB_STATE_SUCCEEDED ? 1 : 0)
-        .bind(8, id);
+        .bind(8, id)
+        .bind(9, static_cast<int>(v1::JOB_STATE_RUNNING));
     up.run();
+    if (sqlite3_changes(tx.db) == 0) return false;
     Stmt del(tx.db, "DELETE FROM results WHERE job_id = ?");
     del.bind(1, id).run();
     for (const auto& [name, value] : results) {
@@ -769,18 +774,22 @@ void Store::finish(const std::string& id, v1::JobState state, const std::string&
     Stmt ck(tx.db, "DELETE FROM checkpoints WHERE job_id = ?");
     ck.bind(1, id).run();
     tx.stateEvent(id);
+    return true;
   });
 }
 
-void Store::requeue(const std::string& id, const std::string& reason) {
-  write([&](Tx& tx) {
-    Stmt up(tx.db, "UPDATE jobs SET state = ?, reason = ? WHERE id = ? AND state = ?");
+bool Store::requeue(const std::string& id, const std::string& reason) {
+  return write([&](Tx& tx) {
+    Stmt up(tx.db,
+            "UPDATE jobs SET state = ?, reason = ?, executor_ref = '' WHERE id = ? AND state = ?");
     up.bind(1, static_cast<int>(v1::JOB_STATE_QUEUED))
         .bind(2, reason)
         .bind(3, id)
         .bind(4, static_cast<int>(v1::JOB_STATE_RUNNING));
     up.run();
+    if (sqlite3_changes(tx.db) == 0) return false;
     tx.stateEvent(id);
+    return true;
   });
 }
 
@@ -791,7 +800,7 @@ int Store::requeueRunning(const std::string& reason) {
     q.bind(1, static_cast<int>(v1::JOB_STATE_RUNNING));
     while (q.step()) ids.push_back(q.text(0));
     for (const std::string& id : ids) {
-      Stmt up(tx.db, "UPDATE jobs SET state = ?, reason = ? WHERE id = ?");
+      Stmt up(tx.db, "UPDATE jobs SET state = ?, reason = ?, executor_ref = '' WHERE id = ?");
       up.bind(1, static_cast<int>(v1::JOB_STATE_QUEUED)).bind(2, reason).bind(3, id).run();
       tx.stateEvent(id);
     }

@@ -98,12 +98,13 @@ class Store {
                     const std::optional<v1::Progress>& progress);
   // Queued → cancelled at once; running: returns the job unchanged (the pool stops it).
   v1::Job cancel(const std::string& id, const std::string& reason);
-  // Final state of a run, with its results (name, value).
-  void finish(const std::string& id, v1::JobState state, const std::string& failure_kind,
+  // Final state of a running job, with its results (name, value). False (nothing written) when
+  // the job is not running any more: it ended already.
+  bool finish(const std::string& id, v1::JobState state, const std::string& failure_kind,
               const std::string& reason, const std::vector<std::pair<std::string, double>>& results,
               double t_s, std::int64_t steps);
-  // Running → queued (shutdown or restart), with the reason.
-  void requeue(const std::string& id, const std::string& reason);
+  // Running → queued (shutdown or restart), with the reason; false when it was not running.
+  bool requeue(const std::string& id, const std::string& reason);
   // At startup: every job left running by a previous process → queued. Returns how many.
   int requeueRunning(const std::string& reason);
   // Before a (re)start: drops outputs after the checkpoint time (all of them without one).
