@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""θ_c(t) RMS error against cost of a study_accuracy run, one point per configuration, the Pareto front
-drawn through the configurations no other beats on both (PNG, gnuplot).
+"""θ(t) RMS error against cost of a study (study_accuracy's doublet.csv or
+study_fusion_accuracy.py's fusion.csv), one point per configuration, the Pareto front drawn
+through the configurations no other beats on both (PNG, gnuplot).
 
     bench/plot_study.py STUDY.csv OUT.png [TITLE]
 
@@ -12,13 +13,15 @@ import subprocess
 import sys
 import tempfile
 
-COLOURS = {"standard": "#000000", "dt": "#1f77b4", "mesh": "#d62728", "cg_tol": "#2ca02c",
+COLOURS = {"standard": "#000000", "preset": "#000000", "dt": "#1f77b4", "mesh": "#d62728", "cg_tol": "#2ca02c",
            "preconditioner": "#9467bd", "quadrature": "#8c564b", "remesh": "#e377c2",
            "integrator": "#ff7f0e", "combined": "#7f7f7f"}
 
 
 def label(r):
     k = r["knob"]
+    if k == "preset":  # the fusion study's rows: draft, standard
+        return r["name"]
     if k == "dt":
         return f"Δt {r['dt_s']}"
     if k == "mesh":
