@@ -117,16 +117,18 @@ def read_run(out, name):
         return None
     theta = {round(float(r["t_s"]), 6): float(r["theta_deg"]) for r in rows
              if r["theta_deg"] not in ("", "nan")}
-    # Cost from the samples' wall clock, interval by interval: the spheroid preparation (paid
-    # once per aggregate by whichever run comes first) is not in it, and neither is an interval
-    # across a resume where an older foam-run restarted its wall clock (a negative difference).
-    sim = wall = 0.0
+    # Cost from the samples' wall clock: the median over the sample intervals of wall time per
+    # simulated time. The spheroid preparation (paid once per aggregate by whichever run comes
+    # first) is not in it, nor an interval across a resume where an older foam-run restarted its
+    # wall clock (negative), nor one in which the run was paused (SIGSTOP while CI ran).
+    rates = []
     for a, b in zip(rows, rows[1:]):
         dw = float(b["wall_s"]) - float(a["wall_s"])
-        if dw > 0:
-            sim += float(b["t_s"]) - float(a["t_s"])
-            wall += dw
-    cost = wall / sim * 3600 if sim > 0 else math.nan
+        dt = float(b["t_s"]) - float(a["t_s"])
+        if dw > 0 and dt > 0:
+            rates.append(dw / dt)
+    rates.sort()
+    cost = rates[len(rates) // 2] * 3600 if rates else math.nan
     rss = None
     if os.path.exists(os.path.join(d, "peak_rss_mb")):
         rss = float(open(os.path.join(d, "peak_rss_mb")).read())
