@@ -191,10 +191,8 @@ class Reporter {
       const bool done = held_samples_ >= static_cast<std::int64_t>(f.rows.size()) &&
                         held_snapshots_ >= f.snapshots;
       if (done && !exit_code) return Outcome::Ok;
-      if (req.samples_size() == 0 && req.snapshots_size() == 0 && !done) {
-        // foamd holds fewer than we sent from (a gap it refused): resend from its count.
-        continue;
-      }
+      // Nothing sendable now (a line that does not parse yet): the next round reads again.
+      if (req.samples_size() == 0 && req.snapshots_size() == 0) return Outcome::Ok;
     }
   }
 

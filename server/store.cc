@@ -641,30 +641,12 @@ std::tuple<std::string, std::vector<std::string>, bool> Store::submitSweep(
 }
 
 std::optional<Claimed> Store::claimNext() {
-  return write([&](Tx& tx) -> std::optional<Claimed> {
-    Stmt q(tx.db, "SELECT id FROM jobs WHERE state = ? ORDER BY priority DESC, seqno ASC LIMIT 1");
-    q.bind(1, static_cast<int>(v1::JOB_STATE_QUEUED));
-    if (!q.step()) return std::nullopt;
-    const std::string id = q.text(0);
-    Stmt up(tx.db,
-            "UPDATE jobs SET state = ?, attempts = attempts + 1, started_utc = ?, reason = '', "
-            "executor_ref = '' WHERE id = ?");
-    up.bind(1, static_cast<int>(v1::JOB_STATE_RUNNING)).bind(2, utcNowText()).bind(3, id);
-    up.run();
-    tx.stateEvent(id);
-    Claimed c;
-    c.job = requireJob(tx.db, id);
-    Stmt ck(tx.db, "SELECT t_s, data FROM checkpoints WHERE job_id = ?");
-    ck.bind(1, id);
-    if (ck.step()) {
-      c.checkpoint_t_s = ck.dbl(0);
-      c.checkpoint = ck.text(1);
-    }
-    return c;
-  });
+  std::vector<Claimed> c = claimQueued(1, true);
+  if (c.empty()) return std::nullopt;
+  return std::move(c.front());
 }
 
-std::vector<Claimed> Store::claimQueued(int max) {
+std::vector<Claimed> Store::claimQueued(int max, bool with_checkpoint) {
   return write([&](Tx& tx) {
     std::vector<std::string> ids;
     Stmt q(tx.db, "SELECT id FROM jobs WHERE state = ? ORDER BY priority DESC, seqno ASC LIMIT ?");
@@ -680,9 +662,12 @@ std::vector<Claimed> Store::claimQueued(int max) {
       tx.stateEvent(id);
       Claimed c;
       c.job = requireJob(tx.db, id);
-      Stmt ck(tx.db, "SELECT t_s FROM checkpoints WHERE job_id = ?");
+      Stmt ck(tx.db, "SELECT t_s, data FROM checkpoints WHERE job_id = ?");
       ck.bind(1, id);
-      if (ck.step()) c.checkpoint_t_s = ck.dbl(0);
+      if (ck.step()) {
+        c.checkpoint_t_s = ck.dbl(0);
+        if (with_checkpoint) c.checkpoint = ck.text(1);
+      }
       out.push_back(std::move(c));
     }
     return out;

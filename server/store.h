@@ -80,8 +80,9 @@ class Store {
   // The next queued job by priority then age, marked running (attempts + 1).
   std::optional<Claimed> claimNext();
   // Up to `max` queued jobs by priority then age, all marked running (an executor that submits
-  // them in batches: a sweep as one Slurm array).
-  std::vector<Claimed> claimQueued(int max);
+  // them in batches: a sweep as one Slurm array). The checkpoint's bytes only on request (a
+  // Slurm task reads its own from the shared directory).
+  std::vector<Claimed> claimQueued(int max, bool with_checkpoint = false);
   // Where a running job runs outside the pool ("slurm:123_4"); "" when not (yet) placed.
   void setExecutorRef(const std::string& id, const std::string& ref);
   // A task's report (ReportTask): samples from index first_sample and snapshots (zlib

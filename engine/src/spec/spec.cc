@@ -602,17 +602,15 @@ std::vector<SpecError> validate(const SceneSpec& spec) {
                   "° is finer than any preset promises; allowed [" + formatNumber(tr) +
                   ", 90] ° (the finest: `reference`, docs/study/presets.md)");
     } else {
-      NumericsParams want = spec.numerics;
-      want.pinned.bits = 0;
-      applyPreset(want, *chosen);
+      SceneSpec want = spec;  // the numerics the target chooses
+      want.numerics.pinned.bits = 0;
+      applyPreset(want.numerics, *chosen);
       const std::string name(toString(*chosen));
       for (const char* key : {"numerics.preset", "numerics.dt_s", "numerics.integrator",
                               "numerics.cg_tol", "numerics.preconditioner",
                               "numerics.triangles_per_cell", "numerics.contact_quadrature"}) {
         if (!(spec.numerics.pinned.bits & pinBit(key))) continue;
-        SceneSpec w = spec;
-        w.numerics = want;
-        const std::optional<SpecValue> given = getField(spec, key), target = getField(w, key);
+        const std::optional<SpecValue> given = getField(spec, key), target = getField(want, key);
         if (given != target)
           error(key,
                 "is given together with an accuracy target, which chooses the numerics "
