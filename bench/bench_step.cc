@@ -3,6 +3,7 @@
 // Cells start as 1.3 ellipsoids so the solver works on a relaxing, not a resting, state.
 #include <algorithm>
 #include <cmath>
+#include <map>
 
 #include <benchmark/benchmark.h>
 
@@ -143,6 +144,68 @@ void BM_StepAggregate(benchmark::State& state) {
   state.counters["solve_ms"] = (t.solve - t0.solve) * per;
 }
 BENCHMARK(BM_StepAggregate)->Args({100, 1})->Unit(benchmark::kMillisecond)->Iterations(50);
+
+// The broad phase along a recorded trajectory of the 100-cell aggregate above (motile cells,
+// contact-implicit, remeshing as the scene needs): from scratch every step (skin < 0) against the
+// Verlet lists of CandidateCache with the given skin. Arguments: skin in nm (−1: from scratch),
+// Δt in ms. The lists start empty each iteration, so their first build is counted.
+struct Trajectory {
+  std::vector<CellSet> states;
+  double margin = 0;
+};
+
+const Trajectory& recordedTrajectory(int dt_ms) {
+  static std::map<int, Trajectory> cache;
+  auto [it, fresh] = cache.try_emplace(dt_ms);
+  if (!fresh) return it->second;
+  SceneSpec spec = benchSpec(320);
+  spec.scene = SceneKind::Doublet;
+  spec.numerics.integrator = IntegratorKind::ContactImplicit;
+  spec.numerics.dt_s = dt_ms / 1000.0;
+  Simulation sim(spec, packedAggregate(100, 320));
+  const int warm = static_cast<int>(std::lround(30.0 / spec.numerics.dt_s));
+  for (int k = 0; k < warm + 60; ++k) {
+    if (!sim.step().ok()) break;
+    if (k >= warm) it->second.states.push_back(sim.cells());
+  }
+  it->second.margin = contactRangeH0(spec.cells);
+  return it->second;
+}
+
+void BM_BroadPhaseReplay(benchmark::State& state) {
+  const double skin = state.range(0) / 1000.0;
+  const Trajectory& tr = recordedTrajectory(static_cast<int>(state.range(1)));
+  if (tr.states.size() < 60) {
+    state.SkipWithError("the aggregate failed while recording");
+    return;
+  }
+  double candidates = 0;
+  CandidateCache::Stats st;
+  for (auto _ : state) {
+    CandidateCache cache(std::max(skin, 0.0));
+    for (const CellSet& c : tr.states) {
+      const auto found = skin < 0 ? findContactCandidates(c.x, c.tri, c.tri_cell, tr.margin)
+                                  : cache.find(c, tr.margin);
+      candidates += static_cast<double>(found.size());
+      benchmark::DoNotOptimize(found.data());
+    }
+    st = cache.stats();
+  }
+  const double steps = static_cast<double>(state.iterations()) * tr.states.size();
+  state.counters["ms_per_step"] = benchmark::Counter(
+      1.0 / 1000.0 * steps, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["candidates"] = candidates / steps;
+  if (skin >= 0) {
+    const double n = static_cast<double>(tr.states.size());
+    state.counters["cells_rebuilt_per_step"] = st.cells_rebuilt / n;
+    state.counters["pairs_swept_share"] =
+        static_cast<double>(st.cell_pairs_built) / (st.cell_pairs_built + st.cell_pairs_reused);
+  }
+}
+BENCHMARK(BM_BroadPhaseReplay)
+    ->ArgsProduct({{-1, 0, 50, 100, 200, 400, 800}, {100, 500}})
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(1.0);
 
 }  // namespace
 

@@ -14,6 +14,7 @@
 #include <Eigen/Geometry>
 
 #include "activefoam/contact_geometry.h"
+#include "activefoam/contacts.h"
 
 namespace activefoam {
 namespace {
@@ -287,6 +288,100 @@ TEST(ContactBroadPhase, ResultIndependentOfThreadCount) {
   EXPECT_EQ(one, findContactCandidatesBruteForce(s.x, s.tri, s.tri_cell, 0.06));
 }
 #endif
+
+// ---- 1b. the broad phase's Verlet lists (CandidateCache) --------------------------------------
+
+// 27 unit icosphere cells on a 3×3×3 block, neighbours overlapping.
+CellSet blockOfCells(double spacing) {
+  CellSet cells;
+  for (int c = 0; c < 27; ++c) {
+    TriMesh m = icosphere(2);
+    m.x.colwise() += spacing * Vec3(c % 3, (c / 3) % 3, c / 9);
+    cells.addCell(m, 1.0);
+  }
+  return cells;
+}
+
+std::vector<std::pair<int, int>> fresh(const CellSet& cells, double margin) {
+  return findContactCandidates(cells.x, cells.tri, cells.tri_cell, margin);
+}
+
+TEST(CandidateCache, EqualsTheFreshBroadPhaseWhileCellsJitterDriftAndAreRemeshed) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  CellSet cells = blockOfCells(1.95);
+  const double margin = 0.06;
+  for (double skin : {0.0, 0.05, 0.2, 0.5}) {
+    CandidateCache cache(skin);
+    CellSet c = cells;
+    for (int step = 0; step < 80; ++step) {
+      // Every vertex jitters; cell 13 (the centre) drifts through its neighbours; every 10th
+      // step some cell gets a different triangulation (more triangles), as a remesh would.
+      for (int i = 0; i < c.numVertices(); ++i) c.x.col(i) += 0.01 * Vec3(u(rng), u(rng), u(rng));
+      for (int i = c.cell_vertex_begin[13]; i < c.cell_vertex_begin[14]; ++i)
+        c.x.col(i) += Vec3(0.013, 0.004, -0.007);
+      if (step % 10 == 9) {
+        std::vector<TriMesh> meshes;
+        for (int k = 0; k < c.numCells(); ++k) meshes.push_back(c.cellMesh(k));
+        const int k = (step * 7) % 27;
+        const Vec3 centre = meshes[k].x.rowwise().mean();
+        TriMesh finer = icosphere(3);
+        finer.x.colwise() += centre;
+        finer.v = Eigen::Matrix3Xd::Zero(3, finer.numVertices());
+        meshes[k] = finer;
+        c.setCellMeshes(meshes);
+      }
+      ASSERT_EQ(cache.find(c, margin), fresh(c, margin)) << "skin " << skin << ", step " << step;
+    }
+    EXPECT_GT(cache.stats().cell_pairs_built, 0);
+    if (skin >= 0.2) {
+      EXPECT_GT(cache.stats().cell_pairs_reused, cache.stats().cell_pairs_built);
+    }
+  }
+}
+
+TEST(CandidateCache, FindsPairsThatAppearWithoutARebuild) {
+  // Two columns of cells pressed towards each other by just under skin/2 each: no cell is
+  // rebuilt, yet the fresh broad phase finds new pairs — the stored lists must hold them.
+  const double skin = 0.2, margin = 0.06;
+  CellSet cells = blockOfCells(2.05);  // neighbours 0.05 apart: within reach of the margin
+  CandidateCache cache(skin);
+  const auto before = cache.find(cells, margin);
+  ASSERT_EQ(before, fresh(cells, margin));
+  const auto s0 = cache.stats();
+  for (int c = 0; c < cells.numCells(); ++c) {
+    const double dx = c % 3 == 0 ? 0.0999 : c % 3 == 1 ? -0.0999 : 0.0;
+    for (int i = cells.cell_vertex_begin[c]; i < cells.cell_vertex_begin[c + 1]; ++i)
+      cells.x(0, i) += dx;
+  }
+  const auto after = cache.find(cells, margin);
+  EXPECT_EQ(after, fresh(cells, margin));
+  EXPECT_GT(after.size(), before.size());
+  EXPECT_EQ(cache.stats().cells_rebuilt, s0.cells_rebuilt);
+  EXPECT_EQ(cache.stats().cell_pairs_built, s0.cell_pairs_built);
+  // Unchanged input: nothing is swept again.
+  EXPECT_EQ(cache.find(cells, margin), after);
+  EXPECT_EQ(cache.stats().cell_pairs_built, s0.cell_pairs_built);
+  // One cell moved past skin/2: only it is rebuilt, with its pairs.
+  for (int i = cells.cell_vertex_begin[4]; i < cells.cell_vertex_begin[5]; ++i)
+    cells.x(1, i) += 0.11;
+  EXPECT_EQ(cache.find(cells, margin), fresh(cells, margin));
+  EXPECT_EQ(cache.stats().cells_rebuilt, s0.cells_rebuilt + 1);
+  EXPECT_GT(cache.stats().cell_pairs_built, s0.cell_pairs_built);
+  // A different margin starts over.
+  EXPECT_EQ(cache.find(cells, 0.3), fresh(cells, 0.3));
+  EXPECT_EQ(cache.stats().cells_rebuilt, s0.cells_rebuilt + 1 + 27);
+}
+
+TEST(CandidateCache, NanPositionsCountAsMoved) {
+  CellSet cells = blockOfCells(1.95);
+  CandidateCache cache(0.2);
+  cache.find(cells, 0.06);
+  const auto s0 = cache.stats();
+  cells.x(0, cells.cell_vertex_begin[3]) = NAN;
+  cache.find(cells, 0.06);
+  EXPECT_EQ(cache.stats().cells_rebuilt, s0.cells_rebuilt + 1);
+}
 
 TEST(ContactBroadPhase, TwoCellsInContactAndTrivialInputs) {
   // Two unit spheres overlapping by 0.1: facing pairs exist only near the contact.

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -23,10 +24,54 @@ struct ContactList {
   std::vector<double> cell_contact_area;     // S_c,l = Σ_{A∈l} f_A S_A
 };
 
-// Finds the active contact pairs of the current geometry: broad phase with margin h0, then the
-// narrow phase on every candidate; fills the per-triangle, per-vertex and per-cell areas.
+// The broad phase of a simulation, keeping its work between steps (a Verlet list per pair of
+// cells). For each pair of cells whose boxes overlap it stores the triangle pairs whose boxes,
+// inflated by margin + skin, overlapped when the list was built; a step only filters that list
+// with the current boxes and normals. A cell's lists are rebuilt when its triangles changed
+// (remeshing) or one of its vertices has moved more than skin/2 along some axis since the cell's
+// last rebuild. So no vertex has moved more than `skin` since a stored list was built (≤ skin/2
+// from its cell's reference then and now), less than the boxes were inflated by: the filtered
+// list is exactly findContactCandidates' — no pair is missed and the trajectory does not
+// depend on the skin.
+// Work per step: O(cells + triangles + stored pairs) plus the sweeps of the cells that moved.
+class CandidateCache {
+ public:
+  explicit CandidateCache(double skin_um) : skin_(skin_um) {}
+  double skin() const { return skin_; }
+  // Exactly findContactCandidates(cells.x, cells.tri, cells.tri_cell, margin).
+  std::vector<std::pair<int, int>> find(const CellSet& cells, double margin);
+  // Forgets everything (the next find() rebuilds every cell).
+  void clear();
+
+  struct Stats {
+    std::int64_t calls = 0;
+    std::int64_t cells_rebuilt = 0;      // cells whose lists were dropped (moved, remeshed, new)
+    std::int64_t cell_pairs_built = 0;   // triangle sweeps of a pair of cells
+    std::int64_t cell_pairs_reused = 0;  // stored lists filtered instead
+  };
+  const Stats& stats() const { return stats_; }
+
+ private:
+  struct CellRef {
+    bool valid = false;
+    Eigen::Matrix3Xd x;    // the cell's vertices at its last rebuild
+    std::vector<Tri> tri;  // its triangles then, in local vertex indices
+  };
+  double skin_;
+  double margin_ = -1;
+  std::uint64_t topology_version_ = 0;
+  std::vector<CellRef> ref_;
+  // (cell a << 32 | cell b), a < b → (local triangle of a, local triangle of b)
+  std::unordered_map<std::uint64_t, std::vector<std::pair<int, int>>> lists_;
+  Stats stats_;
+};
+
+// Finds the active contact pairs of the current geometry: broad phase with margin h0 (through
+// `cache` if given, else from scratch), then the narrow phase on every candidate; fills the
+// per-triangle, per-vertex and per-cell areas.
 void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw& law,
-                    ContactQuadrature quadrature, ContactList& out);
+                    ContactQuadrature quadrature, ContactList& out,
+                    CandidateCache* cache = nullptr);
 
 // Adhesion/repulsion (S17–S18): nodal forces from each pair's linear pressure.
 class ContactAdhesion : public ForceTerm {

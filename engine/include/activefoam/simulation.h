@@ -71,6 +71,11 @@ class Simulation {
   std::int64_t steps() const { return steps_; }
   double pressure(int c) const { return pressure_->pressure(cells_, geo_, c); }
   const PhaseTimes& phaseTimes() const { return times_; }
+  // The broad phase's reuse between steps (rebuilt cells, swept and reused pairs of cells).
+  const CandidateCache::Stats& candidateStats() const { return candidates_.stats(); }
+  // Skin of the broad phase's Verlet lists (CandidateCache): results do not depend on it, only
+  // the cost — see docs/benchmarks.md for the measurement that chose it.
+  static constexpr double kCandidateSkinUm = 0.4;
   std::int64_t remeshOps() const { return remesh_ops_; }
   // The force terms built for this spec, in evaluation order (terms whose parameters vanish are
   // not built).
@@ -124,6 +129,7 @@ class Simulation {
   bool with_contacts_ = false;
   ContactLaw law_;
   ContactList contacts_;
+  CandidateCache candidates_{kCandidateSkinUm};
   BlockMatrix gamma_;
   std::uint64_t pattern_version_ = ~std::uint64_t{0};
   std::vector<const ForceTerm*> product_terms_;  // terms with a coupling product

@@ -14,12 +14,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <iterator>
 #include <numeric>
 #include <stdexcept>
 
 #include <Eigen/Geometry>
 
 #include "activefoam/contact_geometry.h"
+#include "activefoam/contacts.h"
 
 namespace activefoam {
 namespace {
@@ -87,6 +89,66 @@ std::vector<std::pair<int, int>> unpackSorted(const std::vector<std::uint64_t>& 
   return out;
 }
 
+inline Box intersection(const Box& p, const Box& q) {
+  return {p.lo.cwiseMax(q.lo), p.hi.cwiseMin(q.hi)};
+}
+
+// Pairs of cells whose boxes overlap (sweep and prune along x), each once as (lower box first).
+std::vector<std::pair<int, int>> overlappingCellPairs(const std::vector<Box>& cell_box) {
+  const int C = static_cast<int>(cell_box.size());
+  std::vector<std::pair<int, int>> cell_pairs;
+  std::vector<int> order(C);
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(),
+            [&](int p, int q) { return cell_box[p].lo.x() < cell_box[q].lo.x(); });
+  for (int i = 0; i < C; ++i) {
+    const Box& bi = cell_box[order[i]];
+    for (int j = i + 1; j < C && cell_box[order[j]].lo.x() <= bi.hi.x(); ++j)
+      if (overlaps(bi, cell_box[order[j]])) cell_pairs.emplace_back(order[i], order[j]);
+  }
+  return cell_pairs;
+}
+
+struct Interval {
+  double lo, hi;
+  int tri;
+  bool operator<(const Interval& o) const { return lo < o.lo; }
+};
+
+// The triangles of two cells whose boxes meet I, swept and pruned along I's longest axis:
+// test(s, t) is called exactly once for every pair (s of the first cell, t of the second) whose
+// intervals along that axis overlap.
+template <class Test>
+void sweepCellPair(const std::vector<Box>& box, const Box& I, const int* tris1, int n1,
+                   const int* tris2, int n2, std::vector<Interval>& A, std::vector<Interval>& B,
+                   Test&& test) {
+  int axis;
+  (I.hi - I.lo).maxCoeff(&axis);
+  auto gather = [&](const int* tris, int n, std::vector<Interval>& out) {
+    out.clear();
+    for (int p = 0; p < n; ++p) {
+      const int t = tris[p];
+      if (overlaps(box[t], I)) out.push_back({box[t].lo[axis], box[t].hi[axis], t});
+    }
+    std::sort(out.begin(), out.end());
+  };
+  gather(tris1, n1, A);
+  if (A.empty()) return;
+  gather(tris2, n2, B);
+  // Two-list sweep: every pair whose intervals overlap is visited exactly once, from the
+  // member with the smaller lower end.
+  size_t i = 0, j = 0;
+  while (i < A.size() && j < B.size()) {
+    if (A[i].lo <= B[j].lo) {
+      for (size_t k = j; k < B.size() && B[k].lo <= A[i].hi; ++k) test(A[i].tri, B[k].tri);
+      ++i;
+    } else {
+      for (size_t k = i; k < A.size() && A[k].lo <= B[j].hi; ++k) test(A[k].tri, B[j].tri);
+      ++j;
+    }
+  }
+}
+
 }  // namespace
 
 std::vector<std::pair<int, int>> findContactCandidatesBruteForce(const Eigen::Matrix3Xd& x,
@@ -146,26 +208,8 @@ std::vector<std::pair<int, int>> findContactCandidates(const Eigen::Matrix3Xd& x
     b.hi = b.hi.cwiseMax(d.box[t].hi);
   }
 
-  // --- cell pairs whose boxes overlap (sweep and prune along x) -------------------------------
-  std::vector<std::pair<int, int>> cell_pairs;
-  {
-    std::vector<int> order(C);
-    std::iota(order.begin(), order.end(), 0);
-    std::sort(order.begin(), order.end(),
-              [&](int p, int q) { return cell_box[p].lo.x() < cell_box[q].lo.x(); });
-    for (int i = 0; i < C; ++i) {
-      const Box& bi = cell_box[order[i]];
-      for (int j = i + 1; j < C && cell_box[order[j]].lo.x() <= bi.hi.x(); ++j)
-        if (overlaps(bi, cell_box[order[j]])) cell_pairs.emplace_back(order[i], order[j]);
-    }
-  }
+  const auto cell_pairs = overlappingCellPairs(cell_box);
 
-  // --- per cell pair: triangles inside the boxes' intersection, swept along its longest axis ---
-  struct Interval {
-    double lo, hi;
-    int tri;
-    bool operator<(const Interval& o) const { return lo < o.lo; }
-  };
   // Thread-local gathering; the final counting sort makes the result independent of the
   // thread count and schedule.
   std::vector<std::uint64_t> found;
@@ -177,41 +221,136 @@ std::vector<std::pair<int, int>> findContactCandidates(const Eigen::Matrix3Xd& x
 #pragma omp for schedule(dynamic, 16) nowait
     for (int cp = 0; cp < n_cell_pairs; ++cp) {
       const auto [c1, c2] = cell_pairs[cp];
-      const Box I{cell_box[c1].lo.cwiseMax(cell_box[c2].lo),
-                  cell_box[c1].hi.cwiseMin(cell_box[c2].hi)};
-      int axis;
-      (I.hi - I.lo).maxCoeff(&axis);
-      auto gather = [&](int c, std::vector<Interval>& out) {
-        out.clear();
-        for (int p = cell_start[c]; p < cell_start[c + 1]; ++p) {
-          const int t = cell_tris[p];
-          if (overlaps(d.box[t], I)) out.push_back({d.box[t].lo[axis], d.box[t].hi[axis], t});
-        }
-        std::sort(out.begin(), out.end());
-      };
-      gather(c1, A);
-      if (A.empty()) continue;
-      gather(c2, B);
-      auto test = [&](int s, int t) {
-        if (overlaps(d.box[s], d.box[t]) && d.normal[s].dot(d.normal[t]) < 0)
-          local.push_back(packPair(s, t));
-      };
-      // Two-list sweep: every pair whose intervals overlap is visited exactly once, from the
-      // member with the smaller lower end.
-      size_t i = 0, j = 0;
-      while (i < A.size() && j < B.size()) {
-        if (A[i].lo <= B[j].lo) {
-          for (size_t k = j; k < B.size() && B[k].lo <= A[i].hi; ++k) test(A[i].tri, B[k].tri);
-          ++i;
-        } else {
-          for (size_t k = i; k < A.size() && A[k].lo <= B[j].hi; ++k) test(A[k].tri, B[j].tri);
-          ++j;
-        }
-      }
+      sweepCellPair(d.box, intersection(cell_box[c1], cell_box[c2]), &cell_tris[cell_start[c1]],
+                    cell_start[c1 + 1] - cell_start[c1], &cell_tris[cell_start[c2]],
+                    cell_start[c2 + 1] - cell_start[c2], A, B, [&](int s, int t) {
+                      if (overlaps(d.box[s], d.box[t]) && d.normal[s].dot(d.normal[t]) < 0)
+                        local.push_back(packPair(s, t));
+                    });
     }
 #pragma omp critical(activefoam_broad_phase_merge)
     found.insert(found.end(), local.begin(), local.end());
   }
+  return unpackSorted(found, T);
+}
+
+void CandidateCache::clear() {
+  ref_.clear();
+  lists_.clear();
+  margin_ = -1;
+}
+
+std::vector<std::pair<int, int>> CandidateCache::find(const CellSet& cells, double margin) {
+  ++stats_.calls;
+  const int C = cells.numCells(), T = cells.numTriangles();
+  if (C < 2 || T < 2) return {};
+  if (margin != margin_ || static_cast<int>(ref_.size()) != C) {
+    clear();
+    ref_.resize(C);
+    margin_ = margin;
+  }
+  const bool topology_changed = cells.topology_version != topology_version_;
+  topology_version_ = cells.topology_version;
+
+  // --- cells that moved more than skin/2 from their reference, or whose mesh changed ----------
+  std::vector<char> dirty(C, 0);
+  bool any_dirty = false;
+#pragma omp parallel for schedule(static) reduction(|| : any_dirty)
+  for (int c = 0; c < C; ++c) {
+    CellRef& r = ref_[c];
+    const int vb = cells.cell_vertex_begin[c], nv = cells.cell_vertex_begin[c + 1] - vb;
+    const int tb = cells.cell_tri_begin[c], nt = cells.cell_tri_begin[c + 1] - tb;
+    bool moved = !r.valid || r.x.cols() != nv || static_cast<int>(r.tri.size()) != nt;
+    for (int i = 0; !moved && topology_changed && i < nt; ++i)
+      for (int k = 0; k < 3; ++k)
+        if (cells.tri[tb + i][k] - vb != r.tri[i][k]) moved = true;
+    // Written so that a NaN position counts as moved.
+    if (!moved) moved = !((cells.x.middleCols(vb, nv) - r.x).cwiseAbs().maxCoeff() <= 0.5 * skin_);
+    if (moved) {
+      r.valid = true;
+      r.x = cells.x.middleCols(vb, nv);
+      r.tri.resize(nt);
+      for (int i = 0; i < nt; ++i)
+        for (int k = 0; k < 3; ++k) r.tri[i][k] = cells.tri[tb + i][k] - vb;
+      dirty[c] = 1;
+      any_dirty = true;
+    }
+  }
+  if (any_dirty) {
+    for (int c = 0; c < C; ++c) stats_.cells_rebuilt += dirty[c];
+    for (auto it = lists_.begin(); it != lists_.end();)
+      it = dirty[it->first >> 32] || dirty[it->first & 0xffffffffu] ? lists_.erase(it)
+                                                                    : std::next(it);
+  }
+
+  // --- current boxes, cell boxes, the pairs of cells that may touch now -----------------------
+  const TriData d = triangleData(cells.x, cells.tri, cells.tri_cell, margin);
+  std::vector<Box> cell_box(C, Box{Vec3::Constant(INFINITY), Vec3::Constant(-INFINITY)});
+  for (int c = 0; c < C; ++c)
+    for (int t = cells.cell_tri_begin[c]; t < cells.cell_tri_begin[c + 1]; ++t) {
+      cell_box[c].lo = cell_box[c].lo.cwiseMin(d.box[t].lo);
+      cell_box[c].hi = cell_box[c].hi.cwiseMax(d.box[t].hi);
+    }
+  const auto cell_pairs = overlappingCellPairs(cell_box);
+  const int n_cell_pairs = static_cast<int>(cell_pairs.size());
+  std::vector<std::vector<std::pair<int, int>>*> list(n_cell_pairs);
+  std::vector<char> build(n_cell_pairs, 0);
+  bool any_build = false;
+  for (int cp = 0; cp < n_cell_pairs; ++cp) {
+    auto [c1, c2] = cell_pairs[cp];
+    if (c1 > c2) std::swap(c1, c2);
+    const auto [it, inserted] =
+        lists_.try_emplace((static_cast<std::uint64_t>(c1) << 32) | static_cast<std::uint32_t>(c2));
+    list[cp] = &it->second;  // element references survive rehashing
+    build[cp] = inserted;
+    any_build = any_build || inserted;
+  }
+
+  // New lists are swept with every box inflated by the skin as well.
+  std::vector<Box> big;
+  if (any_build) {
+    big = d.box;
+    for (Box& b : big) {
+      b.lo.array() -= skin_;
+      b.hi.array() += skin_;
+    }
+  }
+  std::vector<int> identity(T);
+  std::iota(identity.begin(), identity.end(), 0);
+
+  std::vector<std::uint64_t> found;
+  std::int64_t built = 0;
+#pragma omp parallel reduction(+ : built)
+  {
+    std::vector<Interval> A, B;
+    std::vector<std::uint64_t> local;
+#pragma omp for schedule(dynamic, 16) nowait
+    for (int cp = 0; cp < n_cell_pairs; ++cp) {
+      auto [c1, c2] = cell_pairs[cp];
+      if (c1 > c2) std::swap(c1, c2);
+      const int b1 = cells.cell_tri_begin[c1], n1 = cells.cell_tri_begin[c1 + 1] - b1;
+      const int b2 = cells.cell_tri_begin[c2], n2 = cells.cell_tri_begin[c2 + 1] - b2;
+      std::vector<std::pair<int, int>>& pairs = *list[cp];
+      if (build[cp]) {
+        ++built;
+        Box I = intersection(cell_box[c1], cell_box[c2]);
+        I.lo.array() -= skin_;
+        I.hi.array() += skin_;
+        sweepCellPair(big, I, &identity[b1], n1, &identity[b2], n2, A, B, [&](int s, int t) {
+          if (overlaps(big[s], big[t])) pairs.emplace_back(s - b1, t - b2);
+        });
+      }
+      for (const auto& [ls, lt] : pairs) {
+        const int s = b1 + ls, t = b2 + lt;
+        if (overlaps(d.box[s], d.box[t]) && d.normal[s].dot(d.normal[t]) < 0)
+          local.push_back(packPair(s, t));
+      }
+    }
+#pragma omp critical(activefoam_candidate_cache_merge)
+    found.insert(found.end(), local.begin(), local.end());
+  }
+  stats_.cell_pairs_built += built;
+  stats_.cell_pairs_reused += n_cell_pairs - built;
   return unpackSorted(found, T);
 }
 

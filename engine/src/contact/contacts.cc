@@ -8,7 +8,7 @@
 namespace activefoam {
 
 void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw& law,
-                    ContactQuadrature quadrature, ContactList& out) {
+                    ContactQuadrature quadrature, ContactList& out, CandidateCache* cache) {
   const int nt = cells.numTriangles();
   out.pairs.clear();
   out.tri_contact_area.assign(nt, 0.0);
@@ -16,7 +16,8 @@ void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw&
   out.vertex_contact_area.assign(cells.numVertices(), 0.0);
   out.cell_contact_area.assign(cells.numCells(), 0.0);
   if (cells.numCells() < 2) return;
-  const auto candidates = findContactCandidates(cells.x, cells.tri, cells.tri_cell, law.h0);
+  const auto candidates = cache ? cache->find(cells, law.h0)
+                                : findContactCandidates(cells.x, cells.tri, cells.tri_cell, law.h0);
   auto corners = [&](int t) {
     const Tri& f = cells.tri[t];
     return std::array<Vec3, 3>{cells.x.col(f[0]), cells.x.col(f[1]), cells.x.col(f[2])};

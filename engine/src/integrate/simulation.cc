@@ -62,7 +62,7 @@ void Simulation::init() {
 
 void Simulation::detect() {
   if (with_contacts_)
-    detectContacts(cells_, geo_, law_, spec_.numerics.contact_quadrature, contacts_);
+    detectContacts(cells_, geo_, law_, spec_.numerics.contact_quadrature, contacts_, &candidates_);
 }
 
 void Simulation::setPositions(const Eigen::Matrix3Xd& x) {
