@@ -544,6 +544,19 @@ TEST(SpecPresets, MeasuredUnstableSettingsNameTheTimeStepAndItsLimit) {
   }
   s.numerics.dt_s = 1;
   EXPECT_EQ(measuredUnstable(s).size(), 1u);  // motile
+  s.numerics.dt_s = 0.5;
+  s.numerics.triangles_per_cell = 80;  // motile with 80 triangles: volume drift from 0.5 s
+  e = measuredUnstable(s);
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_NE(e[0].message.find("allowed (0, 0.5) s"), std::string::npos) << e[0].message;
+  EXPECT_NE(e[0].message.find("volume-drift"), std::string::npos) << e[0].message;
+  s.numerics.dt_s = 0.1;
+  EXPECT_TRUE(measuredUnstable(s).empty());
+  s.cells.p_a = 0;
+  s.numerics.dt_s = 0.5;
+  EXPECT_TRUE(measuredUnstable(s).empty());  // passive: 80 triangles ran at 0.5 s and 1 s
+  s.cells.p_a = CellParams{}.p_a;
+  s.numerics.dt_s = 1;
   s.cells.p_a = 0;
   s.numerics.triangles_per_cell = 320;
   EXPECT_TRUE(measuredUnstable(s).empty());

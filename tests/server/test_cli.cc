@@ -189,6 +189,12 @@ TEST(Cli, PresetsAndAccuracyTargetsAreRecordedAndUnstableStepsRefused) {
   r = sh(base + " --set numerics.integrator=semi-implicit 2>&1");
   EXPECT_EQ(r.rc, 2) << r.out;
   EXPECT_NE(r.out.find("numerics.dt_s"), std::string::npos) << r.out;
+  // Motile cells of 80 triangles at Δt = 0.5 s drifted out of volume in the fusion study.
+  r = sh(
+      base +
+      " --set cells.p_a=0.0372 --set numerics.dt_s=0.5 --set numerics.triangles_per_cell=80 2>&1");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("allowed (0, 0.5) s"), std::string::npos) << r.out;
   // A target no preset promises.
   r = sh(base + " --accuracy trajectory_deg=0.01 2>&1");
   EXPECT_EQ(r.rc, 2) << r.out;
@@ -206,7 +212,7 @@ TEST(Cli, FusionJobResultsPlotAndExport) {
   const std::string submit =
       d.foam() +
       " submit --scene fusion --set scene.n_cells_a=3 --set scene.n_cells_b=3"
-      " --set scene.prep_max_s=10 --set numerics.dt_s=0.5 --set duration_s=20"
+      " --set scene.prep_max_s=10 --set numerics.dt_s=0.1 --set duration_s=20"
       " --set sample_every_s=1 --set numerics.triangles_per_cell=80 --set snapshot_every_s=10"
       " --wait 2>/dev/null";
   Proc r;
