@@ -189,7 +189,9 @@ SceneSpec resolve(const SceneSpec& spec);
 // docs/study/doublet.md), each naming numerics.dt_s and the limit: with contacts, the
 // semi-implicit integrator at Δt ≥ 10 ms × (71.1 nN/µm³ / k_AB) (the explicit contact spring),
 // the contact-implicit one at Δt ≥ 2 s, or ≥ 1 s with motility or 1280 triangles per cell
-// (contact-oscillation). The server refuses them; foam-run, the studies' tool, warns.
+// (contact-oscillation), or ≥ 0.25 s with motility and 80 triangles (volume drift in the reduced
+// fusion, docs/study/fusion/fusion.md). The server refuses them; foam-run, the studies' tool,
+// warns.
 std::vector<SpecError> measuredUnstable(const SceneSpec& spec);
 
 // Every key's value in table order, as text: two specs with the same fingerprint run
