@@ -24,8 +24,8 @@ def label(r):
         return r["name"]
     if k == "dt":
         return f"Δt {r['dt_s']}"
-    if k == "mesh":
-        return f"{r['triangles']} tri"
+    if k == "mesh":  # the fusion study's mesh rows at another Δt say so in their name
+        return f"{r['triangles']} tri" + (f", Δt {r['dt_s']}" if "-dt-" in r.get("name", "") else "")
     if k == "cg_tol":
         return f"ε {r['cg_tol']}"
     if k == "preconditioner":
