@@ -30,6 +30,7 @@ fi
 if ((map)); then
   echo "== stability map: largest stable dt against k_AB and motility" >&2
   build/release/bench/study_stability_map docs/study 200
+  python3 bench/plot_stability_map.py docs/study/stability-map.csv docs/study/stability-map.png
 fi
 if ((fusion)); then
   echo "== reduced fusion: 2 x 30 cells, 30 simulated minutes" >&2
