@@ -37,14 +37,9 @@ struct ContactList {
 class CandidateCache {
  public:
   explicit CandidateCache(double skin_um) : skin_(skin_um) {}
-  double skin() const { return skin_; }
   // Exactly findContactCandidates(cells.x, cells.tri, cells.tri_cell, margin).
   std::vector<std::pair<int, int>> find(const CellSet& cells, double margin);
-  // Forgets everything (the next find() rebuilds every cell).
-  void clear();
-
   struct Stats {
-    std::int64_t calls = 0;
     std::int64_t cells_rebuilt = 0;      // cells whose lists were dropped (moved, remeshed, new)
     std::int64_t cell_pairs_built = 0;   // triangle sweeps of a pair of cells
     std::int64_t cell_pairs_reused = 0;  // stored lists filtered instead
@@ -64,6 +59,7 @@ class CandidateCache {
   // (cell a << 32 | cell b), a < b → (local triangle of a, local triangle of b)
   std::unordered_map<std::uint64_t, std::vector<std::pair<int, int>>> lists_;
   Stats stats_;
+  void clear();  // forgets everything: the next find() rebuilds every cell
 };
 
 // Finds the active contact pairs of the current geometry: broad phase with margin h0 (through

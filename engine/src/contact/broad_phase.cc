@@ -241,7 +241,6 @@ void CandidateCache::clear() {
 }
 
 std::vector<std::pair<int, int>> CandidateCache::find(const CellSet& cells, double margin) {
-  ++stats_.calls;
   const int C = cells.numCells(), T = cells.numTriangles();
   if (C < 2 || T < 2) return {};
   if (margin != margin_ || static_cast<int>(ref_.size()) != C) {
@@ -308,15 +307,16 @@ std::vector<std::pair<int, int>> CandidateCache::find(const CellSet& cells, doub
 
   // New lists are swept with every box inflated by the skin as well.
   std::vector<Box> big;
+  std::vector<int> identity;
   if (any_build) {
     big = d.box;
     for (Box& b : big) {
       b.lo.array() -= skin_;
       b.hi.array() += skin_;
     }
+    identity.resize(T);
+    std::iota(identity.begin(), identity.end(), 0);
   }
-  std::vector<int> identity(T);
-  std::iota(identity.begin(), identity.end(), 0);
 
   std::vector<std::uint64_t> found;
   std::int64_t built = 0;
