@@ -40,6 +40,7 @@ SceneSpec mapSpec(IntegratorKind integrator, double dt, double k_factor, double 
   NumericsParams n;
   n.integrator = integrator;
   n.dt_s = dt;
+  n.adaptive = false;  // the map measures where a fixed Δt fails
   return doubletStudySpec(n, pa_reduced, k_factor);
 }
 

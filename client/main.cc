@@ -158,7 +158,8 @@ std::string toJsonText(const google::protobuf::Message& m) {
 std::optional<v1::Job> watch(Conn& conn, const std::string& id, bool quiet, int& rc) {
   std::int64_t last = 0;
   std::vector<std::string> columns;
-  std::string latest;  // latest observable, "name = value"
+  std::string latest;                    // latest observable, "name = value"
+  std::int64_t rejected_in_samples = 0;  // Σ of the samples' steps_rejected (Slurm tasks' too)
   std::optional<v1::Job> final;
   int failures = 0;
   const bool tty = isatty(2);
@@ -185,11 +186,17 @@ std::optional<v1::Job> watch(Conn& conn, const std::string& id, bool quiet, int&
       } else if (ev.has_sample()) {
         if (ev.columns_size() > 0) columns.assign(ev.columns().begin(), ev.columns().end());
         const auto& v = ev.sample().values();
-        if (v.size() > 5 && columns.size() > 5) {
+        // The scene's first observable follows the columns every scene has (run.h).
+        constexpr int kCommonColumns = 7;
+        if (v.size() > kCommonColumns && static_cast<int>(columns.size()) > kCommonColumns) {
           char b[128];
-          std::snprintf(b, sizeof b, "%s = %.4g", columns[5].c_str(), v[5]);
+          std::snprintf(b, sizeof b, "%s = %.4g", columns[kCommonColumns].c_str(),
+                        v[kCommonColumns]);
           latest = b;
         }
+        for (int k = 0; k < v.size() && k < static_cast<int>(columns.size()); ++k)
+          if (columns[static_cast<std::size_t>(k)] == "steps_rejected" && std::isfinite(v[k]))
+            rejected_in_samples += static_cast<std::int64_t>(v[k]);
       } else if (ev.has_progress() && !quiet) {
         const auto& p = ev.progress();
         const int width = 30;
@@ -197,8 +204,13 @@ std::optional<v1::Job> watch(Conn& conn, const std::string& id, bool quiet, int&
         std::string bar(static_cast<std::size_t>(filled), '#');
         bar.resize(width, '.');
         char b[256];
-        std::snprintf(b, sizeof b, "[%s] %5.1f%%  t = %.4g s  ETA %s  %s", bar.c_str(),
-                      100 * p.fraction(), p.t_s(), fmtDuration(p.eta_s()).c_str(), latest.c_str());
+        const std::int64_t rejected = std::max(p.steps_rejected(), rejected_in_samples);
+        char rej[48] = "";
+        if (rejected > 0)
+          std::snprintf(rej, sizeof rej, "  rejected %lld", static_cast<long long>(rejected));
+        std::snprintf(b, sizeof b, "[%s] %5.1f%%  t = %.4g s  ETA %s%s  %s", bar.c_str(),
+                      100 * p.fraction(), p.t_s(), fmtDuration(p.eta_s()).c_str(), rej,
+                      latest.c_str());
         std::cerr << (tty ? "\r\033[K" : "") << b << (tty ? "" : "\n") << std::flush;
       }
     }

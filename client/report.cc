@@ -11,6 +11,7 @@
 #include <atomic>
 #include <charconv>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -175,7 +176,10 @@ class Reporter {
       }
       if (!f.rows.empty()) {
         v1::Sample last;
-        if (parseRow(f.rows.back(), last)) *req.mutable_progress() = progress(last);
+        if (parseRow(f.rows.back(), last)) {
+          *req.mutable_progress() = progress(last);
+          req.mutable_progress()->set_steps_rejected(rejectedSoFar(f.rows));
+        }
       }
       const bool all_sent =
           held_samples_ + req.samples_size() >= static_cast<std::int64_t>(f.rows.size()) &&
@@ -202,6 +206,18 @@ class Reporter {
     r.set_job_id(args_.job_id);
     r.set_attempt(args_.attempt);
     return r;
+  }
+
+  // Sum of the samples' steps_rejected column (the seventh of every scene, run.h).
+  static std::int64_t rejectedSoFar(const std::vector<std::string>& rows) {
+    constexpr int kRejected = 6;
+    double n = 0;
+    for (const std::string& row : rows) {
+      v1::Sample s;
+      if (parseRow(row, s) && s.values_size() > kRejected && std::isfinite(s.values(kRejected)))
+        n += s.values(kRejected);
+    }
+    return static_cast<std::int64_t>(n);
   }
 
   v1::Progress progress(const v1::Sample& last) {

@@ -419,7 +419,7 @@ int main(int argc, char** argv) {
     out.writeCheckpoint(t_s, state);
     checkOutput();
   };
-  obs.on_progress = [&](double t_s, std::int64_t step) {
+  obs.on_progress = [&](double t_s, std::int64_t step, std::int64_t rejected) {
     if (args.quiet) return;
     const auto now = Clock::now();
     if (!pace_from) pace_from.emplace(now, t_s);
@@ -431,11 +431,15 @@ int main(int argc, char** argv) {
     const double pace = std::chrono::duration<double>(now - pace_from->first).count();
     const std::string eta =
         done > 0 ? formatDuration(pace / done * std::max(0.0, spec.duration_s - t_s)) : "?";
+    char rejected_text[48] = "";
+    if (rejected > 0)
+      std::snprintf(rejected_text, sizeof rejected_text, " (%lld rejected)",
+                    static_cast<long long>(rejected));
     char line[256];
     std::snprintf(line, sizeof line,
-                  "foam-run: %5.1f%%  t = %s / %s s  step %lld  elapsed %s  ETA %s\n", 100 * f,
+                  "foam-run: %5.1f%%  t = %s / %s s  step %lld%s  elapsed %s  ETA %s\n", 100 * f,
                   human(t_s).c_str(), human(spec.duration_s).c_str(), static_cast<long long>(step),
-                  formatDuration(elapsed).c_str(), eta.c_str());
+                  rejected_text, formatDuration(elapsed).c_str(), eta.c_str());
     std::cerr << line << std::flush;
   };
 

@@ -169,7 +169,7 @@ void Pool::runJob(const Claimed& claimed, Running& flag) {
     info.set_triangles(static_cast<int>(s.tri.size()));
     store_.addSnapshot(id, info, "zlib", zlibCompress(raw));
   };
-  obs.on_progress = [&](double t_s, std::int64_t step) {
+  obs.on_progress = [&](double t_s, std::int64_t step, std::int64_t rejected) {
     stats_.steps_total += step - last_step;
     last_step = step;
     const auto now = Clock::now();
@@ -184,6 +184,7 @@ void Pool::runJob(const Claimed& claimed, Running& flag) {
     p.set_step(step);
     p.set_fraction(f);
     p.set_wall_s(wall);
+    p.set_steps_rejected(rejected);
     const double done = t_s - pace_from->second;
     const double pace = std::chrono::duration<double>(now - pace_from->first).count();
     p.set_eta_s(done > 0 ? pace / done * std::max(0.0, spec.duration_s - t_s) : -1);
@@ -242,6 +243,8 @@ void Pool::runJob(const Claimed& claimed, Running& flag) {
   results.emplace_back("wall_s", summary.wall_s);
   results.emplace_back("cg_iters_mean", summary.cg_iters_mean);
   results.emplace_back("remesh_ops", static_cast<double>(summary.remesh_ops));
+  results.emplace_back("steps_rejected", static_cast<double>(summary.steps_rejected));
+  results.emplace_back("dt_min_s", summary.dt_min_s);
   // Fits (fusion): each parameter and its standard error ("<name>_se"), and per model
   // "<model>_ok" and "<model>_r2"; names by fitResultName, as in foam-run's summary.json.
   // A failed fit's parameters are left out.

@@ -228,6 +228,8 @@ std::vector<std::pair<std::string, double>> resultsFromSummaryJson(const std::st
   results.emplace_back("wall_s", num(j.value("wall_s", nlohmann::json())));
   results.emplace_back("cg_iters_mean", num(j.value("cg_iters_mean", nlohmann::json())));
   results.emplace_back("remesh_ops", num(j.value("remesh_ops", nlohmann::json())));
+  results.emplace_back("steps_rejected", num(j.value("steps_rejected", nlohmann::json())));
+  results.emplace_back("dt_min_s", num(j.value("dt_min_s", nlohmann::json())));
   const nlohmann::json& fits = j.contains("fits") ? j["fits"] : none;
   for (const auto& [model, f] : fits.items()) {
     const bool ok = f.value("ok", false);

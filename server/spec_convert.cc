@@ -48,6 +48,9 @@ void applyMessage(const pb::Message& m, const std::string& prefix, SceneSpec& sp
       case pb::FieldDescriptor::CPPTYPE_INT64:
         e = setField(spec, key, static_cast<std::int64_t>(r->GetInt64(m, f)));
         break;
+      case pb::FieldDescriptor::CPPTYPE_BOOL:
+        e = setField(spec, key, r->GetBool(m, f));
+        break;
       case pb::FieldDescriptor::CPPTYPE_UINT64: {
         const std::uint64_t v = r->GetUInt64(m, f);
         if (v > static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max()))
@@ -234,6 +237,8 @@ v1::SceneSpec toProto(const SceneSpec& spec) {
             if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_INT64) r->SetInt64(m, f, v);
             if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_UINT64)
               r->SetUInt64(m, f, static_cast<std::uint64_t>(v));
+          } else if constexpr (std::is_same_v<T, bool>) {
+            if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_BOOL) r->SetBool(m, f, v);
           } else if constexpr (std::is_same_v<T, std::string>) {
             if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_ENUM)
               if (const auto* ev = enumFromChoice(f->enum_type(), v)) r->SetEnum(m, f, ev);

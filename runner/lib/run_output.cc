@@ -115,6 +115,8 @@ nlohmann::json summaryToJson(const RunSummary& summary, const SceneSpec& resolve
   j["runner_wall_s"] = number(ctx.runner_wall_s);
   j["cg_iters_mean"] = number(summary.cg_iters_mean);
   j["remesh_ops"] = summary.remesh_ops;
+  j["steps_rejected"] = summary.steps_rejected;
+  j["dt_min_s"] = number(summary.dt_min_s);
   nlohmann::json final_values = nlohmann::json::object();
   for (const auto& [name, v] : summary.final_values) final_values[name] = number(v);
   j["final_values"] = final_values;

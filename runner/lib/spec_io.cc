@@ -40,6 +40,7 @@ bool isGroup(std::string_view key) {
 }
 
 std::string expected(const SpecField& f) {
+  if (f.type == FieldType::Boolean) return f.range();
   if (f.type == FieldType::Choice || !f.choices.empty()) return f.range();
   return f.type == FieldType::Integer ? "an integer" : "a number";
 }

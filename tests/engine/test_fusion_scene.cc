@@ -128,7 +128,9 @@ TEST(FusionScene, SamplesFitsAndResumeFromCheckpoint) {
   TempDir dir;
   const SceneSpec s = smallFusion();
   const auto cols = sampleColumns(SceneKind::Fusion);
-  ASSERT_EQ(cols[5], "theta_deg");
+  ASSERT_EQ(cols[5], "dt_min_s");
+  ASSERT_EQ(cols[6], "steps_rejected");
+  ASSERT_EQ(cols[7], "theta_deg");
   std::vector<Sample> full;
   std::vector<std::string> logs;
   std::string state;
@@ -146,9 +148,9 @@ TEST(FusionScene, SamplesFitsAndResumeFromCheckpoint) {
   ASSERT_EQ(full.size(), 11u);
   for (const Sample& x : full) {
     ASSERT_EQ(x.values.size(), cols.size());
-    EXPECT_TRUE(std::isfinite(x.values[5])) << "theta at t=" << x.values[0];
-    EXPECT_GE(x.values[5], 0);
-    EXPECT_LE(x.values[5], 90);
+    EXPECT_TRUE(std::isfinite(x.values[7])) << "theta at t=" << x.values[0];
+    EXPECT_GE(x.values[7], 0);
+    EXPECT_LE(x.values[7], 90);
   }
   ASSERT_EQ(a.fits.size(), 3u);
   EXPECT_EQ(a.fits[0].first, "eq1");

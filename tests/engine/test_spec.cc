@@ -175,6 +175,7 @@ TEST(Spec, RangeText) {
 
 // A valid value of each key, different from the default where possible.
 SpecValue sampleValue(const SpecField& f, const SpecValue& current) {
+  if (f.type == FieldType::Boolean) return !std::get<bool>(current);
   if (f.type == FieldType::Choice)
     return f.choices.back() == std::get<std::string>(current) ? f.choices.front()
                                                               : f.choices.back();

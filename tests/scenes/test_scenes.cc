@@ -1,4 +1,5 @@
 // Whole scenes over minutes of simulated time (label `scenes`, release build only).
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
@@ -13,6 +14,13 @@
 using namespace activefoam;
 using activefoam::testing::physicsColumns;
 namespace fs = std::filesystem;
+
+namespace {
+int column(SceneKind scene, const std::string& name) {
+  const auto cols = sampleColumns(scene);
+  return static_cast<int>(std::find(cols.begin(), cols.end(), name) - cols.begin());
+}
+}  // namespace
 
 // Two spheroids of 20 cells with motility (Table 1/2 defaults: p_a r/2γ = 0.33, α = 0.4375,
 // 320 triangles per cell; at 80 the coarse meshes interpenetrate within 300 s) fuse: the fusion
@@ -40,7 +48,7 @@ TEST(Fusion2x20, AngleGrowsAndTheRunIsReproducibleFromItsSeed) {
   obs.on_sample = [&](const Sample& x) { first.push_back(x); };
   const RunSummary a = runScene(s, obs);
   ASSERT_TRUE(a.ok()) << a.reason;
-  const int theta = 5;  // column of theta_deg
+  const int theta = column(SceneKind::Fusion, "theta_deg");
   ASSERT_EQ(first.size(), 31u);
   // θ(0) of two lumpy 20-cell aggregates is noisy (a few degrees with the seed), so the growth
   // is judged on thirds of the run: each mean above the last, the end above the start.
@@ -91,7 +99,7 @@ TEST(Spheroid, CompactsWithoutInvertedTriangles) {
   obs.on_sample = [&](const Sample& x) { samples.push_back(x); };
   const RunSummary r = runScene(s, obs);
   ASSERT_TRUE(r.ok()) << r.reason;
-  const int rg = 5;                                                  // radius_gyration_um
+  const int rg = column(SceneKind::Spheroid, "radius_gyration_um");
   EXPECT_LT(samples.back().values[rg], samples.front().values[rg]);  // compaction
   for (const Sample& x : samples) EXPECT_LT(x.values[4], 0.03);  // volume error (measured ≤ 0.021)
 }

@@ -303,7 +303,8 @@ TEST(Cli, KillDashNineThenRestartFinishesEveryJobWithTheSameResults) {
     EXPECT_EQ(interrupted["results"][k], clean["results"][k]) << k;
   EXPECT_EQ(interrupted["samples"].size(), clean["samples"].size());
   for (std::size_t i = 0; i < clean["samples"].size(); ++i)
-    EXPECT_EQ(interrupted["samples"][i][5], clean["samples"][i][5]) << "sample " << i;
+    EXPECT_EQ(interrupted["samples"][i][7], clean["samples"][i][7])
+        << "sample " << i;  // aspect_ratio
   d2.stop(SIGTERM);
   fs::remove_all(dir);
 }

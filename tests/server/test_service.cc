@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <future>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <thread>
@@ -207,11 +208,20 @@ TEST_F(ServiceTest, SubmitWatchResults) {
   ASSERT_TRUE(stub_->GetResults(c.get(), rr, &res).ok());
   EXPECT_EQ(res.job().state(), v1::JOB_STATE_SUCCEEDED);
   EXPECT_EQ(res.samples_size(), 6);
-  ASSERT_GE(res.columns_size(), 6);
-  EXPECT_EQ(res.columns(5), "aspect_ratio");
+  ASSERT_GE(res.columns_size(), 8);
+  EXPECT_EQ(res.columns(5), "dt_min_s");
+  EXPECT_EQ(res.columns(6), "steps_rejected");
+  EXPECT_EQ(res.columns(7), "aspect_ratio");
   bool has_aspect = false;
-  for (const auto& r : res.results()) has_aspect = has_aspect || r.name() == "aspect_ratio";
+  std::optional<double> rejected, dt_min;
+  for (const auto& r : res.results()) {
+    has_aspect = has_aspect || r.name() == "aspect_ratio";
+    if (r.name() == "steps_rejected") rejected = r.value();
+    if (r.name() == "dt_min_s") dt_min = r.value();
+  }
   EXPECT_TRUE(has_aspect);
+  EXPECT_EQ(rejected, 0.0);  // the adaptive time step's totals are results too
+  EXPECT_GT(dt_min.value_or(0), 0);
   EXPECT_EQ(res.job().engine_version(), ACTIVEFOAM_VERSION);
 }
 

@@ -77,15 +77,13 @@ class ContactAdhesion : public ForceTerm {
 };
 
 // Friction (S14–S16) with barycentric weights w_ik = λ_i^A(c) λ_k^B(c), plus — for the
-// contact-implicit integrator — the linearised normal stiffness Δt k_AB S w_ik n̂n̂ᵀ of the
-// contact springs, so that Γ v = F becomes (Γ + Δt K_c) v = F. Both are PSD couplings.
+// contact-implicit integrator (StepContext::contact_stiffness_dt = Δt) — the linearised normal
+// stiffness Δt k_AB S w_ik n̂n̂ᵀ of the contact springs, so that Γ v = F becomes (Γ + Δt K_c) v = F.
+// Both are PSD couplings.
 class ContactFriction : public ForceTerm {
  public:
-  ContactFriction(const CellParams& p, double implicit_stiffness_dt)
-      : xi_n_(p.xi_normal.value_or(p.xi)),
-        xi_t_(p.xi_tangential.value_or(p.xi)),
-        k_(p.k_contact),
-        implicit_dt_(implicit_stiffness_dt) {}
+  explicit ContactFriction(const CellParams& p)
+      : xi_n_(p.xi_normal.value_or(p.xi)), xi_t_(p.xi_tangential.value_or(p.xi)), k_(p.k_contact) {}
   std::string_view name() const override { return "contact_friction"; }
   void addFriction(const StepContext& ctx, BlockMatrix& gamma) const override;
   // Assembled, the couplings of a 2 × 100-cell aggregate were ~10⁶ blocks: assembly took longer
@@ -103,8 +101,9 @@ class ContactFriction : public ForceTerm {
     double s, d;
     double n[3];
   };
-  Eigen::Matrix3d pairMatrix(const ContactPair& p) const;
-  double xi_n_, xi_t_, k_, implicit_dt_;
+  // Its friction block, with the stiffness factor of the step (StepContext).
+  Eigen::Matrix3d pairMatrix(const ContactPair& p, double stiffness_dt) const;
+  double xi_n_, xi_t_, k_;
   mutable std::vector<PairOp> ops_;  // the pairs of the last addFrictionDiagonal
 };
 

@@ -21,8 +21,10 @@ struct Sample {
   std::vector<double> values;
 };
 
-// Column names of a scene's samples, in order. The first five are common to every scene:
-// t_s, steps, wall_s, cg_iters_mean, volume_error_max; then the scene's observables.
+// Column names of a scene's samples, in order. The first seven are common to every scene:
+// t_s, steps, wall_s, cg_iters_mean, volume_error_max, and of the adaptive time step dt_min_s
+// (the shortest step taken since the last sample) and steps_rejected (tries undone and retried
+// since the last sample); then the scene's observables.
 std::vector<std::string> sampleColumns(SceneKind scene);
 
 // Every cell's surface at one time, packed (global vertex indices).
@@ -57,6 +59,10 @@ struct RunSummary {
   double wall_s = 0;
   double cg_iters_mean = 0;
   std::int64_t remesh_ops = 0;  // splits + collapses + flips over the run
+  // Adaptive time step: tries undone and retried over the run, and the shortest step taken (on
+  // failure: the shortest tried).
+  std::int64_t steps_rejected = 0;
+  double dt_min_s = 0;
   // Scene observables at the end, as (name, value) in a stable order, e.g. aspect_ratio.
   std::vector<std::pair<std::string, double>> final_values;
   // Wall time split by phase over the run, seconds: geometry, forces, matrix, solve, remesh.
@@ -71,8 +77,9 @@ struct RunSummary {
 struct RunObserver {
   std::function<void(const Sample&)> on_sample;
   std::function<void(const Snapshot&)> on_snapshot;
-  std::function<void(double t_s, std::int64_t step)> on_progress;  // at most every ~1% / 1 s
-  const std::atomic<bool>* cancel = nullptr;                       // polled every step
+  // At most every ~1 s of wall time: time, accepted steps, steps rejected so far.
+  std::function<void(double t_s, std::int64_t step, std::int64_t rejected)> on_progress;
+  const std::atomic<bool>* cancel = nullptr;  // polled every step
   // Checkpoints: the complete run state as an opaque, versioned byte string, emitted right after
   // a sample at least every checkpoint_every_s of simulated time (0 = never) and when the run is
   // cancelled. Resuming from it (runScene's `resume`) continues bit-identically: the samples

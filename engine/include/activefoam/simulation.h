@@ -14,6 +14,7 @@
 #include "activefoam/contacts.h"
 #include "activefoam/force_term.h"
 #include "activefoam/geometry.h"
+#include "activefoam/integrator.h"
 #include "activefoam/run.h"
 #include "activefoam/solver.h"
 #include "activefoam/spec.h"
@@ -24,6 +25,12 @@ namespace activefoam {
 struct StepReport {
   FailureKind failure = FailureKind::None;
   std::string reason;
+  double dt = 0;     // length of the step taken (or, on failure, of the last one tried), s
+  int rejected = 0;  // tries of this step that failed a guard and were undone (adaptive Δt)
+  // The first rejected try's failure (when rejected > 0): what the run would have ended with
+  // without the adaptive step.
+  FailureKind rejected_kind = FailureKind::None;
+  std::string rejected_reason;
   SolveStats cg;
   int contacts = 0;               // active triangle pairs this step
   int remesh_ops = 0;             // operations of a remesh done at the end of this step
@@ -54,7 +61,11 @@ class Simulation {
   explicit Simulation(const SceneSpec& spec);
   Simulation(const SceneSpec& spec, CellSet cells);
 
-  // One time step of length dt. After a failure the state is left as it was found failing.
+  // One accepted time step. With numerics.adaptive, a try that fails a guard is undone (cells,
+  // PI integrals, polarities, counters, contacts: all as at the start of the step) and retried at
+  // half the length, down to numerics.dt_min_s; the report says how many tries were rejected and
+  // the length taken. A failure at the floor, or any failure without numerics.adaptive, ends the
+  // step with the state left as it was found failing.
   StepReport step();
   // Remeshes every cell now (also done automatically every remesh_every_s, and for a single
   // cell as soon as one of its triangles shrinks below half of A_m).
@@ -67,8 +78,13 @@ class Simulation {
   const Geometry& geometry() const { return geo_; }
   const ContactList& contacts() const { return contacts_; }
   bool hasContacts() const { return with_contacts_; }
-  double time() const { return t_; }
-  std::int64_t steps() const { return steps_; }
+  double time() const { return stepper_.time(); }
+  std::int64_t steps() const { return stepper_.steps(); }
+  // The time step schedule: the next step's length, the time in ticks of the smallest step.
+  const TimeStepper& stepper() const { return stepper_; }
+  double dt() const { return stepper_.dt(); }
+  // Tries undone and retried over the whole run (adaptive Δt).
+  std::int64_t stepsRejected() const { return steps_rejected_; }
   double pressure(int c) const { return pressure_->pressure(cells_, geo_, c); }
   const PhaseTimes& phaseTimes() const { return times_; }
   // The broad phase's reuse between steps (rebuilt cells, swept and reused pairs of cells).
@@ -84,28 +100,36 @@ class Simulation {
     for (const auto& t : terms_) names.push_back(t->name());
     return names;
   }
+  // The step guards, in order (standardGuards), and one more at the end of its phase (tests
+  // force failures with one).
+  std::vector<std::string_view> guardNames() const {
+    std::vector<std::string_view> names;
+    for (const auto& g : guards_) names.push_back(g->name());
+    return names;
+  }
+  void addGuard(std::unique_ptr<StepGuard> guard) { guards_.push_back(std::move(guard)); }
 
   // Pieces of a step, exposed for tests and benchmarks. Geometry must be current.
   void detect();                              // contacts of the current geometry
   double computeForces(Eigen::Matrix3Xd& f);  // returns the sum of term energies
   // Γ as a step uses it: the assembled blocks of the cells (pattern: mesh edges) with the
   // contacts' diagonal blocks, and the contact couplings applied as a product.
-  void prepareFriction();
-  const BlockMatrix& frictionMatrix() const { return gamma_; }  // as last prepared
-  void applyFriction(const double* v, double* y) const;         // y = Γ v
+  void prepareFriction() { integrator_.prepareFriction(context(), terms_); }
+  const BlockMatrix& frictionMatrix() const { return integrator_.frictionMatrix(); }
+  void applyFriction(const double* v, double* y) const { integrator_.applyFriction(v, y); }
   // The whole Γ assembled, contact couplings included (tests and tools; builds its pattern on
   // every call).
   SpMat assembleFriction();
   // Empty, or the reason why two cells interpenetrate beyond numerics.max_penetration_um in the
-  // current contacts (checked after every step): per pair of cells, the area-weighted mean gap
-  // of their contact pairs.
+  // current contacts (a guard checks it after every step).
   std::string interpenetration();
   // Replaces positions (tests: finite differences, perturbations) and refreshes geometry.
   void setPositions(const Eigen::Matrix3Xd& x);
 
-  // The complete dynamic state (cells, time, step count, counters) as a versioned byte string,
-  // and its inverse: a simulation of the same spec restored from it continues bit-identically.
-  // `extra` carries the caller's own state (runScene's accumulators) through the checkpoint.
+  // The complete dynamic state (cells, time, step schedule, counters) as a versioned byte
+  // string, and its inverse: a simulation of the same spec restored from it continues
+  // bit-identically. `extra` carries the caller's own state (runScene's accumulators) through
+  // the checkpoint.
   std::string saveState(const std::string& extra = {}) const;
   // Returns `extra`. Throws std::invalid_argument if the bytes are malformed, of another format
   // version, or of a different spec.
@@ -114,13 +138,24 @@ class Simulation {
  private:
   void init();
   StepContext context() const {
-    return {cells_, geo_, topo_, spec_.numerics.dt_s, t_, with_contacts_ ? &contacts_ : nullptr,
-            steps_};
+    const double dt = stepper_.dt();
+    return {cells_,
+            geo_,
+            topo_,
+            dt,
+            time(),
+            with_contacts_ ? &contacts_ : nullptr,
+            stepper_.steps(),
+            integrator_.contactStiffnessDt(dt)};
   }
-  double minTriangleArea(int c) const;  // A_m of cell c
-  // Whether contacting vertices that move by a noticeable fraction of h0 per step mostly
-  // reverse their velocity from the last step to `v`.
-  bool contactVelocitiesReverse(const Eigen::VectorXd& v) const;
+  // One try of a step of length stepper_.dt(); the schedule is advanced by the caller.
+  StepReport tryStep();
+  std::optional<StepFailure> runGuards(StepGuard::Phase phase, const GuardView& view);
+  void resetGuardCounts();
+  // The state a rejected try is undone to (what the try can change; geometry and contacts are
+  // recomputed from it: both are functions of the cells alone).
+  void saveRollback();
+  void rollback();
 
   SceneSpec spec_;
   CellSet cells_;
@@ -130,24 +165,22 @@ class Simulation {
   ContactLaw law_;
   ContactList contacts_;
   CandidateCache candidates_{kCandidateSkinUm};
-  BlockMatrix gamma_;
-  std::uint64_t pattern_version_ = ~std::uint64_t{0};
-  std::vector<const ForceTerm*> product_terms_;  // terms with a coupling product
-  LinearSolver solver_;
   std::vector<std::unique_ptr<ForceTerm>> terms_;
   const CytoplasmPressure* pressure_ = nullptr;
+  TimeStepper stepper_;
+  Integrator integrator_;
+  RemeshPolicy remesh_;
+  std::vector<std::unique_ptr<StepGuard>> guards_;
   Eigen::Matrix3Xd f_;
-  double t_ = 0;
-  std::int64_t steps_ = 0;
-  std::int64_t remesh_interval_steps_ = 0;  // 0: never
+  Eigen::VectorXd v_;
   std::int64_t remesh_ops_ = 0;
-  std::int64_t oscillating_steps_ = 0;  // consecutive steps with reversing contact velocities
+  std::int64_t steps_rejected_ = 0;
   PhaseTimes times_;
-  struct PairGap {
-    std::uint64_t key;  // (cell a << 32) | cell b, a < b
-    double gap_area, area;
-  };
-  std::vector<PairGap> penetration_;  // scratch of the interpenetration check
+  std::vector<PairGap> penetration_;  // scratch of interpenetration()
+  struct Saved {
+    CellSet cells;
+    std::int64_t remesh_ops = 0;
+  } saved_;
 };
 
 }  // namespace activefoam

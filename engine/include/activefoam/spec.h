@@ -77,6 +77,11 @@ struct NumericsParams {
   // Consecutive steps in which contacting vertices mostly reverse their velocity (the period-2
   // signature of an explicit scheme beyond its stability limit) before the run fails.
   std::int64_t max_oscillating_steps = 10;
+  // Adaptive time step (integrator.h, TimeStepper): a step that fails one of the checks above is
+  // undone and retried at half the length, down to dt_min_s (default Δt/64); after a run of good
+  // steps Δt grows back. false: the first failed step ends the run (the studies measure that).
+  bool adaptive = true;
+  std::optional<double> dt_min_s;
 
   friend bool operator==(const NumericsParams&, const NumericsParams&) = default;
 };
@@ -124,7 +129,7 @@ struct SceneSpec {
 
 using SpecValue = std::variant<double, std::int64_t, std::string, bool>;
 
-enum class FieldType { Real, Integer, Choice };
+enum class FieldType { Real, Integer, Choice, Boolean };
 
 struct SpecField {
   std::string key;  // dotted path as in the TOML: "seed", "cells.gamma", "numerics.dt_s", ...
@@ -196,7 +201,9 @@ std::vector<SpecError> measuredUnstable(const SceneSpec& spec);
 
 // Every key's value in table order, as text: two specs with the same fingerprint run
 // identically (checkpoints and the spheroid cache compare it). numerics.preset and the
-// [accuracy] keys are left out: they only choose the values of other keys.
+// [accuracy] keys are left out: they only choose the values of other keys. numerics.adaptive and
+// numerics.dt_min_s are left out at their defaults (true, Δt/64): a run that never fails a step
+// runs as before they existed, so its checkpoints and prepared spheroids stay valid.
 std::string specFingerprint(const SceneSpec& spec);
 
 // Levenshtein distance (for "did you mean" suggestions on unknown keys and tables).

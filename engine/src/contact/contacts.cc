@@ -54,10 +54,10 @@ double ContactAdhesion::addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) c
   return energy;
 }
 
-Eigen::Matrix3d ContactFriction::pairMatrix(const ContactPair& p) const {
+Eigen::Matrix3d ContactFriction::pairMatrix(const ContactPair& p, double stiffness_dt) const {
   const Vec3& n = p.c.normal;
   const Eigen::Matrix3d nn = n * n.transpose();
-  return p.c.area * ((xi_n_ + implicit_dt_ * k_) * nn + xi_t_ * (Eigen::Matrix3d::Identity() - nn));
+  return p.c.area * ((xi_n_ + stiffness_dt * k_) * nn + xi_t_ * (Eigen::Matrix3d::Identity() - nn));
 }
 
 void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& gamma) const {
@@ -66,7 +66,7 @@ void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& g
   ops_.reserve(ctx.contacts->pairs.size());
   for (const ContactPair& p : ctx.contacts->pairs) {
     // Σ_k w_ik G = λ_i^A (Σ_k λ_k^B) G on vertex i of A, and the same for B.
-    const Eigen::Matrix3d g = pairMatrix(p);
+    const Eigen::Matrix3d g = pairMatrix(p, ctx.contact_stiffness_dt);
     const Tri& a = ctx.cells.tri[p.ta];
     const Tri& b = ctx.cells.tri[p.tb];
     const double sa = p.c.bary_a[0] + p.c.bary_a[1] + p.c.bary_a[2];
@@ -81,7 +81,7 @@ void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& g
       if (op.wb[i] > 0) gamma.addDiagonal(b[i], (op.wb[i] * sa) * g);
     }
     op.s = p.c.area * xi_t_;
-    op.d = p.c.area * (xi_n_ + implicit_dt_ * k_ - xi_t_);
+    op.d = p.c.area * (xi_n_ + ctx.contact_stiffness_dt * k_ - xi_t_);
     for (int k = 0; k < 3; ++k) op.n[k] = p.c.normal[k];
     ops_.push_back(op);
   }
@@ -114,7 +114,7 @@ void ContactFriction::addCouplingProduct(const double* v, double* y) const {
 void ContactFriction::addFriction(const StepContext& ctx, BlockMatrix& gamma) const {
   if (!ctx.contacts) return;
   for (const ContactPair& p : ctx.contacts->pairs) {
-    const Eigen::Matrix3d g = pairMatrix(p);
+    const Eigen::Matrix3d g = pairMatrix(p, ctx.contact_stiffness_dt);
     const Tri& a = ctx.cells.tri[p.ta];
     const Tri& b = ctx.cells.tri[p.tb];
     for (int i = 0; i < 3; ++i)

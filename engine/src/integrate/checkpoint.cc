@@ -16,7 +16,7 @@ using bytes::Reader;
 using bytes::Writer;
 
 constexpr char kMagic[8] = {'A', 'F', 'C', 'K', 'P', 'T', '0', '1'};
-constexpr std::uint32_t kFormat = 1;
+constexpr std::uint32_t kFormat = 2;  // 2: the adaptive step schedule
 
 // The cells, in the checkpoint's order (velocities right after positions when kept).
 void writeCells(Writer& w, const CellSet& c, bool velocities) {
@@ -75,6 +75,11 @@ std::string specFingerprint(const SceneSpec& spec) {
     // Names for numerics whose values are keys of their own: they change nothing that runs (and
     // leaving them out keeps checkpoints and prepared spheroids of earlier versions valid).
     if (f.key == "numerics.preset" || f.key.rfind("accuracy.", 0) == 0) continue;
+    // Keys added with the adaptive time step, left out at their defaults (see spec.h).
+    if (f.key == "numerics.adaptive" && spec.numerics.adaptive) continue;
+    if (f.key == "numerics.dt_min_s" &&
+        spec.numerics.dt_min_s.value_or(spec.numerics.dt_s / 64) == spec.numerics.dt_s / 64)
+      continue;
     os << f.key << '=';
     if (const auto v = getField(spec, f.key)) std::visit([&](const auto& x) { os << x; }, *v);
     os << ';';
@@ -87,10 +92,12 @@ std::string Simulation::saveState(const std::string& extra) const {
   for (char c : kMagic) w.pod(c);
   w.pod(kFormat);
   w.str(specFingerprint(spec_));
-  w.pod(t_);
-  w.pod(steps_);
+  w.pod(stepper_.state());
   w.pod(remesh_ops_);
-  w.pod(oscillating_steps_);
+  w.pod(steps_rejected_);
+  std::vector<std::int64_t> counts;
+  for (const auto& g : guards_) counts.push_back(g->count());
+  w.vec(counts);
   writeCells(w, cells_, true);
   w.str(extra);
   return w.take();
@@ -104,20 +111,21 @@ std::string Simulation::loadState(const std::string& bytes) {
     throw std::invalid_argument("checkpoint: format version not supported by this engine");
   if (r.str() != specFingerprint(spec_))
     throw std::invalid_argument("checkpoint: written by a run of a different spec");
-  const double t = r.pod<double>();
-  const auto steps = r.pod<std::int64_t>();
+  const auto schedule = r.pod<TimeStepper::State>();
   const auto remesh_ops = r.pod<std::int64_t>();
-  const auto oscillating = r.pod<std::int64_t>();
+  const auto rejected = r.pod<std::int64_t>();
+  const auto counts = r.vec<std::int64_t>();
   CellSet c = readCells(r, true, "checkpoint");
   std::string extra = r.str();
-  if (!r.done() || c.numCells() != cells_.numCells())
+  if (!r.done() || c.numCells() != cells_.numCells() || counts.size() != guards_.size() ||
+      schedule.level < 0 || schedule.level > stepper_.maxLevel() || schedule.ticks < 0)
     throw std::invalid_argument("checkpoint: inconsistent cell data");
   c.topology_version = cells_.topology_version + 1;
   cells_ = std::move(c);
-  t_ = t;
-  steps_ = steps;
+  stepper_.setState(schedule);
   remesh_ops_ = remesh_ops;
-  oscillating_steps_ = oscillating;
+  steps_rejected_ = rejected;
+  for (std::size_t k = 0; k < counts.size(); ++k) guards_[k]->setCount(counts[k]);
   updateTopology(cells_, topo_);
   computeGeometry(cells_, geo_);
   detect();

@@ -28,12 +28,13 @@ DoubletEquilibrium measureDoubletEquilibrium(const SceneSpec& spec, double durat
   DoubletEquilibrium o;
   const double dt = spec.numerics.dt_s;
   const auto t0 = std::chrono::steady_clock::now();
-  const std::int64_t n = std::llround(duration_s / dt);
-  const std::int64_t window_from = std::llround((duration_s - window_s) / dt);
+  const TimeStepper& clock = sim.stepper();  // in ticks: the adaptive schedule may halve steps
+  const std::int64_t n = clock.ticksFor(duration_s);
+  const std::int64_t window_from = clock.ticksFor(duration_s - window_s);
   double next_sample_t = 5;
   double sum = 0, iters = 0;
   int count = 0;
-  for (std::int64_t k = 0; k < n; ++k) {
+  while (clock.ticks() < n) {
     const StepReport r = sim.step();
     if (!r.ok()) {
       o.failure = std::string(toString(r.failure));
@@ -49,7 +50,7 @@ DoubletEquilibrium measureDoubletEquilibrium(const SceneSpec& spec, double durat
       next_sample_t += 5;
       const double theta = doubletContactAngleDeg(sim.cells(), sim.contacts());
       o.theta_c_series_deg.push_back(theta);
-      if (sim.steps() >= window_from) {
+      if (clock.ticks() >= window_from) {
         sum += theta;
         ++count;
       }

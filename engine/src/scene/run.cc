@@ -17,8 +17,8 @@
 namespace activefoam {
 namespace {
 
-const std::vector<std::string> kCommon = {"t_s", "steps", "wall_s", "cg_iters_mean",
-                                          "volume_error_max"};
+const std::vector<std::string> kCommon = {
+    "t_s", "steps", "wall_s", "cg_iters_mean", "volume_error_max", "dt_min_s", "steps_rejected"};
 
 // A fusion run's own history, carried through checkpoints: the θ(t), a(t) series for the fits,
 // the contact history and the MSRD samples, and what the preparation reported.
@@ -72,7 +72,7 @@ CellSet placeholderCells(const SceneSpec& spec) {
   return cells;
 }
 
-// The scene's observables, aligned with sampleColumns() after the common five.
+// The scene's observables, aligned with sampleColumns() after the common columns.
 std::vector<std::pair<std::string, double>> sceneObservables(const Simulation& sim,
                                                              const FusionState* fusion) {
   std::vector<std::pair<std::string, double>> out;
@@ -231,19 +231,25 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
     simp = std::make_unique<Simulation>(spec);
   }
   Simulation& sim = *simp;
+  const TimeStepper& clock = sim.stepper();
   const double dt = spec.numerics.dt_s;
-  const std::int64_t total = std::llround(spec.duration_s / dt);
+  // Sample, snapshot and end times in ticks (whole steps of the spec's Δt): the adaptive schedule
+  // never steps across one, so they fall on the same times whatever it did.
+  const std::int64_t total = clock.ticksFor(spec.duration_s);
   const std::int64_t sample_every =
-      std::max<std::int64_t>(1, std::llround(spec.sample_every_s / dt));
+      std::max<std::int64_t>(1, std::llround(spec.sample_every_s / dt)) * clock.ticksPerBaseStep();
   const std::int64_t snap_every =
       spec.snapshot_every_s > 0
-          ? std::max<std::int64_t>(1, std::llround(spec.snapshot_every_s / dt))
+          ? std::max<std::int64_t>(1, std::llround(spec.snapshot_every_s / dt)) *
+                clock.ticksPerBaseStep()
           : 0;
   // The loop's own state, carried through checkpoints so that a resumed run emits exactly the
   // samples an uninterrupted one would (wall-clock columns aside).
   struct Accumulators {
     double window_iters = 0, window_vol = 0, all_iters = 0, wall_before = 0, last_checkpoint_t = 0;
     std::int64_t window_steps = 0;
+    double window_dt_min = 0, run_dt_min = 0;  // smallest step taken (0: none yet)
+    std::int64_t window_rejected = 0;
   } acc;
   double& window_iters = acc.window_iters;
   double& window_vol = acc.window_vol;
@@ -284,14 +290,21 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
       if (!fusion) values = sceneObservables(sim, nullptr);
       Sample s;
       // Wall time of the whole run, earlier processes of a resumed one included.
-      s.values = {sim.time(), static_cast<double>(sim.steps()), wall_before + wall(),
-                  window_steps ? window_iters / window_steps : 0.0, window_vol};
+      s.values = {sim.time(),
+                  static_cast<double>(sim.steps()),
+                  wall_before + wall(),
+                  window_steps ? window_iters / window_steps : 0.0,
+                  window_vol,
+                  window_steps ? acc.window_dt_min : dt,
+                  static_cast<double>(acc.window_rejected)};
       for (const auto& [name, value] : values) s.values.push_back(value);
       obs.on_sample(s);
     }
     window_iters = 0;
     window_steps = 0;
     window_vol = maxVolumeError(sim);
+    acc.window_dt_min = 0;
+    acc.window_rejected = 0;
   };
   if (!resume) {
     emitSample();
@@ -299,7 +312,10 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
   }
 
   double last_progress = 0;
-  while (sim.steps() < total) {
+  auto progress = [&] {
+    if (obs.on_progress) obs.on_progress(sim.time(), sim.steps(), sim.stepsRejected());
+  };
+  while (clock.ticks() < total) {
     if (obs.cancel && obs.cancel->load(std::memory_order_relaxed)) {
       sum.failure = FailureKind::Cancelled;
       sum.reason = "cancelled at t=" + std::to_string(sim.time()) + " s";
@@ -307,26 +323,34 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
       break;
     }
     const StepReport r = sim.step();
+    if (r.rejected > 0 && acc.window_rejected == 0 && obs.on_log)  // one line per sample
+      obs.on_log("step rejected: " + std::string(toString(r.rejected_kind)) + ": " +
+                 r.rejected_reason + "; retried at dt = " + formatNumber(r.dt) + " s (" +
+                 std::to_string(r.rejected) + " halvings)");
+    acc.window_rejected += r.rejected;
     if (!r.ok()) {
       sum.failure = r.failure;
       sum.reason = r.reason;
+      acc.run_dt_min = acc.run_dt_min > 0 ? std::min(acc.run_dt_min, r.dt) : r.dt;
       break;
     }
     window_iters += r.cg.iterations;
     all_iters += r.cg.iterations;
     ++window_steps;
+    acc.window_dt_min = acc.window_dt_min > 0 ? std::min(acc.window_dt_min, r.dt) : r.dt;
+    acc.run_dt_min = acc.run_dt_min > 0 ? std::min(acc.run_dt_min, r.dt) : r.dt;
     window_vol = std::max(window_vol, maxVolumeError(sim));
-    if (sim.steps() % sample_every == 0) {
+    if (clock.ticks() % sample_every == 0) {
       emitSample();
       if (obs.checkpoint_every_s > 0 &&
           sim.time() - acc.last_checkpoint_t >= obs.checkpoint_every_s - 0.5 * dt)
         checkpoint();
     }
-    if (snap_every && sim.steps() % snap_every == 0 && obs.on_snapshot)
+    if (snap_every && clock.ticks() % snap_every == 0 && obs.on_snapshot)
       obs.on_snapshot(makeSnapshot(sim));
     if (obs.on_progress && wall() - last_progress > 1.0) {
       last_progress = wall();
-      obs.on_progress(sim.time(), sim.steps());
+      progress();
     }
   }
   sum.t_s = sim.time();
@@ -334,6 +358,8 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
   sum.wall_s = wall_before + wall();
   sum.cg_iters_mean = sim.steps() ? all_iters / sim.steps() : 0;
   sum.remesh_ops = sim.remeshOps();
+  sum.steps_rejected = sim.stepsRejected();
+  sum.dt_min_s = acc.run_dt_min > 0 ? acc.run_dt_min : dt;
   sum.final_values = sceneObservables(sim, fusion ? &fs : nullptr);
   sum.final_values.emplace_back("volume_error_max", maxVolumeError(sim));
   if (fusion) {
@@ -368,7 +394,7 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
   const PhaseTimes& pt = sim.phaseTimes();
   sum.phase_wall_s = {{"geometry", pt.geometry}, {"contacts", pt.contacts}, {"forces", pt.forces},
                       {"matrix", pt.matrix},     {"solve", pt.solve},       {"remesh", pt.remesh}};
-  if (obs.on_progress) obs.on_progress(sim.time(), sim.steps());
+  progress();
   return sum;
 }
 

@@ -129,6 +129,8 @@ SceneSpec spheroidPrepSpec(const SceneSpec& spec, std::int64_t n_cells, std::uin
   p.numerics.max_volume_error = d.max_volume_error;
   p.numerics.max_penetration_um = d.max_penetration_um;
   p.numerics.max_oscillating_steps = d.max_oscillating_steps;
+  p.numerics.adaptive = d.adaptive;
+  p.numerics.dt_min_s.reset();  // resolve() derives it from the preparation's Δt
   p.duration_s = spec.scene_params.prep_max_s;
   p.sample_every_s = kWindowS;
   p.snapshot_every_s = 0;
@@ -226,14 +228,16 @@ PreparedSpheroid prepareSpheroid(const SceneSpec& prep, const SpheroidCache* cac
       " s at dt = " + formatNumber(prep.numerics.dt_s) + " s");
   Simulation sim(prep);
   const double dt = prep.numerics.dt_s;
-  const std::int64_t total = std::llround(prep.scene_params.prep_max_s / dt);
-  const std::int64_t window = std::max<std::int64_t>(1, std::llround(kWindowS / dt));
+  const TimeStepper& clock = sim.stepper();  // in ticks: the adaptive schedule may halve steps
+  const std::int64_t total = clock.ticksFor(prep.scene_params.prep_max_s);
+  const std::int64_t window =
+      std::max<std::int64_t>(1, std::llround(kWindowS / dt)) * clock.ticksPerBaseStep();
   auto rg = [&] {
     return radiusOfGyration(sim.cells(), sim.geometry().cell_volume, sim.geometry().cell_centroid);
   };
   PreparedSpheroid out;
   double rg_prev = rg();
-  while (sim.steps() < total) {
+  while (clock.ticks() < total) {
     if (obs.cancel && obs.cancel->load(std::memory_order_relaxed)) {
       PrepFailed e("cancelled while preparing the " + what);
       e.cancelled = true;
@@ -243,7 +247,7 @@ PreparedSpheroid prepareSpheroid(const SceneSpec& prep, const SpheroidCache* cac
     if (!r.ok())
       throw PrepFailed("preparing the " + what + " failed: " + std::string(toString(r.failure)) +
                        ": " + r.reason + " (try a smaller scene.prep_dt_s)");
-    if (sim.steps() % window == 0) {
+    if (clock.ticks() % window == 0) {
       const double now = rg();
       const double rate = std::abs(now - rg_prev) / now / kWindowS;
       rg_prev = now;

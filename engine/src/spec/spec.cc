@@ -16,7 +16,7 @@ namespace {
 // Where a key's value lives in a SceneSpec.
 using Slot =
     std::variant<double*, std::optional<double>*, std::int64_t*, std::uint64_t*, SceneKind*,
-                 IntegratorKind*, PreconditionerKind*, ContactQuadrature*, FidelityPreset*>;
+                 IntegratorKind*, PreconditionerKind*, ContactQuadrature*, FidelityPreset*, bool*>;
 
 // An extra per-key rule beyond the range: returns an error message, empty when the value is fine.
 using ExtraRule = std::string (*)(double v);
@@ -40,6 +40,11 @@ SpecField integer(std::string key, double lo, double hi, std::string help,
                   std::vector<std::string> allowed = {}) {
   SpecField f{std::move(key),  FieldType::Integer, lo, hi, false, false, "",
               std::move(help), std::move(allowed)};
+  return f;
+}
+
+SpecField boolean(std::string key, std::string help) {
+  SpecField f{std::move(key), FieldType::Boolean, 0, 0, false, false, "", std::move(help), {}};
   return f;
 }
 
@@ -178,6 +183,16 @@ const std::vector<Entry>& entries() {
                          "consecutive steps of reversing contact velocities (explicit-scheme "
                          "instability) that stop the run as failed"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.max_oscillating_steps; }});
+    t.push_back({boolean("numerics.adaptive",
+                         "retry a step that fails a check (inverted triangle, volume drift, CG, "
+                         "contact oscillation, interpenetration, non-finite) at half the time "
+                         "step, down to numerics.dt_min_s; false: the first failure ends the run"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.adaptive; }});
+    t.push_back({real("numerics.dt_min_s", kOpen, 0, 10, kClosed, "s",
+                      "smallest time step of the adaptive schedule (halvings of dt_s stop at the "
+                      "last one ≥ this); default dt_s/64",
+                      true),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.dt_min_s; }});
     // ---- [scene]
     t.push_back({real("scene.axes_ratio", kClosed, 0.2, 5, kClosed, "",
                       "cell: start as an ellipsoid (q r, r, r/q) of equal volume; 1 = sphere"),
@@ -319,6 +334,7 @@ SceneSpec resolveUnchecked(const SceneSpec& spec) {
   const double ts = tauShell(c);
   if (!c.tau_k_s) c.tau_k_s = 2.0 * ts;
   if (!r.numerics.remesh_every_s) r.numerics.remesh_every_s = 5.0 * ts;
+  if (!r.numerics.dt_min_s) r.numerics.dt_min_s = r.numerics.dt_s / 64;
   if (!c.xi_normal) c.xi_normal = c.xi;
   if (!c.xi_tangential) c.xi_tangential = c.xi;
   return r;
@@ -329,6 +345,7 @@ SceneSpec resolveUnchecked(const SceneSpec& spec) {
 // ---- SpecField ---------------------------------------------------------------------------------
 
 std::string SpecField::range() const {
+  if (type == FieldType::Boolean) return "true or false";
   if (!choices.empty()) {
     std::string s = "one of ";
     for (std::size_t i = 0; i < choices.size(); ++i) s += (i ? "|" : "") + choices[i];
@@ -390,6 +407,12 @@ std::optional<SpecError> setFieldValue(SceneSpec& spec, std::string_view key,
     return std::optional<SpecError>(SpecError{std::string(key), std::move(msg)});
   };
 
+  if (f.type == FieldType::Boolean) {
+    const auto* b = std::get_if<bool>(&value);
+    if (!b) return fail("expected " + f.range() + ", got " + describe(value));
+    *std::get<bool*>(e->slot(spec)) = *b;
+    return std::nullopt;
+  }
   if (f.type == FieldType::Choice) {
     const auto* s = std::get_if<std::string>(&value);
     if (!s) return fail("expected " + f.range() + ", got " + describe(value));
@@ -468,6 +491,7 @@ std::optional<SpecValue> getField(const SceneSpec& spec, std::string_view key) {
                              [](std::uint64_t* p) -> std::optional<SpecValue> {
                                return static_cast<std::int64_t>(*p);
                              },
+                             [](bool* p) -> std::optional<SpecValue> { return *p; },
                              [&](auto* p) -> std::optional<SpecValue> {
                                const auto index = static_cast<std::size_t>(*p);
                                if (index >= choices.size()) return std::string("?");
@@ -494,7 +518,7 @@ std::vector<SpecError> validate(const SceneSpec& spec) {
   // Each key on its own.
   for (const Entry& e : entries()) {
     const std::optional<SpecValue> v = getField(spec, e.field.key);
-    if (!v) continue;
+    if (!v || e.field.type == FieldType::Boolean) continue;
     if (e.field.type == FieldType::Choice) {
       const std::string& s = std::get<std::string>(*v);
       if (std::find(e.field.choices.begin(), e.field.choices.end(), s) == e.field.choices.end())
@@ -552,6 +576,11 @@ std::vector<SpecError> validate(const SceneSpec& spec) {
                                     formatNumber(dt) + " s (0 disables snapshots)");
     }
   }
+
+  if (const auto dmin = spec.numerics.dt_min_s;
+      dmin && ok({"numerics.dt_s", "numerics.dt_min_s"}) && *dmin > dt)
+    error("numerics.dt_min_s", formatNumber(*dmin) + " s exceeds numerics.dt_s = " +
+                                   formatNumber(dt) + " s (the floor of the adaptive time step)");
 
   // Remeshing thresholds: a split halves a triangle, so the halves must stay above A_m.
   const double amin = spec.numerics.remesh_min_area_factor;

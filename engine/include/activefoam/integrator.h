@@ -1,0 +1,184 @@
+// Time integration of the overdamped dynamics Γ v = F (DESIGN.md §5): who owns Δt, how a step's
+// velocities are found, which checks a step must pass, and when meshes are remeshed. Simulation
+// (simulation.h) strings these together; the order of a step is in ARCHITECTURE.md.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "activefoam/block_matrix.h"
+#include "activefoam/cellset.h"
+#include "activefoam/contact_geometry.h"
+#include "activefoam/force_term.h"
+#include "activefoam/geometry.h"
+#include "activefoam/run.h"
+#include "activefoam/solver.h"
+#include "activefoam/spec.h"
+
+namespace activefoam {
+
+struct ContactList;
+
+// The step length and simulated time. Time is counted in ticks of Δt/2^K, the smallest step the
+// schedule may take (K: the halvings from numerics.dt_s down to numerics.dt_min_s), so that half
+// steps add up exactly and samples fall on the same times as in a run that never halved:
+// t = ticks · Δt/2^K is bit-identical to steps · Δt while no step was halved.
+//
+// Adaptive schedule: a step that fails is retried at half the length (level + 1), recursively, as
+// long as the level stays ≤ K; after kGrowAfter accepted steps at a level, the next step is
+// doubled again, but only where the time is a multiple of the doubled length, so a step never
+// straddles a step of the spec's Δt (sample and remesh times stay where they were).
+class TimeStepper {
+ public:
+  static constexpr int kGrowAfter = 4;
+  TimeStepper(double dt_s, double dt_min_s, bool adaptive);
+
+  double dt() const { return level_dt_; }  // length of the next step, s
+  double baseDt() const { return dt_; }    // numerics.dt_s
+  double minDt() const;                    // the floor Δt/2^K
+  int level() const { return level_; }
+  int maxLevel() const { return max_level_; }
+  bool adaptive() const { return adaptive_; }
+  std::int64_t ticks() const { return ticks_; }
+  std::int64_t ticksPerBaseStep() const { return std::int64_t{1} << max_level_; }
+  std::int64_t stepTicks() const { return ticksPerBaseStep() >> level_; }
+  // Ticks of a duration given in seconds, rounded to whole steps of the spec's Δt.
+  std::int64_t ticksFor(double seconds) const;
+  double time() const { return static_cast<double>(ticks_) * tick_s_; }
+  std::int64_t steps() const { return steps_; }  // accepted steps
+
+  bool canHalve() const { return adaptive_ && level_ < max_level_; }
+  // The step just tried failed and was undone: the next one is half as long.
+  void halve();
+  // The step of length dt() was taken.
+  void accept();
+
+  // Everything that a checkpoint must carry to continue the same schedule.
+  struct State {
+    std::int64_t ticks = 0, steps = 0;
+    std::int32_t level = 0, good = 0;
+  };
+  State state() const { return {ticks_, steps_, level_, good_}; }
+  void setState(const State& s);
+
+ private:
+  void setLevel(int level);
+  double dt_, tick_s_, level_dt_;
+  int max_level_ = 0;
+  bool adaptive_;
+  std::int64_t ticks_ = 0, steps_ = 0;
+  int level_ = 0, good_ = 0;
+};
+
+// One failed check: the kind and one line saying what, where and when.
+struct StepFailure {
+  FailureKind kind = FailureKind::None;
+  std::string reason;
+};
+
+// What a guard may look at. Pointers are null in phases where the thing does not exist yet.
+struct GuardView {
+  const SceneSpec& spec;
+  const CellSet& cells;
+  const Geometry& geo;                      // current (after the move from `Moved` on)
+  const Geometry* geo_before = nullptr;     // the step's start geometry (from `Moved` on)
+  const ContactList* contacts = nullptr;    // the step's start contacts, new ones in `Detected`
+  const Eigen::VectorXd* v = nullptr;       // the solved velocities (`Solved`)
+  const Eigen::Matrix3Xd* force = nullptr;  // F of the step (`Solved`)
+  const SolveStats* cg = nullptr;           // (`Solved`)
+  const ContactLaw* law = nullptr;          // scenes with contacts
+  double t = 0;                             // time at the start of the step
+  double dt = 0;                            // the step's length
+};
+
+// A check that a step must pass, run at one point of the step. A failed check rejects the step:
+// with adaptive stepping it is undone and retried at half the length.
+class StepGuard {
+ public:
+  enum class Phase {
+    Solved,   // velocities found, nothing moved yet
+    Moved,    // positions advanced, geometry recomputed, before remeshing
+    Detected  // after remeshing and contact detection: the step's final state
+  };
+  virtual ~StepGuard() = default;
+  virtual std::string_view name() const = 0;
+  virtual Phase phase() const = 0;
+  virtual std::optional<StepFailure> check(const GuardView& view) = 0;
+  // A guard that counts over consecutive steps: the count (checkpointed), and its reset when the
+  // step length changes (a count at another Δt says nothing about this one).
+  virtual std::int64_t count() const { return 0; }
+  virtual void setCount(std::int64_t) {}
+};
+
+// Empty, or why two cells interpenetrate beyond `limit` µm in `contacts` (at time t, for the
+// message): per pair of cells, the area-weighted mean gap of their contact pairs. `scratch` keeps
+// its buffer between calls.
+struct PairGap {
+  std::uint64_t key;  // (cell a << 32) | cell b, a < b
+  double gap_area, area;
+};
+std::string interpenetration(const CellSet& cells, const ContactList& contacts, double limit,
+                             double t, std::vector<PairGap>& scratch);
+
+// The guards every simulation runs, in order: non-finite force or velocity, CG not converged,
+// contact oscillation (scenes with contacts), inverted triangle, volume drift, and
+// interpenetration (scenes with contacts).
+std::vector<std::unique_ptr<StepGuard>> standardGuards(bool with_contacts);
+
+// When to remesh (numerics.remesh_every_s): every cell at multiples of τ_r, and in between any
+// cell with a triangle below half of A_m (contacts zipping up squeeze rim triangles from A_m to
+// zero area in a few seconds, less than τ_r, and then they invert).
+class RemeshPolicy {
+ public:
+  RemeshPolicy(const SceneSpec& spec, const TimeStepper& stepper);
+  // Cells to remesh at the end of a step that ended at `ticks`; empty when none is due.
+  // `all` is set when it is the periodic remesh of every cell.
+  std::vector<char> due(std::int64_t ticks, const CellSet& cells, const Geometry& geo,
+                        bool& all) const;
+  double minTriangleArea(const CellSet& cells, int c) const;  // A_m of cell c
+
+ private:
+  std::int64_t interval_ticks_ = 0;  // 0: never
+  double min_area_factor_;
+  double triangles_;
+};
+
+// The velocity solve of one step: the force sum F, the friction operator Γ (assembled cell
+// blocks + contact couplings applied as a product) and preconditioned CG on Γ v = F. For the
+// contact-implicit integrator Γ carries Δt K_c, the linearised normal stiffness of the contact
+// springs; the step context says so (StepContext::contact_stiffness_dt), terms never read the
+// spec's Δt.
+class Integrator {
+ public:
+  explicit Integrator(const NumericsParams& numerics);
+  IntegratorKind kind() const { return kind_; }
+  // The factor of K_c in Γ for a step of length dt: dt (contact-implicit) or 0.
+  double contactStiffnessDt(double dt) const {
+    return kind_ == IntegratorKind::ContactImplicit ? dt : 0.0;
+  }
+
+  using Terms = std::vector<std::unique_ptr<ForceTerm>>;
+  // F = Σ terms' forces (3 × vertices); returns the sum of their energies.
+  double computeForces(const StepContext& ctx, const Terms& terms, Eigen::Matrix3Xd& f) const;
+  // Γ of this step: pattern rebuilt when the topology changed, values overwritten.
+  void prepareFriction(const StepContext& ctx, const Terms& terms);
+  const BlockMatrix& frictionMatrix() const { return gamma_; }
+  void applyFriction(const double* v, double* y) const;  // y = Γ v
+  // Solves Γ v = F; v holds the warm start on entry.
+  SolveStats solve(const Eigen::Matrix3Xd& f, Eigen::VectorXd& v);
+
+ private:
+  IntegratorKind kind_;
+  BlockMatrix gamma_;
+  std::uint64_t pattern_version_ = ~std::uint64_t{0};
+  std::vector<const ForceTerm*> product_terms_;  // terms with a coupling product
+  LinearSolver solver_;
+};
+
+}  // namespace activefoam
