@@ -105,22 +105,42 @@ TEST(TimeStepper, HalvesDownToTheFloorAndGrowsBackOnlyOnTheCoarserGrid) {
   s.halve();   // 0.25
   s.halve();   // 0.125
   EXPECT_EQ(s.dt(), 0.125);
+  EXPECT_EQ(s.growthWait(), TimeStepper::kGrowAfter);
   for (int k = 0; k < TimeStepper::kGrowAfter; ++k) s.accept();  // t = 1.0: on the 0.25 grid
   EXPECT_EQ(s.dt(), 0.25);
   EXPECT_EQ(s.time(), 1.0);
-  s.accept();  // t = 1.25 (one good step at 0.25)
-  s.halve();   // back to 0.125 at t = 1.25
-  for (int k = 0; k < TimeStepper::kGrowAfter - 1; ++k) s.accept();  // t = 1.625
-  s.accept();                                                        // t = 1.75: on 0.25's grid
-  EXPECT_EQ(s.time(), 1.75);
+  s.accept();  // t = 1.25: one good step at 0.25
+  s.halve();   // fails soon after growing: back to 0.125, and the next growth waits twice as long
+  EXPECT_EQ(s.growthWait(), 2 * TimeStepper::kGrowAfter);
+  for (int k = 0; k < 2 * TimeStepper::kGrowAfter - 1; ++k) s.accept();
+  EXPECT_EQ(s.dt(), 0.125);
+  s.accept();  // t = 2.25, on the 0.25 grid
+  EXPECT_EQ(s.time(), 2.25);
   EXPECT_EQ(s.dt(), 0.25);
-  // The fourth good step at 0.25 lands at 2.75, not on the 0.5 grid: it waits for 3.0.
-  for (int k = 0; k < TimeStepper::kGrowAfter; ++k) s.accept();
-  EXPECT_EQ(s.time(), 2.75);
+  // Eight good steps at 0.25 land at 4.25, not on the 0.5 grid: it waits for 4.5.
+  for (int k = 0; k < 2 * TimeStepper::kGrowAfter; ++k) s.accept();
+  EXPECT_EQ(s.time(), 4.25);
   EXPECT_EQ(s.dt(), 0.25);
   s.accept();
-  EXPECT_EQ(s.time(), 3.0);
+  EXPECT_EQ(s.time(), 4.5);
   EXPECT_EQ(s.dt(), 0.5);
+  // 4 × wait = 32 steps without a failure (17 so far) halve the wait again.
+  for (int k = 0; k < 14; ++k) s.accept();
+  EXPECT_EQ(s.growthWait(), 2 * TimeStepper::kGrowAfter);
+  s.accept();
+  EXPECT_EQ(s.growthWait(), TimeStepper::kGrowAfter);
+  // A failure long after the last growth does not lengthen the wait.
+  for (int k = 0; k < 100; ++k) s.accept();
+  s.halve();
+  EXPECT_EQ(s.growthWait(), TimeStepper::kGrowAfter);
+  for (int k = 0; k < TimeStepper::kGrowAfter; ++k) s.accept();
+  EXPECT_EQ(s.dt(), 0.5);
+  // The schedule's state round-trips.
+  TimeStepper copy(0.5, 0.5 / 64, true);
+  copy.setState(s.state());
+  EXPECT_EQ(copy.time(), s.time());
+  EXPECT_EQ(copy.dt(), s.dt());
+  EXPECT_EQ(copy.growthWait(), s.growthWait());
   EXPECT_EQ(s.ticks() % s.ticksPerBaseStep(), 0);
   EXPECT_EQ(s.ticksFor(2.5), 5 * 64);
 }
@@ -164,8 +184,9 @@ TEST(AdaptiveStep, RejectedStepsRetriedAsHalvesEqualARunAtTheSmallerStep) {
   EXPECT_EQ(halved.steps(), 200);
   EXPECT_EQ(rejected, halved.stepsRejected());
   EXPECT_EQ(rejected, forced->failures);
-  // The first step and then one regrowth every kGrowAfter steps at 0.1 s (on the 0.2 s grid).
-  EXPECT_EQ(rejected, 1 + 200 / TimeStepper::kGrowAfter - 1);
+  // The first step, then regrowths after 4, 8, 16, 32, 64 steps at 0.1 s (each failing at once
+  // doubles the wait).
+  EXPECT_EQ(rejected, 6);
   EXPECT_GT(halved.remeshOps(), 0) << "the test must cover remeshing inside a rejected try";
   EXPECT_EQ(halved.remeshOps(), direct.remeshOps());
   expectSameCells(halved.cells(), direct.cells());

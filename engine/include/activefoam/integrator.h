@@ -31,12 +31,18 @@ struct ContactList;
 // t = ticks · Δt/2^K is bit-identical to steps · Δt while no step was halved.
 //
 // Adaptive schedule: a step that fails is retried at half the length (level + 1), recursively, as
-// long as the level stays ≤ K; after kGrowAfter accepted steps at a level, the next step is
-// doubled again, but only where the time is a multiple of the doubled length, so a step never
-// straddles a step of the spec's Δt (sample and remesh times stay where they were).
+// long as the level stays ≤ K; after `wait` accepted steps at a level (4 at first), the next step
+// is doubled again, but only where the time is a multiple of the doubled length, so a step never
+// straddles a step of the spec's Δt (sample and remesh times stay where they were). Growth that
+// fails again soon (within 4 × wait steps) doubles the wait, up to kMaxWait: a Δt that keeps
+// failing is tried geometrically less often, so little time is spent at it (the oscillation
+// guard needs 10 steps at the grown Δt to see it fail again); every 4 × wait steps without a
+// failure halve the wait again.
 class TimeStepper {
  public:
   static constexpr int kGrowAfter = 4;
+  static constexpr int kMaxWait = 4096;
+  static constexpr int kSaturated = 4 * kMaxWait;
   TimeStepper(double dt_s, double dt_min_s, bool adaptive);
 
   double dt() const { return level_dt_; }  // length of the next step, s
@@ -62,9 +68,11 @@ class TimeStepper {
   // Everything that a checkpoint must carry to continue the same schedule.
   struct State {
     std::int64_t ticks = 0, steps = 0;
-    std::int32_t level = 0, good = 0;
+    std::int32_t level = 0, good = 0, wait = kGrowAfter, since_growth = kSaturated, calm = 0;
+    std::int32_t unused = 0;  // no padding bytes in checkpoints
   };
-  State state() const { return {ticks_, steps_, level_, good_}; }
+  State state() const { return {ticks_, steps_, level_, good_, wait_, since_growth_, calm_, 0}; }
+  int growthWait() const { return wait_; }
   void setState(const State& s);
 
  private:
@@ -74,6 +82,9 @@ class TimeStepper {
   bool adaptive_;
   std::int64_t ticks_ = 0, steps_ = 0;
   int level_ = 0, good_ = 0;
+  int wait_ = kGrowAfter;          // good steps before the next growth
+  int since_growth_ = kSaturated;  // accepted steps since the last growth (saturating)
+  int calm_ = 0;                   // accepted steps since the last failure or relaxation
 };
 
 // One failed check: the kind and one line saying what, where and when.

@@ -36,16 +36,24 @@ void TimeStepper::setLevel(int level) {
 }
 
 void TimeStepper::halve() {
+  if (since_growth_ < 4 * wait_) wait_ = std::min(2 * wait_, kMaxWait);  // grew too early
   setLevel(level_ + 1);
   good_ = 0;
+  calm_ = 0;
 }
 
 void TimeStepper::accept() {
   ticks_ += stepTicks();
   ++steps_;
-  if (level_ > 0 && ++good_ >= kGrowAfter && ticks_ % (2 * stepTicks()) == 0) {
+  since_growth_ = std::min(since_growth_ + 1, kSaturated);
+  if (++calm_ >= 4 * wait_) {
+    wait_ = std::max(wait_ / 2, kGrowAfter);
+    calm_ = 0;
+  }
+  if (level_ > 0 && ++good_ >= wait_ && ticks_ % (2 * stepTicks()) == 0) {
     setLevel(level_ - 1);
     good_ = 0;
+    since_growth_ = 0;
   }
 }
 
@@ -54,6 +62,9 @@ void TimeStepper::setState(const State& s) {
   steps_ = s.steps;
   setLevel(std::clamp<int>(s.level, 0, max_level_));
   good_ = s.good;
+  wait_ = std::clamp<int>(s.wait, kGrowAfter, kMaxWait);
+  since_growth_ = std::clamp<int>(s.since_growth, 0, kSaturated);
+  calm_ = std::max<int>(s.calm, 0);
 }
 
 // ---- guards --------------------------------------------------------------------------------
