@@ -124,8 +124,8 @@ TEST(TimeStepper, HalvesDownToTheFloorAndGrowsBackOnlyOnTheCoarserGrid) {
   s.accept();
   EXPECT_EQ(s.time(), 4.5);
   EXPECT_EQ(s.dt(), 0.5);
-  // 4 × wait = 32 steps without a failure (17 so far) halve the wait again.
-  for (int k = 0; k < 14; ++k) s.accept();
+  // 2 × max(4 × wait, kRecent) = 128 steps without a failure (17 so far) halve the wait again.
+  for (int k = 0; k < 110; ++k) s.accept();
   EXPECT_EQ(s.growthWait(), 2 * TimeStepper::kGrowAfter);
   s.accept();
   EXPECT_EQ(s.growthWait(), TimeStepper::kGrowAfter);

@@ -36,7 +36,8 @@ void TimeStepper::setLevel(int level) {
 }
 
 void TimeStepper::halve() {
-  if (since_growth_ < 4 * wait_) wait_ = std::min(2 * wait_, kMaxWait);  // grew too early
+  if (since_growth_ < std::max(4 * wait_, kRecent))  // grew too early
+    wait_ = std::min(2 * wait_, kMaxWait);
   setLevel(level_ + 1);
   good_ = 0;
   calm_ = 0;
@@ -46,7 +47,7 @@ void TimeStepper::accept() {
   ticks_ += stepTicks();
   ++steps_;
   since_growth_ = std::min(since_growth_ + 1, kSaturated);
-  if (++calm_ >= 4 * wait_) {
+  if (++calm_ >= 2 * std::max(4 * wait_, kRecent)) {
     wait_ = std::max(wait_ / 2, kGrowAfter);
     calm_ = 0;
   }
