@@ -182,15 +182,15 @@ TEST(Threads, KernelsGiveTheSameBitsOnAFusionState) {
 }
 
 TEST(Threads, KernelsGiveTheSameBitsAtTheProductionGrain) {
-  // 27 cells of 320 triangles pressed into each other: ~13 000 vertices, so CG's reductions
-  // split into ten 4096-entry chunks and the cell kernels pass min_items.
+  // 64 cells of 320 triangles pressed into each other: 20 480 triangles and ~31 000 CG entries
+  // (eight 4096-entry chunks), so CG and the per-cell force kernels run threaded.
   SceneSpec s = cellSpec(1.0, 320);
   s.scene = SceneKind::Doublet;  // contacts on
   CellSet cells;
   const double r = 8.88;
-  for (int k = 0; k < 27; ++k)
+  for (int k = 0; k < 64; ++k)
     cells.addCell(ellipsoidCell(r, 1.1, 320,
-                                Vec3(1.9 * r * (k % 3), 1.9 * r * (k / 3 % 3), 1.9 * r * (k / 9))),
+                                Vec3(1.9 * r * (k % 4), 1.9 * r * (k / 4 % 4), 1.9 * r * (k / 16))),
                   r);
   expectSameKernels(s, cells, Grain{});
 }

@@ -27,9 +27,12 @@ struct Grain {
   // cost far more than scheduling them, and the 2 × 100-cell scene (~10⁵ entries) still splits
   // into ~25 chunks. It is part of the arithmetic: another chunk length gives other bits.
   std::int64_t reduce_chunk = 4096;
-  // Below this many items (vertices, triangles, pairs) a kernel stays on the calling thread:
-  // starting a team costs a few µs, more than a single 80-triangle cell's whole kernel.
-  std::int64_t min_items = 2048;
+  // Below this many items (vertices, triangles, pairs, vector entries) a kernel stays on the
+  // calling thread. A team costs a few µs when the cores are free, but a whole scheduler slice
+  // (ms) when another process holds one of them and a barrier waits for the descheduled thread:
+  // a 2 × 8-cell fusion (5 000 triangles) on 2 threads of a loaded 2-core machine ran many
+  // times slower than on one. 16 384 keeps scenes of ~50 cells and less on one thread.
+  std::int64_t min_items = 16384;
 };
 Grain grain();
 // For tests: a small grain makes a scene of a few cells take every parallel path with many
@@ -37,9 +40,11 @@ Grain grain();
 void setGrain(const Grain& g);
 
 // Σ_{k=0}^{n−1} f(k) as partial sums over chunks [j·C, (j+1)·C) (each summed in index order)
-// added in chunk order: the same bits for any thread count. f(begin, end) sums one chunk.
+// added in chunk order: the same bits for any thread count, threaded or not. f(begin, end) sums
+// one chunk.
 template <class ChunkSum>
-double deterministicSum(std::int64_t n, std::int64_t chunk, const ChunkSum& chunk_sum) {
+double deterministicSum(std::int64_t n, std::int64_t chunk, bool threaded,
+                        const ChunkSum& chunk_sum) {
   if (n <= 0) return 0;
   const std::int64_t chunks = (n + chunk - 1) / chunk;
   if (chunks == 1) return chunk_sum(std::int64_t{0}, n);
@@ -51,7 +56,7 @@ double deterministicSum(std::int64_t n, std::int64_t chunk, const ChunkSum& chun
     heap.resize(static_cast<std::size_t>(chunks));
     part = heap.data();
   }
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (threaded)
   for (std::int64_t j = 0; j < chunks; ++j)
     part[j] = chunk_sum(j * chunk, std::min(n, (j + 1) * chunk));
   double s = 0;

@@ -37,16 +37,18 @@ inline double dotRange(const double* a, const double* b, std::int64_t begin, std
   return (s0 + s1) + (s2 + s3);
 }
 
-inline double dot(const double* a, const double* b, std::int64_t n, std::int64_t chunk) {
-  return deterministicSum(
-      n, chunk, [&](std::int64_t begin, std::int64_t end) { return dotRange(a, b, begin, end); });
+inline double dot(const double* a, const double* b, std::int64_t n, std::int64_t chunk,
+                  bool threaded) {
+  return deterministicSum(n, chunk, threaded, [&](std::int64_t begin, std::int64_t end) {
+    return dotRange(a, b, begin, end);
+  });
 }
 
 // Elementwise loops: no reduction, so any split gives the same bits; threads only where the
 // vector is long enough to pay for the team.
 template <class Body>
-inline void forEach(std::int64_t n, std::int64_t chunk, const Body& body) {
-#pragma omp parallel for schedule(static) if (n > chunk)
+inline void forEach(std::int64_t n, bool threaded, const Body& body) {
+#pragma omp parallel for schedule(static) if (threaded)
   for (std::int64_t k = 0; k < n; ++k) body(k);
 }
 
@@ -56,10 +58,12 @@ template <typename Multiply>
 SolveStats LinearSolver::pcg(const Multiply& mul, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   SolveStats s;
   const Eigen::Index n = b.size(), nb = n / 3;
-  const std::int64_t chunk = grain().reduce_chunk;
+  const Grain g = grain();
+  const std::int64_t chunk = g.reduce_chunk;
+  const bool threaded = n > g.min_items;
   // The preconditioner works on 3×3 blocks, so its chunks are whole blocks.
   const std::int64_t block_chunk = std::max<std::int64_t>(1, chunk / 3);
-  const double bnorm2 = dot(b.data(), b.data(), n, chunk);
+  const double bnorm2 = dot(b.data(), b.data(), n, chunk, threaded);
   if (bnorm2 == 0) {
     x.setZero();
     s.converged = true;
@@ -73,10 +77,10 @@ SolveStats LinearSolver::pcg(const Multiply& mul, const Eigen::VectorXd& b, Eige
   double *xd = x.data(), *r = r_.data(), *z = z_.data(), *p = p_.data(), *q = q_.data();
   const double* bd = b.data();
   mul(xd, q);
-  forEach(n, chunk, [&](std::int64_t k) { r[k] = bd[k] - q[k]; });
-  double rr = dot(r, r, n, chunk);
+  forEach(n, threaded, [&](std::int64_t k) { r[k] = bd[k] - q[k]; });
+  double rr = dot(r, r, n, chunk, threaded);
   auto precondition = [&] {  // z = M⁻¹ r; returns r·z
-    return deterministicSum(nb, block_chunk, [&](std::int64_t begin, std::int64_t end) {
+    return deterministicSum(nb, block_chunk, threaded, [&](std::int64_t begin, std::int64_t end) {
       double rz = 0;
       for (std::int64_t i = begin; i < end; ++i) {
         const Eigen::Vector3d ri(r[3 * i], r[3 * i + 1], r[3 * i + 2]);
@@ -91,11 +95,11 @@ SolveStats LinearSolver::pcg(const Multiply& mul, const Eigen::VectorXd& b, Eige
   };
   if (rr >= threshold) {
     double rz = precondition();
-    forEach(n, chunk, [&](std::int64_t k) { p[k] = z[k]; });
+    forEach(n, threaded, [&](std::int64_t k) { p[k] = z[k]; });
     while (s.iterations < max_iter_) {
       mul(p, q);
-      const double alpha = rz / dot(p, q, n, chunk);
-      rr = deterministicSum(n, chunk, [&](std::int64_t begin, std::int64_t end) {
+      const double alpha = rz / dot(p, q, n, chunk, threaded);
+      rr = deterministicSum(n, chunk, threaded, [&](std::int64_t begin, std::int64_t end) {
         for (std::int64_t k = begin; k < end; ++k) {
           xd[k] += alpha * p[k];
           r[k] -= alpha * q[k];
@@ -107,7 +111,7 @@ SolveStats LinearSolver::pcg(const Multiply& mul, const Eigen::VectorXd& b, Eige
       const double rz_new = precondition();
       const double beta = rz_new / rz;
       rz = rz_new;
-      forEach(n, chunk, [&](std::int64_t k) { p[k] = z[k] + beta * p[k]; });
+      forEach(n, threaded, [&](std::int64_t k) { p[k] = z[k] + beta * p[k]; });
     }
   }
   s.residual = std::sqrt(rr / bnorm2);
