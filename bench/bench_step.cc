@@ -1,14 +1,18 @@
 // Step cost of the single-cell engine and its split by phase, for 1 cell and for 200 separate
-// cells (no contacts) at 320 triangles per cell. Run: build/release/bench/bench_step
+// cells (no contacts) at 320 triangles per cell; the packed aggregates' steps and kernels at 1
+// and 2 threads. Run: build/release/bench/bench_step
 // Cells start as 1.3 ellipsoids so the solver works on a relaxing, not a resting, state.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <memory>
+#include <string>
 
 #include <benchmark/benchmark.h>
 
 #include "activefoam/simulation.h"
+#include "activefoam/threads.h"
 
 using namespace activefoam;
 
@@ -104,31 +108,61 @@ CellSet packedAggregate(int n, int triangles) {
   return cells;
 }
 
-void BM_StepAggregate(benchmark::State& state) {
-  const int n = static_cast<int>(state.range(0));
+SceneSpec aggregateSpec(bool implicit) {
   SceneSpec spec = benchSpec(320);
   spec.scene = SceneKind::Doublet;  // any multi-cell scene: contacts on
   spec.numerics.integrator =
-      state.range(1) ? IntegratorKind::ContactImplicit : IntegratorKind::SemiImplicit;
-  if (!state.range(1)) spec.numerics.dt_s = 0.002;  // within the explicit scheme's limit
-  Simulation sim(spec, packedAggregate(n, 320));
-  const int warm = static_cast<int>(std::lround(30.0 / spec.numerics.dt_s));
-  for (int k = 0; k < warm; ++k)
-    if (const StepReport r = sim.step(); !r.ok()) {
-      state.SkipWithError(r.reason.c_str());
-      return;
-    }
-  const PhaseTimes t0 = sim.phaseTimes();
+      implicit ? IntegratorKind::ContactImplicit : IntegratorKind::SemiImplicit;
+  if (!implicit) spec.numerics.dt_s = 0.002;  // within the explicit scheme's limit
+  return spec;
+}
+
+// The aggregate of n cells relaxed 30 s (once per process, then restored from its checkpoint
+// for every thread count), or nullptr if it failed.
+std::unique_ptr<Simulation> relaxedAggregate(int n, bool implicit, std::string* why) {
+  static std::map<std::pair<int, bool>, std::string> states;
+  const SceneSpec spec = aggregateSpec(implicit);
+  auto sim = std::make_unique<Simulation>(spec, packedAggregate(n, 320));
+  auto it = states.find({n, implicit});
+  if (it == states.end()) {
+    setThreads(2);
+    const int warm = static_cast<int>(std::lround(30.0 / spec.numerics.dt_s));
+    for (int k = 0; k < warm; ++k)
+      if (const StepReport r = sim->step(); !r.ok()) {
+        *why = r.reason;
+        return nullptr;
+      }
+    it = states.emplace(std::make_pair(n, implicit), sim->saveState()).first;
+    sim = std::make_unique<Simulation>(spec, packedAggregate(n, 320));
+  }
+  if (std::string e = sim->loadState(it->second); !e.empty()) {
+    *why = e;
+    return nullptr;
+  }
+  return sim;
+}
+
+// Arguments: cells, contact-implicit (1) or semi-implicit (0), threads.
+void BM_StepAggregate(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  std::string why;
+  auto sim = relaxedAggregate(n, state.range(1) != 0, &why);
+  if (!sim) {
+    state.SkipWithError(why.c_str());
+    return;
+  }
+  setThreads(static_cast<int>(state.range(2)));
+  const PhaseTimes t0 = sim->phaseTimes();
   double iters = 0, pairs = 0;
   std::int64_t steps = 0;
   for (auto _ : state) {
-    const StepReport r = sim.step();
+    const StepReport r = sim->step();
     if (!r.ok()) state.SkipWithError(r.reason.c_str());
     iters += r.cg.iterations;
     pairs += r.contacts;
     ++steps;
   }
-  const PhaseTimes& t = sim.phaseTimes();
+  const PhaseTimes& t = sim->phaseTimes();
   const double per = 1e3 / static_cast<double>(steps);
   const double contacts_ms = (t.contacts - t0.contacts) * per;
   const double total_ms =
@@ -143,8 +177,80 @@ void BM_StepAggregate(benchmark::State& state) {
   state.counters["forces_ms"] = (t.forces - t0.forces) * per;
   state.counters["matrix_ms"] = (t.matrix - t0.matrix) * per;
   state.counters["solve_ms"] = (t.solve - t0.solve) * per;
+  state.counters["geometry_ms"] = (t.geometry - t0.geometry) * per;
+  state.counters["remesh_ms"] = (t.remesh - t0.remesh) * per;
 }
-BENCHMARK(BM_StepAggregate)->Args({100, 1})->Unit(benchmark::kMillisecond)->Iterations(50);
+BENCHMARK(BM_StepAggregate)
+    ->ArgsProduct({{100, 200}, {1}, {1, 2}})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(50);
+
+// Kernels of one step on the relaxed aggregate, at 1 and 2 threads. Arguments: cells, threads.
+void BM_CouplingProduct(benchmark::State& state) {  // y = Γ v: block product + contact product
+  std::string why;
+  auto sim = relaxedAggregate(static_cast<int>(state.range(0)), true, &why);
+  if (!sim) return state.SkipWithError(why.c_str());
+  setThreads(static_cast<int>(state.range(1)));
+  sim->prepareFriction();
+  const Eigen::Index m = 3 * static_cast<Eigen::Index>(sim->cells().numVertices());
+  Eigen::VectorXd v = Eigen::VectorXd::Ones(m), y(m);
+  for (auto _ : state) {
+    sim->applyFriction(v.data(), y.data());
+    benchmark::DoNotOptimize(y.data());
+  }
+  state.counters["pairs"] = static_cast<double>(sim->contacts().pairs.size());
+}
+BENCHMARK(BM_CouplingProduct)
+    ->ArgsProduct({{100, 200}, {1, 2}})
+    ->Unit(benchmark::kMicrosecond)
+    ->MinTime(1.0);
+
+void BM_NarrowPhase(benchmark::State& state) {  // detectContacts on a fresh candidate list
+  std::string why;
+  auto sim = relaxedAggregate(static_cast<int>(state.range(0)), true, &why);
+  if (!sim) return state.SkipWithError(why.c_str());
+  setThreads(static_cast<int>(state.range(1)));
+  const SceneSpec& spec = sim->spec();
+  const ContactLaw law{spec.cells.k_contact, contactRangeH0(spec.cells)};
+  CandidateCache cache(0.4);
+  ContactList out;
+  detectContacts(sim->cells(), sim->geometry(), law, spec.numerics.contact_quadrature, out,
+                 &cache);  // builds the lists: the loop times the per-step filter + narrow phase
+  for (auto _ : state) {
+    detectContacts(sim->cells(), sim->geometry(), law, spec.numerics.contact_quadrature, out,
+                   &cache);
+    benchmark::DoNotOptimize(out.pairs.data());
+  }
+  state.counters["pairs"] = static_cast<double>(out.pairs.size());
+}
+BENCHMARK(BM_NarrowPhase)->ArgsProduct({{100, 200}, {1, 2}})->Unit(benchmark::kMillisecond);
+
+void BM_ConjugateGradient(benchmark::State& state) {  // one step's solve from a cold start
+  std::string why;
+  auto sim = relaxedAggregate(static_cast<int>(state.range(0)), true, &why);
+  if (!sim) return state.SkipWithError(why.c_str());
+  setThreads(static_cast<int>(state.range(1)));
+  Eigen::Matrix3Xd f;
+  sim->computeForces(f);
+  sim->prepareFriction();
+  const SceneSpec& spec = sim->spec();
+  LinearSolver solver(spec.numerics.preconditioner, spec.numerics.cg_tol,
+                      static_cast<int>(spec.numerics.cg_max_iter));
+  const Eigen::Index m = 3 * static_cast<Eigen::Index>(sim->cells().numVertices());
+  const Eigen::VectorXd b = Eigen::Map<const Eigen::VectorXd>(f.data(), m);
+  Eigen::VectorXd v;
+  int iters = 0;
+  for (auto _ : state) {
+    v = Eigen::VectorXd::Zero(m);
+    iters = solver
+                .solve([&](const double* in, double* out) { sim->applyFriction(in, out); },
+                       sim->frictionMatrix(), b, v)
+                .iterations;
+    benchmark::DoNotOptimize(v.data());
+  }
+  state.counters["cg_iters"] = iters;
+}
+BENCHMARK(BM_ConjugateGradient)->ArgsProduct({{100, 200}, {1, 2}})->Unit(benchmark::kMillisecond);
 
 // The broad phase along a recorded trajectory of the 100-cell aggregate above (motile cells,
 // contact-implicit, remeshing as the scene needs): from scratch every step (skin < 0) against the

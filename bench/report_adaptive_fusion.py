@@ -1,14 +1,14 @@
 #!/usr/bin/env python3
-"""Turns the CSV of bench/study_adaptive_fusion into a Markdown table with totals.
+"""Turns the CSVs of bench/study_adaptive_fusion into a Markdown table with totals (printed).
 
-    python3 bench/report_adaptive_fusion.py docs/study/adaptive-fusion.csv > docs/study/adaptive-fusion.md
+    python3 bench/report_adaptive_fusion.py docs/study/adaptive-fusion-*.csv
 """
 import csv
 import sys
 
 
 def main():
-    rows = list(csv.DictReader(open(sys.argv[1])))
+    rows = [r for path in sys.argv[1:] for r in csv.DictReader(open(path))]
     rows.sort(key=lambda r: (float(r["pa_reduced"]), float(r["l_eta_reduced"]), int(r["seed"])))
     finished = sum(r["outcome"] == "finished" for r in rows)
     would_fail = [r for r in rows if r["first_rejection_kind"] not in ("", "none")]

@@ -11,7 +11,7 @@
 //   OMP_NUM_THREADS=1 build/release/bench/study_adaptive_fusion OUT.csv CACHE_DIR
 //       [seeds=1,2] [duration_s=1500] [shard=0/1]
 // One CSV row per run, appended as each run ends (a rerun skips rows already in OUT.csv);
-// bench/report_adaptive_fusion.py turns the CSV into docs/study/adaptive-fusion.md.
+// bench/report_adaptive_fusion.py turns the CSVs into the table of docs/study/adaptive-fusion.md.
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>

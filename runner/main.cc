@@ -1,6 +1,6 @@
 // foam-run: runs one scene spec to an output folder (DESIGN.md §10).
 //
-//   foam-run SPEC --out DIR [--set KEY=VALUE]... [--force | --resume] [--quiet]
+//   foam-run SPEC --out DIR [--set KEY=VALUE]... [--force | --resume] [--quiet] [--threads N]
 //
 // Exit codes: 0 the run reached duration_s; 2 invalid spec or usage (nothing is written);
 // 3 the run failed (reason on stderr and in summary.json); 130 interrupted (SIGINT/SIGTERM).
@@ -31,6 +31,7 @@
 #include "activefoam/run_output.h"
 #include "activefoam/spec.h"
 #include "activefoam/spec_io.h"
+#include "activefoam/threads.h"
 
 namespace {
 
@@ -65,6 +66,7 @@ void installSignalHandlers() {
 constexpr const char* kUsage =
     "usage: foam-run SPEC --out DIR [--set KEY=VALUE]... [--force | --resume] [--quiet]\n"
     "                [--checkpoint-every SECONDS] [--spheroid-cache DIR | --no-cache]\n"
+    "                [--threads N]\n"
     "       foam-run --keys | --help | --version\n";
 
 void printHelp() {
@@ -93,6 +95,8 @@ void printHelp() {
          "                   $ACTIVEFOAM_CACHE, $XDG_CACHE_HOME/activefoam/spheroids or\n"
          "                   ~/.cache/activefoam/spheroids)\n"
          "  --no-cache       fusion: prepare the spheroids for this run only\n"
+         "  --threads N      threads of the engine's kernels (default: $SLURM_CPUS_PER_TASK if\n"
+         "                   set, else 1); results are bit-identical for any N\n"
          "  --quiet, -q      no progress lines on stderr\n"
          "  --keys           list every spec key with its range, unit and default\n"
          "  --help, -h       this text\n"
@@ -157,7 +161,22 @@ struct Args {
   double checkpoint_every_s = 300;
   bool quiet = false;
   std::optional<std::string> cache;  // --spheroid-cache; "" disables
+  int threads = 0;                   // --threads; 0: the default below
 };
+
+// One thread unless told otherwise: the studies and users run many foam-run side by side (one
+// per core, bench/study_all.sh), where OpenMP's default of every core per process would
+// oversubscribe the machine, and its spinning barriers then slow every run down many times
+// (measured: 25 s instead of 1 s for two 3-thread tests on 2 cores). A Slurm task owns exactly
+// its --cpus-per-task, so there the allocation is the right default.
+int defaultThreads() {
+  if (const char* s = std::getenv("SLURM_CPUS_PER_TASK")) {
+    char* end = nullptr;
+    const long n = std::strtol(s, &end, 10);
+    if (end != s && *end == '\0' && n >= 1 && n <= 1024) return static_cast<int>(n);
+  }
+  return 1;
+}
 
 // Prepared spheroids are shared by every run of a user: $ACTIVEFOAM_CACHE, else
 // $XDG_CACHE_HOME/activefoam/spheroids, else ~/.cache/activefoam/spheroids.
@@ -259,6 +278,12 @@ int main(int argc, char** argv) {
           return usageError("--checkpoint-every: '" + v +
                             "' is not a number of seconds in [0, inf)");
         args.checkpoint_every_s = x;
+      } else if (value("--threads", v)) {
+        char* end = nullptr;
+        const long n = std::strtol(v.c_str(), &end, 10);
+        if (v.empty() || *end != '\0' || n < 1 || n > 1024)
+          return usageError("--threads: '" + v + "' is not a thread count in [1, 1024]");
+        args.threads = static_cast<int>(n);
       } else if (value("--out", v) || value("-o", v)) {
         args.out = v;
       } else if (value("--spheroid-cache", v)) {
@@ -283,6 +308,7 @@ int main(int argc, char** argv) {
   if (!spec_seen) return usageError("no SPEC given");
   if (args.out.empty()) return usageError("no output directory given (--out DIR)");
   if (args.force && args.resume) return usageError("--force and --resume exclude each other");
+  setThreads(args.threads > 0 ? args.threads : defaultThreads());
 
   // ---- parse → validate → resolve; nothing is written before this succeeds
   SpecParseOptions opts;

@@ -6,7 +6,8 @@ pkgs=(build-essential cmake ninja-build pkg-config git
       libeigen3-dev libspdlog-dev libsqlite3-dev libcli11-dev nlohmann-json3-dev
       libtomlplusplus-dev libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox python3
       libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler grpc-proto
-      zlib1g-dev bsdextrautils)
+      zlib1g-dev bsdextrautils
+      clang libomp-dev)  # the tsan preset: clang + LLVM's libomp, whose Archer tool TSan understands
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -1,6 +1,7 @@
 // foamd: the activefoam server (DESIGN.md §8).
 //
-//   foamd [--listen HOST:PORT] [--db PATH] [--workers N] [--token-file F] [--http HOST:PORT]
+//   foamd [--listen HOST:PORT] [--db PATH] [--workers N] [--threads-per-job N]
+//         [--token-file F] [--http HOST:PORT]
 //         [--tls-cert F --tls-key F] [--config F] [--keep-snapshots N] [--log-level L]
 //
 // With no flags: gRPC on 127.0.0.1:50051, database $XDG_DATA_HOME/activefoam/foamd.db (or
@@ -64,11 +65,15 @@ int main(int argc, char** argv) {
   CLI::App app{"foamd: activefoam simulation server (gRPC API, SQLite store, engine pool)"};
   std::string listen = "127.0.0.1:50051", db = defaultDbPath(), token_file, http, cert, key;
   std::string log_level = "info", spheroid_cache;
-  int workers = 0, keep_snapshots = 0;
+  int workers = 0, threads_per_job = 0, keep_snapshots = 0;
   double checkpoint_every_s = 60;
   app.add_option("--listen", listen, "gRPC address HOST:PORT")->capture_default_str();
   app.add_option("--db", db, "SQLite database file")->capture_default_str();
   app.add_option("--workers", workers, "engine workers (0 = one per core)")
+      ->check(CLI::Range(0, 1024));
+  app.add_option("--threads-per-job", threads_per_job,
+                 "engine threads of each pool job (0 = max(1, cores / workers)); results are "
+                 "bit-identical for any count")
       ->check(CLI::Range(0, 1024));
   app.add_option("--token-file", token_file, "file holding the bearer token every call needs");
   app.add_option("--http", http, "read-only HTTP endpoint HOST:PORT (JSON, /metrics)");
@@ -157,6 +162,7 @@ int main(int argc, char** argv) {
 
     PoolOptions po;
     po.workers = workers;
+    po.threads_per_job = threads_per_job;
     po.checkpoint_every_s = checkpoint_every_s;
     po.spheroid_cache_dir = spheroid_cache;
     if (po.spheroid_cache_dir.empty()) {

@@ -15,6 +15,7 @@
 
 #include "activefoam/run.h"
 #include "activefoam/spec_io.h"
+#include "activefoam/threads.h"
 
 namespace activefoam::server {
 namespace {
@@ -48,8 +49,10 @@ v1::SnapshotData toProto(const Snapshot& s) {
 }  // namespace
 
 Pool::Pool(Store& store, PoolOptions options) : store_(store), options_(options) {
-  if (options_.workers <= 0)
-    options_.workers = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  const int cores = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  if (options_.workers <= 0) options_.workers = cores;
+  if (options_.threads_per_job <= 0)
+    options_.threads_per_job = std::max(1, cores / options_.workers);
 }
 
 Pool::~Pool() {
@@ -57,8 +60,13 @@ Pool::~Pool() {
 }
 
 void Pool::start() {
-  for (int i = 0; i < options_.workers; ++i) threads_.emplace_back([this] { workerLoop(); });
-  spdlog::info("pool: {} engine workers", options_.workers);
+  for (int i = 0; i < options_.workers; ++i)
+    threads_.emplace_back([this] {
+      setThreads(options_.threads_per_job);  // per thread: each worker's jobs use this many
+      workerLoop();
+    });
+  spdlog::info("pool: {} engine workers, {} thread(s) per job", options_.workers,
+               options_.threads_per_job);
 }
 
 void Pool::wake() {

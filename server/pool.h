@@ -19,7 +19,10 @@
 namespace activefoam::server {
 
 struct PoolOptions {
-  int workers = 0;                 // 0 = hardware concurrency
+  int workers = 0;  // 0 = hardware concurrency
+  // Engine threads of each job (0: max(1, cores / workers), so workers × threads ≤ cores; more
+  // would oversubscribe the cores and OpenMP's spinning barriers then slow every job down).
+  int threads_per_job = 0;
   double progress_every_s = 0.5;   // wall time between progress events
   double checkpoint_every_s = 60;  // simulated time between checkpoints
   std::string spheroid_cache_dir;  // prepared spheroids of fusion jobs ("" = not kept)

@@ -1,6 +1,7 @@
 // The per-step contact set between cells (DESIGN.md §4.6–4.7) and the terms that use it.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <unordered_map>
 #include <utility>
@@ -16,12 +17,26 @@ struct ContactPair {
   TriangleContact c;
 };
 
+// Where the contact pairs touch vertices, grouped by vertex and in pair order within a vertex:
+// the forces and friction products of all pairs are summed per vertex through it, by threads
+// that each own whole vertices, in the same order as one thread walking the pairs would.
+struct ContactIncidence {
+  std::size_t num_pairs = 0;  // the pair count it was built for
+  std::vector<int> vertex;    // the vertices some pair touches, ascending
+  std::vector<int> begin;     // entries of vertex[j]: entry[begin[j] .. begin[j + 1])
+  std::vector<int> entry;     // 6·pair + 3·side + k: vertex k of ta (side 0) or of tb (side 1)
+  void build(const std::vector<ContactPair>& pairs, const std::vector<Tri>& tri, int num_vertices);
+};
+
 struct ContactList {
   std::vector<ContactPair> pairs;            // active pairs this step
   std::vector<double> tri_contact_area;      // Σ S_AB over the pairs a triangle takes part in
   std::vector<double> tri_contact_fraction;  // f_A = min(1, contact area / S_A)
   std::vector<double> vertex_contact_area;   // S_i^c = Σ_{A∋i} f_A S_A / 3
   std::vector<double> cell_contact_area;     // S_c,l = Σ_{A∈l} f_A S_A
+  // Built by detectContacts; a list whose pairs were set by hand has none (num_pairs differs)
+  // and the terms build one for themselves.
+  ContactIncidence incidence;
 };
 
 // The broad phase of a simulation, keeping its work between steps (a Verlet list per pair of
@@ -104,7 +119,10 @@ class ContactFriction : public ForceTerm {
   // Its friction block, with the stiffness factor of the step (StepContext).
   Eigen::Matrix3d pairMatrix(const ContactPair& p, double stiffness_dt) const;
   double xi_n_, xi_t_, k_;
-  mutable std::vector<PairOp> ops_;  // the pairs of the last addFrictionDiagonal
+  mutable std::vector<PairOp> ops_;     // the pairs of the last addFrictionDiagonal
+  mutable ContactIncidence incidence_;  // theirs, when the contact list came without one
+  mutable const ContactIncidence* inc_ = nullptr;
+  mutable std::vector<double> g_;  // per pair: G u_B (what A's vertices get), then G u_A
 };
 
 // S8–S11: active migration. P_i^a = p_a (S_c,l/S_l) ((x_i − x_c,l)/‖x_i − x_c,l‖)·p̂_l acts as a

@@ -22,6 +22,7 @@
 
 #include "activefoam/contact_geometry.h"
 #include "activefoam/contacts.h"
+#include "activefoam/threads.h"
 
 namespace activefoam {
 namespace {
@@ -214,7 +215,7 @@ std::vector<std::pair<int, int>> findContactCandidates(const Eigen::Matrix3Xd& x
   // thread count and schedule.
   std::vector<std::uint64_t> found;
   const int n_cell_pairs = static_cast<int>(cell_pairs.size());
-#pragma omp parallel
+#pragma omp parallel if (T > grain().min_items)
   {
     std::vector<Interval> A, B;
     std::vector<std::uint64_t> local;
@@ -254,7 +255,7 @@ std::vector<std::pair<int, int>> CandidateCache::find(const CellSet& cells, doub
   // --- cells that moved more than skin/2 from their reference, or whose mesh changed ----------
   std::vector<char> dirty(C, 0);
   bool any_dirty = false;
-#pragma omp parallel for schedule(static) reduction(|| : any_dirty)
+#pragma omp parallel for schedule(static) reduction(|| : any_dirty) if (T > grain().min_items)
   for (int c = 0; c < C; ++c) {
     CellRef& r = ref_[c];
     const int vb = cells.cell_vertex_begin[c], nv = cells.cell_vertex_begin[c + 1] - vb;
@@ -320,7 +321,7 @@ std::vector<std::pair<int, int>> CandidateCache::find(const CellSet& cells, doub
 
   std::vector<std::uint64_t> found;
   std::int64_t built = 0;
-#pragma omp parallel reduction(+ : built)
+#pragma omp parallel reduction(+ : built) if (T > grain().min_items)
   {
     std::vector<Interval> A, B;
     std::vector<std::uint64_t> local;

@@ -2,15 +2,57 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 #include "activefoam/rng.h"
+#include "activefoam/threads.h"
 
 namespace activefoam {
+
+void ContactIncidence::build(const std::vector<ContactPair>& pairs, const std::vector<Tri>& tri,
+                             int num_vertices) {
+  num_pairs = pairs.size();
+  std::vector<int> fill(static_cast<std::size_t>(num_vertices), 0);
+  for (const ContactPair& p : pairs)
+    for (int k = 0; k < 3; ++k) {
+      ++fill[tri[p.ta][k]];
+      ++fill[tri[p.tb][k]];
+    }
+  vertex.clear();
+  begin.assign(1, 0);
+  for (int v = 0; v < num_vertices; ++v) {
+    if (fill[v] == 0) continue;
+    const int n = fill[v];
+    fill[v] = begin.back();
+    vertex.push_back(v);
+    begin.push_back(begin.back() + n);
+  }
+  entry.resize(static_cast<std::size_t>(begin.back()));
+  // A vertex takes part in a pair at most once (ta and tb belong to different cells), so filling
+  // in pair order lists each vertex's pairs in pair order.
+  for (std::size_t p = 0; p < pairs.size(); ++p)
+    for (int k = 0; k < 3; ++k) {
+      entry[fill[tri[pairs[p].ta][k]]++] = static_cast<int>(6 * p + k);
+      entry[fill[tri[pairs[p].tb][k]]++] = static_cast<int>(6 * p + 3 + k);
+    }
+}
+
+namespace {
+
+const ContactIncidence& incidenceOf(const ContactList& con, const CellSet& cells,
+                                    ContactIncidence& scratch) {
+  if (con.incidence.num_pairs == con.pairs.size()) return con.incidence;
+  scratch.build(con.pairs, cells.tri, cells.numVertices());
+  return scratch;
+}
+
+}  // namespace
 
 void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw& law,
                     ContactQuadrature quadrature, ContactList& out, CandidateCache* cache) {
   const int nt = cells.numTriangles();
   out.pairs.clear();
+  out.incidence = ContactIncidence{};
   out.tri_contact_area.assign(nt, 0.0);
   out.tri_contact_fraction.assign(nt, 0.0);
   out.vertex_contact_area.assign(cells.numVertices(), 0.0);
@@ -22,13 +64,28 @@ void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw&
     const Tri& f = cells.tri[t];
     return std::array<Vec3, 3>{cells.x.col(f[0]), cells.x.col(f[1]), cells.x.col(f[2])};
   };
-  for (const auto& [ta, tb] : candidates) {
-    TriangleContact c = computeTriangleContact(corners(ta), corners(tb), law, quadrature);
-    if (!c.active) continue;
-    out.tri_contact_area[ta] += c.area;
-    out.tri_contact_area[tb] += c.area;
-    out.pairs.push_back({ta, tb, c});
-  }
+  // Narrow phase: fixed chunks of candidates keep their active pairs in candidate order; the
+  // chunks are joined in order, so the list is the same for any thread count.
+  constexpr std::int64_t kChunk = 64;  // ~64 µs of work: far more than scheduling it
+  const auto nc = static_cast<std::int64_t>(candidates.size());
+  const std::int64_t chunks = (nc + kChunk - 1) / kChunk;
+  std::vector<std::vector<ContactPair>> found(static_cast<std::size_t>(chunks));
+#pragma omp parallel for schedule(dynamic) if (chunks > 1 && nc > grain().min_items)
+  for (std::int64_t j = 0; j < chunks; ++j)
+    for (std::int64_t i = j * kChunk; i < std::min(nc, (j + 1) * kChunk); ++i) {
+      const auto [ta, tb] = candidates[i];
+      TriangleContact c = computeTriangleContact(corners(ta), corners(tb), law, quadrature);
+      if (c.active) found[j].push_back({ta, tb, c});
+    }
+  std::size_t total = 0;
+  for (const auto& f : found) total += f.size();
+  out.pairs.reserve(total);
+  for (const auto& f : found)
+    for (const ContactPair& p : f) {
+      out.tri_contact_area[p.ta] += p.c.area;
+      out.tri_contact_area[p.tb] += p.c.area;
+      out.pairs.push_back(p);
+    }
   for (int t = 0; t < nt; ++t) {
     if (out.tri_contact_area[t] <= 0) continue;
     const double f = std::min(1.0, out.tri_contact_area[t] / geo.tri_area[t]);
@@ -37,20 +94,29 @@ void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw&
     for (int k = 0; k < 3; ++k) out.vertex_contact_area[cells.tri[t][k]] += a / 3.0;
     out.cell_contact_area[cells.tri_cell[t]] += a;
   }
+  out.incidence.build(out.pairs, cells.tri, cells.numVertices());
 }
 
 double ContactAdhesion::addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) const {
   if (!ctx.contacts) return 0;
-  double energy = 0;
-  for (const ContactPair& p : ctx.contacts->pairs) {
-    const Tri& a = ctx.cells.tri[p.ta];
-    const Tri& b = ctx.cells.tri[p.tb];
-    for (int k = 0; k < 3; ++k) {
-      f.col(a[k]) += p.c.force_weight_a[k] * p.c.normal;
-      f.col(b[k]) -= p.c.force_weight_b[k] * p.c.normal;
+  const ContactList& con = *ctx.contacts;
+  ContactIncidence scratch;
+  const ContactIncidence& inc = incidenceOf(con, ctx.cells, scratch);
+  const int nv = static_cast<int>(inc.vertex.size());
+#pragma omp parallel for schedule(static) if (nv > grain().min_items)
+  for (int j = 0; j < nv; ++j) {
+    auto fv = f.col(inc.vertex[j]);
+    for (int e = inc.begin[j]; e < inc.begin[j + 1]; ++e) {
+      const int code = inc.entry[e], k = code % 3;
+      const ContactPair& p = con.pairs[code / 6];
+      if (code % 6 < 3)
+        fv += p.c.force_weight_a[k] * p.c.normal;
+      else
+        fv -= p.c.force_weight_b[k] * p.c.normal;
     }
-    energy += p.c.energy;
   }
+  double energy = 0;
+  for (const ContactPair& p : con.pairs) energy += p.c.energy;
   return energy;
 }
 
@@ -62,52 +128,89 @@ Eigen::Matrix3d ContactFriction::pairMatrix(const ContactPair& p, double stiffne
 
 void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& gamma) const {
   ops_.clear();
+  inc_ = nullptr;
   if (!ctx.contacts) return;
-  ops_.reserve(ctx.contacts->pairs.size());
-  for (const ContactPair& p : ctx.contacts->pairs) {
-    // Σ_k w_ik G = λ_i^A (Σ_k λ_k^B) G on vertex i of A, and the same for B.
-    const Eigen::Matrix3d g = pairMatrix(p, ctx.contact_stiffness_dt);
-    const Tri& a = ctx.cells.tri[p.ta];
-    const Tri& b = ctx.cells.tri[p.tb];
-    const double sa = p.c.bary_a[0] + p.c.bary_a[1] + p.c.bary_a[2];
-    const double sb = p.c.bary_b[0] + p.c.bary_b[1] + p.c.bary_b[2];
-    PairOp op;
-    for (int i = 0; i < 3; ++i) {
-      op.a[i] = a[i];
-      op.b[i] = b[i];
-      op.wa[i] = p.c.bary_a[i];
-      op.wb[i] = p.c.bary_b[i];
-      if (op.wa[i] > 0) gamma.addDiagonal(a[i], (op.wa[i] * sb) * g);
-      if (op.wb[i] > 0) gamma.addDiagonal(b[i], (op.wb[i] * sa) * g);
+  const ContactList& con = *ctx.contacts;
+  inc_ = &incidenceOf(con, ctx.cells, incidence_);
+  const auto np = static_cast<std::int64_t>(con.pairs.size());
+  ops_.resize(con.pairs.size());
+#pragma omp parallel if (np > grain().min_items)
+  {
+#pragma omp for schedule(static)
+    for (std::int64_t q = 0; q < np; ++q) {
+      const ContactPair& p = con.pairs[q];
+      const Tri& a = ctx.cells.tri[p.ta];
+      const Tri& b = ctx.cells.tri[p.tb];
+      PairOp& op = ops_[q];
+      for (int i = 0; i < 3; ++i) {
+        op.a[i] = a[i];
+        op.b[i] = b[i];
+        op.wa[i] = p.c.bary_a[i];
+        op.wb[i] = p.c.bary_b[i];
+      }
+      op.s = p.c.area * xi_t_;
+      op.d = p.c.area * (xi_n_ + ctx.contact_stiffness_dt * k_ - xi_t_);
+      for (int k = 0; k < 3; ++k) op.n[k] = p.c.normal[k];
     }
-    op.s = p.c.area * xi_t_;
-    op.d = p.c.area * (xi_n_ + ctx.contact_stiffness_dt * k_ - xi_t_);
-    for (int k = 0; k < 3; ++k) op.n[k] = p.c.normal[k];
-    ops_.push_back(op);
+    // Σ_k w_ik G = λ_i^A (Σ_k λ_k^B) G on vertex i of A, and the same for B; each thread owns
+    // whole vertices and adds their pairs in pair order.
+    const ContactIncidence& inc = *inc_;
+    const int nv = static_cast<int>(inc.vertex.size());
+#pragma omp for schedule(static)
+    for (int j = 0; j < nv; ++j)
+      for (int e = inc.begin[j]; e < inc.begin[j + 1]; ++e) {
+        const int code = inc.entry[e], k = code % 3;
+        const ContactPair& p = con.pairs[code / 6];
+        const bool side_a = code % 6 < 3;
+        const double w = side_a ? p.c.bary_a[k] : p.c.bary_b[k];
+        if (!(w > 0)) continue;
+        const auto& other = side_a ? p.c.bary_b : p.c.bary_a;
+        const double so = other[0] + other[1] + other[2];
+        gamma.addDiagonal(inc.vertex[j], (w * so) * pairMatrix(p, ctx.contact_stiffness_dt));
+      }
   }
 }
 
 void ContactFriction::addCouplingProduct(const double* v, double* y) const {
   // The off-diagonal blocks −w_ik G: vertex i of A gets −λ_i^A G u_B with u_B = Σ_k λ_k^B v_k.
-  for (const PairOp& op : ops_) {
-    double ua[3] = {0, 0, 0}, ub[3] = {0, 0, 0};
-    for (int i = 0; i < 3; ++i)
+  // First G u_A, G u_B per pair, then per vertex the pairs' shares in pair order: one thread
+  // per vertex, the same sums as one thread walking the pairs.
+  const auto np = static_cast<std::int64_t>(ops_.size());
+  if (np == 0) return;
+  g_.resize(6 * ops_.size());
+  double* g = g_.data();
+  const ContactIncidence& inc = *inc_;
+  const int nv = static_cast<int>(inc.vertex.size());
+#pragma omp parallel if (np > grain().min_items)
+  {
+#pragma omp for schedule(static)
+    for (std::int64_t q = 0; q < np; ++q) {
+      const PairOp& op = ops_[q];
+      double ua[3] = {0, 0, 0}, ub[3] = {0, 0, 0};
+      for (int i = 0; i < 3; ++i)
+        for (int c = 0; c < 3; ++c) {
+          ua[c] += op.wa[i] * v[3 * op.a[i] + c];
+          ub[c] += op.wb[i] * v[3 * op.b[i] + c];
+        }
+      const double na = op.n[0] * ua[0] + op.n[1] * ua[1] + op.n[2] * ua[2];
+      const double nb = op.n[0] * ub[0] + op.n[1] * ub[1] + op.n[2] * ub[2];
+      double* gq = g + 6 * q;
       for (int c = 0; c < 3; ++c) {
-        ua[c] += op.wa[i] * v[3 * op.a[i] + c];
-        ub[c] += op.wb[i] * v[3 * op.b[i] + c];
+        gq[c] = op.s * ub[c] + op.d * nb * op.n[c];      // G u_B, for A's vertices
+        gq[3 + c] = op.s * ua[c] + op.d * na * op.n[c];  // G u_A, for B's vertices
       }
-    const double na = op.n[0] * ua[0] + op.n[1] * ua[1] + op.n[2] * ua[2];
-    const double nb = op.n[0] * ub[0] + op.n[1] * ub[1] + op.n[2] * ub[2];
-    double ga[3], gb[3];  // G u_A, G u_B
-    for (int c = 0; c < 3; ++c) {
-      ga[c] = op.s * ua[c] + op.d * na * op.n[c];
-      gb[c] = op.s * ub[c] + op.d * nb * op.n[c];
     }
-    for (int i = 0; i < 3; ++i)
-      for (int c = 0; c < 3; ++c) {
-        y[3 * op.a[i] + c] -= op.wa[i] * gb[c];
-        y[3 * op.b[i] + c] -= op.wb[i] * ga[c];
+#pragma omp for schedule(static)
+    for (int j = 0; j < nv; ++j) {
+      double* yv = y + 3 * static_cast<std::int64_t>(inc.vertex[j]);
+      for (int e = inc.begin[j]; e < inc.begin[j + 1]; ++e) {
+        const int code = inc.entry[e], k = code % 3, q = code / 6;
+        const bool side_a = code % 6 < 3;
+        const double w = side_a ? ops_[q].wa[k] : ops_[q].wb[k];
+        const double* gq = g + 6 * static_cast<std::int64_t>(q) + (side_a ? 0 : 3);
+        for (int c = 0; c < 3; ++c) yv[c] -= w * gq[c];
       }
+    }
   }
 }
 
@@ -129,6 +232,8 @@ double ActiveMigration::addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) c
   if (!ctx.contacts || p_a_ == 0) return 0;
   const CellSet& cells = ctx.cells;
   const ContactList& con = *ctx.contacts;
+  // Each cell writes only its own vertices.
+#pragma omp parallel for schedule(static) if (cells.numVertices() > grain().min_items)
   for (int c = 0; c < cells.numCells(); ++c) {
     const double sc = con.cell_contact_area[c];
     if (sc <= 0) continue;  // migration needs a substrate: no contact, no traction

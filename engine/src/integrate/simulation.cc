@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "activefoam/remesh.h"
+#include "activefoam/threads.h"
 
 namespace activefoam {
 namespace {
@@ -234,10 +235,14 @@ StepReport Simulation::remeshCells(const std::vector<char>& which) {
   StepReport rep;
   const auto t0 = Clock::now();
   const int tris = static_cast<int>(spec_.numerics.triangles_per_cell);
-  std::vector<TriMesh> meshes(cells_.numCells());
-  int ops = 0;
-  for (int c = 0; c < cells_.numCells(); ++c) {
-    meshes[c] = cells_.cellMesh(c);
+  const int n = cells_.numCells();
+  std::vector<TriMesh> meshes(n);
+  std::vector<RemeshStats> stats(n);
+  for (int c = 0; c < n; ++c) meshes[c] = cells_.cellMesh(c);
+    // Each cell's remesh is independent (remesh() keeps no shared state); the totals are taken in
+    // cell order afterwards, so the result does not depend on the thread count.
+#pragma omp parallel for schedule(dynamic) if (cells_.numTriangles() > grain().min_items)
+  for (int c = 0; c < n; ++c) {
     if (!which[c]) continue;
     const double r = cells_.radius[c];
     const double a_ref = 4 * M_PI * r * r / tris;
@@ -245,11 +250,16 @@ StepReport Simulation::remeshCells(const std::vector<char>& which) {
     rp.min_area = spec_.numerics.remesh_min_area_factor * a_ref;
     rp.max_area = spec_.numerics.remesh_max_area_factor * a_ref;
     rp.smooth_min_angle_deg = 15;
-    const RemeshStats s = remesh(meshes[c], rp);
-    ops += s.operations();
-    if (s.volume_before > 0)
+    stats[c] = remesh(meshes[c], rp);
+  }
+  int ops = 0;
+  for (int c = 0; c < n; ++c) {
+    if (!which[c]) continue;
+    const RemeshStats& st = stats[c];
+    ops += st.operations();
+    if (st.volume_before > 0)
       rep.remesh_volume_jump = std::max(
-          rep.remesh_volume_jump, std::abs(s.volume_after - s.volume_before) / s.volume_before);
+          rep.remesh_volume_jump, std::abs(st.volume_after - st.volume_before) / st.volume_before);
   }
   if (ops > 0) {
     cells_.setCellMeshes(meshes);

@@ -2,7 +2,10 @@
 
 #include <Eigen/Cholesky>
 #include <cmath>
+#include <cstdint>
 #include <limits>
+
+#include "activefoam/threads.h"
 
 namespace activefoam {
 
@@ -17,11 +20,50 @@ void LinearSolver::setPreconditioner(int block, const Eigen::Matrix3d& d) {
   inv_[block] = inv;
 }
 
+namespace {
+
+// Σ a_k b_k over [begin, end) with four accumulators by k mod 4 (the order is fixed by k, not by
+// alignment or threads; four chains instead of one keep the adds pipelined).
+inline double dotRange(const double* a, const double* b, std::int64_t begin, std::int64_t end) {
+  double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
+  std::int64_t k = begin;
+  for (; k + 4 <= end; k += 4) {
+    s0 += a[k] * b[k];
+    s1 += a[k + 1] * b[k + 1];
+    s2 += a[k + 2] * b[k + 2];
+    s3 += a[k + 3] * b[k + 3];
+  }
+  for (; k < end; ++k) s0 += a[k] * b[k];
+  return (s0 + s1) + (s2 + s3);
+}
+
+inline double dot(const double* a, const double* b, std::int64_t n, std::int64_t chunk,
+                  bool threaded) {
+  return deterministicSum(n, chunk, threaded, [&](std::int64_t begin, std::int64_t end) {
+    return dotRange(a, b, begin, end);
+  });
+}
+
+// Elementwise loops: no reduction, so any split gives the same bits; threads only where the
+// vector is long enough to pay for the team.
+template <class Body>
+inline void forEach(std::int64_t n, bool threaded, const Body& body) {
+#pragma omp parallel for schedule(static) if (threaded)
+  for (std::int64_t k = 0; k < n; ++k) body(k);
+}
+
+}  // namespace
+
 template <typename Multiply>
 SolveStats LinearSolver::pcg(const Multiply& mul, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   SolveStats s;
   const Eigen::Index n = b.size(), nb = n / 3;
-  const double bnorm2 = b.squaredNorm();
+  const Grain g = grain();
+  const std::int64_t chunk = g.reduce_chunk;
+  const bool threaded = n > g.min_items;
+  // The preconditioner works on 3×3 blocks, so its chunks are whole blocks.
+  const std::int64_t block_chunk = std::max<std::int64_t>(1, chunk / 3);
+  const double bnorm2 = dot(b.data(), b.data(), n, chunk, threaded);
   if (bnorm2 == 0) {
     x.setZero();
     s.converged = true;
@@ -32,36 +74,44 @@ SolveStats LinearSolver::pcg(const Multiply& mul, const Eigen::VectorXd& b, Eige
   z_.resize(n);
   p_.resize(n);
   q_.resize(n);
-  mul(x.data(), q_.data());
-  r_ = b - q_;
-  double rr = r_.squaredNorm();
+  double *xd = x.data(), *r = r_.data(), *z = z_.data(), *p = p_.data(), *q = q_.data();
+  const double* bd = b.data();
+  mul(xd, q);
+  forEach(n, threaded, [&](std::int64_t k) { r[k] = bd[k] - q[k]; });
+  double rr = dot(r, r, n, chunk, threaded);
   auto precondition = [&] {  // z = M⁻¹ r; returns r·z
-    double rz = 0;
-    for (Eigen::Index i = 0; i < nb; ++i) {
-      const Eigen::Vector3d zi = inv_[i] * r_.segment<3>(3 * i);
-      z_.segment<3>(3 * i) = zi;
-      rz += zi.dot(r_.segment<3>(3 * i));
-    }
-    return rz;
+    return deterministicSum(nb, block_chunk, threaded, [&](std::int64_t begin, std::int64_t end) {
+      double rz = 0;
+      for (std::int64_t i = begin; i < end; ++i) {
+        const Eigen::Vector3d ri(r[3 * i], r[3 * i + 1], r[3 * i + 2]);
+        const Eigen::Vector3d zi = inv_[i] * ri;
+        z[3 * i] = zi[0];
+        z[3 * i + 1] = zi[1];
+        z[3 * i + 2] = zi[2];
+        rz += zi.dot(ri);
+      }
+      return rz;
+    });
   };
   if (rr >= threshold) {
     double rz = precondition();
-    p_ = z_;
+    forEach(n, threaded, [&](std::int64_t k) { p[k] = z[k]; });
     while (s.iterations < max_iter_) {
-      mul(p_.data(), q_.data());
-      const double alpha = rz / p_.dot(q_);
-      rr = 0;
-      for (Eigen::Index k = 0; k < n; ++k) {
-        x[k] += alpha * p_[k];
-        r_[k] -= alpha * q_[k];
-        rr += r_[k] * r_[k];
-      }
+      mul(p, q);
+      const double alpha = rz / dot(p, q, n, chunk, threaded);
+      rr = deterministicSum(n, chunk, threaded, [&](std::int64_t begin, std::int64_t end) {
+        for (std::int64_t k = begin; k < end; ++k) {
+          xd[k] += alpha * p[k];
+          r[k] -= alpha * q[k];
+        }
+        return dotRange(r, r, begin, end);
+      });
       ++s.iterations;
       if (rr < threshold) break;
       const double rz_new = precondition();
       const double beta = rz_new / rz;
       rz = rz_new;
-      for (Eigen::Index k = 0; k < n; ++k) p_[k] = z_[k] + beta * p_[k];
+      forEach(n, threaded, [&](std::int64_t k) { p[k] = z[k] + beta * p[k]; });
     }
   }
   s.residual = std::sqrt(rr / bnorm2);

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <tuple>
 
+#include "activefoam/threads.h"
+
 namespace activefoam {
 
 void computeGeometry(const CellSet& cells, Geometry& geo) {
@@ -15,6 +17,8 @@ void computeGeometry(const CellSet& cells, Geometry& geo) {
   geo.cell_area.assign(nc, 0.0);
   geo.cell_centroid.assign(nc, Vec3::Zero());
   const auto& x = cells.x;
+  // Threads own whole cells: a cell's triangles touch only its own vertices and slots.
+#pragma omp parallel for schedule(static) if (nt > grain().min_items)
   for (int c = 0; c < nc; ++c) {
     // Volume and centroid relative to a point of the cell, for conditioning far from the origin.
     const Vec3 o = x.col(cells.cell_vertex_begin[c]);
@@ -40,6 +44,7 @@ void computeGeometry(const CellSet& cells, Geometry& geo) {
     geo.cell_area[c] = area;
     geo.cell_centroid[c] = o + (vol != 0 ? Vec3(moment / vol) : Vec3::Zero());
   }
+#pragma omp parallel for schedule(static) if (nv > grain().min_items)
   for (int i = 0; i < nv; ++i) {
     const double n = geo.vertex_normal[i].norm();
     if (n > 0) geo.vertex_normal[i] /= n;
