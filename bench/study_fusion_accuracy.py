@@ -61,6 +61,10 @@ CONFIGS = [
     ("mesh-80-dt-0.25", "mesh", {"numerics.triangles_per_cell": 80, "numerics.dt_s": 0.25}),
     # The doublet study's Pareto front: 1 280 triangles at Δt = 0.5 s beat 320 at 0.1 s there.
     ("mesh-1280", "mesh", {"numerics.triangles_per_cell": 1280}),
+    # Issue 14 part 3: the second-order two-stage step (two solves per step).
+    ("ros2", "integrator", {"numerics.integrator": "ros2"}),
+    ("ros2-dt-1", "integrator", {"numerics.integrator": "ros2", "numerics.dt_s": 1.0}),
+    ("ros2-dt-0.25", "integrator", {"numerics.integrator": "ros2", "numerics.dt_s": 0.25}),
 ]
 
 

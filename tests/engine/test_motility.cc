@@ -1,4 +1,5 @@
 // Active migration (S8–S11) and polarity diffusion (S10).
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 
@@ -65,7 +66,8 @@ TEST(Polarity, DecorrelatesAsExpMinusTwoTOverTauP) {
   std::int64_t step = 0;
   for (double t_check : {60.0, 300.0, 600.0, 1200.0}) {
     while (step * dt < t_check) {
-      for (int c = 0; c < n; ++c) p[c] = ActiveMigration::diffuse(p[c], 1 / tau_p, dt, 9, c, step);
+      for (int c = 0; c < n; ++c)
+        p[c] = ActiveMigration::diffuse(p[c], 1 / tau_p, step * dt, (step + 1) * dt, 9, c);
       ++step;
     }
     double mean = 0, sq = 0, worst_norm = 0;
@@ -85,13 +87,62 @@ TEST(Polarity, DecorrelatesAsExpMinusTwoTOverTauP) {
   }
 }
 
-TEST(Polarity, StreamIsAPureFunctionOfSeedCellAndStep) {
+TEST(Polarity, NoiseIsAPureFunctionOfSeedCellAndTime) {
   const Vec3 p = Vec3(1, 2, 3).normalized();
-  const Vec3 a = ActiveMigration::diffuse(p, 1.0 / 600, 0.1, 7, 3, 1000);
-  EXPECT_EQ(a, ActiveMigration::diffuse(p, 1.0 / 600, 0.1, 7, 3, 1000));  // any order, any thread
-  EXPECT_NE(a, ActiveMigration::diffuse(p, 1.0 / 600, 0.1, 7, 4, 1000));  // another cell
-  EXPECT_NE(a, ActiveMigration::diffuse(p, 1.0 / 600, 0.1, 8, 3, 1000));  // another seed
-  EXPECT_NE(a, ActiveMigration::diffuse(p, 1.0 / 600, 0.1, 7, 3, 1001));  // another step
+  const Vec3 a = ActiveMigration::diffuse(p, 1.0 / 600, 100.0, 100.1, 7, 3);
+  EXPECT_EQ(a, ActiveMigration::diffuse(p, 1.0 / 600, 100.0, 100.1, 7, 3));  // any order, thread
+  EXPECT_NE(a, ActiveMigration::diffuse(p, 1.0 / 600, 100.0, 100.1, 7, 4));  // another cell
+  EXPECT_NE(a, ActiveMigration::diffuse(p, 1.0 / 600, 100.0, 100.1, 8, 3));  // another seed
+  EXPECT_NE(a, ActiveMigration::diffuse(p, 1.0 / 600, 100.1, 100.2, 7, 3));  // another time
+}
+
+// The Wiener path does not depend on how time is cut into steps: increments over adjacent
+// intervals add up to the increment over their union (grid-aligned or not, halved steps
+// included), and whole grid cells have unit variance per second and axis.
+TEST(Polarity, WienerIncrementsAddUpAcrossAnySteps) {
+  const Vec3 whole = ActiveMigration::wienerIncrement(4, 2, 10.0, 11.0);
+  Vec3 sum = Vec3::Zero();
+  double t = 10.0;
+  for (double dt : {0.1, 0.05, 0.025, 0.0125, 0.0125, 0.3, 0.5}) {  // 1 s in uneven pieces
+    sum += ActiveMigration::wienerIncrement(4, 2, t, t + dt);
+    t += dt;
+  }
+  EXPECT_NEAR((sum - whole).norm(), 0, 1e-13);
+  EXPECT_GT(whole.norm(), 1e-3);
+  const Vec3 off = ActiveMigration::wienerIncrement(4, 2, 10.0037, 10.0537) +
+                   ActiveMigration::wienerIncrement(4, 2, 10.0537, 10.1037);
+  EXPECT_NEAR((off - ActiveMigration::wienerIncrement(4, 2, 10.0037, 10.1037)).norm(), 0, 1e-14);
+  // Variance of 0.5 s increments over many cells: 0.5 per axis (3 standard errors).
+  const int n = 6000;
+  double sq = 0, q4 = 0;
+  for (int c = 0; c < n; ++c) {
+    const Vec3 w = ActiveMigration::wienerIncrement(11, c, 3.0, 3.5);
+    sq += w.squaredNorm() / 3;
+    q4 += std::pow(w.squaredNorm() / 3, 2);
+  }
+  const double var = sq / n, se = std::sqrt((q4 / n - var * var) / n);
+  EXPECT_NEAR(var, 0.5, 3 * se);
+}
+
+// A polarity integrated with Δt = 1 s and with Δt = 0.1 s follows the same path: after 300 s
+// (half a persistence time) the two differ by the discretisation error of the rotation steps, not
+// as independent realisations (which put them ~1.4 apart: both ~1 from p0 in random directions).
+TEST(Polarity, PathDoesNotDependOnTheStep) {
+  const double d_r = 1.0 / 600;
+  double worst = 0, moved = 0;
+  for (int c = 0; c < 20; ++c) {
+    const Vec3 p0 = Vec3(1, 0.5 * c, -0.3).normalized();
+    Vec3 coarse = p0, fine = p0;
+    for (int k = 0; k < 300; ++k) coarse = ActiveMigration::diffuse(coarse, d_r, k, k + 1.0, 5, c);
+    for (int k = 0; k < 3000; ++k)
+      fine = ActiveMigration::diffuse(fine, d_r, 0.1 * k, 0.1 * (k + 1), 5, c);
+    worst = std::max(worst, (coarse - fine).norm());
+    moved += (fine - p0).norm() / 20;
+  }
+  std::cout << "[ polarity ] Δt 1 s against 0.1 s over 300 s: max |Δp| = " << worst
+            << ", mean |p − p0| = " << moved << "\n";
+  EXPECT_GT(moved, 0.3);
+  EXPECT_LT(worst, 0.25);
 }
 
 TEST(ActiveMigration, MotileDoubletIsReproducibleFromItsSeed) {

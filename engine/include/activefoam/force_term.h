@@ -24,10 +24,17 @@ struct StepContext {
   double dt;  // s, this step's length (the integrator's, not the spec's)
   double t;   // s, time at the start of the step
   const ContactList* contacts = nullptr;  // this step's contacts; null in single-cell scenes
-  std::int64_t step = 0;                  // steps taken before this one (keys the random streams)
+  std::int64_t step = 0;                  // steps taken before this one
   // Factor of the contact springs' linearised normal stiffness K_c in Γ: Δt for the
   // contact-implicit integrator, 0 for the semi-implicit one (the integrator decides).
   double contact_stiffness_dt = 0;
+  // s, time at the end of the step as the stepper counts it (exactly the next step's t); 0: t + dt.
+  double t_end = 0;
+  double endTime() const { return t_end > 0 ? t_end : t + dt; }
+  // For endStep of a two-stage (ros2) step: the geometry at the predicted end of the step, so
+  // that per-cell integrals take the trapezoid of start and end (what ROS2 gives them, its
+  // Jacobian there being 0). Null: forward Euler with the start (one-stage integrators).
+  const Geometry* geo_end = nullptr;
 };
 
 class ForceTerm {

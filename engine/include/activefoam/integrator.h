@@ -59,7 +59,8 @@ class TimeStepper {
   std::int64_t stepTicks() const { return ticksPerBaseStep() >> level_; }
   // Ticks of a duration given in seconds, rounded to whole steps of the spec's Δt.
   std::int64_t ticksFor(double seconds) const;
-  double time() const { return static_cast<double>(ticks_) * tick_s_; }
+  double time() const { return timeAt(ticks_); }
+  double timeAt(std::int64_t ticks) const { return static_cast<double>(ticks) * tick_s_; }
   std::int64_t steps() const { return steps_; }  // accepted steps
 
   bool canHalve() const { return adaptive_ && level_ < max_level_; }
@@ -166,16 +167,33 @@ class RemeshPolicy {
 // The velocity solve of one step: the force sum F, the friction operator Γ (assembled cell
 // blocks + contact couplings applied as a product) and preconditioned CG on Γ v = F. For the
 // contact-implicit integrator Γ carries Δt K_c, the linearised normal stiffness of the contact
-// springs; the step context says so (StepContext::contact_stiffness_dt), terms never read the
-// spec's Δt.
+// springs (γ Δt K_c for ros2); the step context says so (StepContext::contact_stiffness_dt),
+// terms never read the spec's Δt.
 class Integrator {
  public:
   explicit Integrator(const NumericsParams& numerics);
   IntegratorKind kind() const { return kind_; }
-  // The factor of K_c in Γ for a step of length dt: dt (contact-implicit) or 0.
+  // The factor of K_c in Γ for a step of length dt: dt (contact-implicit), γ dt (ros2) or 0.
   double contactStiffnessDt(double dt) const {
-    return kind_ == IntegratorKind::ContactImplicit ? dt : 0.0;
+    switch (kind_) {
+      case IntegratorKind::ContactImplicit:
+        return dt;
+      case IntegratorKind::Ros2:
+        return kRos2Gamma * dt;
+      case IntegratorKind::SemiImplicit:
+        break;
+    }
+    return 0.0;
   }
+  // ROS2 (Verwer, Spee, Blom & Hundsdorfer 1999) is a linearly implicit two-stage method of
+  // order 2 for any approximation of the Jacobian (a W-method) and L-stable with γ = 1 + 1/√2:
+  //   (Γ₀ + γΔt K₀) k₁ = F(x₀)
+  //   (Γ* + γΔt K*) k₂ = F(x*) − 2 Γ* k₁,   x* = x₀ + Δt k₁ (geometry and contacts re-evaluated)
+  //   x₁ = x₀ + Δt (3/2 k₁ + 1/2 k₂)
+  // Stage 2 takes its matrix at the predicted state: the W-matrix may change by O(Δt) between
+  // stages without losing the order, and Γ* k₁ is what the mass-matrix form needs there.
+  static constexpr double kRos2Gamma = 1.7071067811865476;
+  bool twoStage() const { return kind_ == IntegratorKind::Ros2; }
 
   using Terms = std::vector<std::unique_ptr<ForceTerm>>;
   // F = Σ terms' forces (3 × vertices); returns the sum of their energies.

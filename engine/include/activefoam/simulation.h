@@ -146,10 +146,17 @@ class Simulation {
             time(),
             with_contacts_ ? &contacts_ : nullptr,
             stepper_.steps(),
-            integrator_.contactStiffnessDt(dt)};
+            integrator_.contactStiffnessDt(dt),
+            stepper_.timeAt(stepper_.ticks() + stepper_.stepTicks())};
   }
   // One try of a step of length stepper_.dt(); the schedule is advanced by the caller.
   StepReport tryStep();
+  // ros2: predicts x* = x₀ + Δt k₁ (k₁ in v_), re-evaluates geometry, contacts, forces and Γ
+  // there, solves the second stage and leaves the step's velocity in v_, x* in cells_ (x₀ in
+  // x0_). A failure of the first stage is returned before anything is evaluated at x*.
+  std::optional<StepFailure> secondStage(double dt, SolveStats& cg);
+  // The context c with another geometry (the start's, kept in geo_prev_ once geo_ moved on).
+  static StepContext atGeometry(const StepContext& c, const Geometry& geo, const Geometry* geo_end);
   std::optional<StepFailure> runGuards(StepGuard::Phase phase, const GuardView& view);
   void resetGuardCounts();
   // The state a rejected try is undone to (what the try can change; geometry and contacts are
@@ -173,6 +180,9 @@ class Simulation {
   std::vector<std::unique_ptr<StepGuard>> guards_;
   Eigen::Matrix3Xd f_;
   Eigen::VectorXd v_;
+  Eigen::Matrix3Xd x0_, k1_, f2_;  // ros2: start positions, first stage, second stage's F
+  Eigen::VectorXd g_;              // ros2: Γ* k₁
+  std::vector<double> pi0_;        // ros2: the PI integrals at the start of the step
   std::int64_t remesh_ops_ = 0;
   std::int64_t steps_rejected_ = 0;
   PhaseTimes times_;

@@ -16,7 +16,7 @@
 namespace activefoam {
 
 enum class SceneKind { Cell, Doublet, Spheroid, Fusion };
-enum class IntegratorKind { SemiImplicit, ContactImplicit };
+enum class IntegratorKind { SemiImplicit, ContactImplicit, Ros2 };
 enum class PreconditionerKind { Jacobi, BlockJacobi };
 enum class ContactQuadrature { Exact, Dunavant7, Centroid };
 // Fidelity presets (issue 6, docs/study/): named numerics from the speed/accuracy study.

@@ -16,7 +16,8 @@ using bytes::Reader;
 using bytes::Writer;
 
 constexpr char kMagic[8] = {'A', 'F', 'C', 'K', 'P', 'T', '0', '1'};
-constexpr std::uint32_t kFormat = 2;  // 2: the adaptive step schedule
+constexpr std::uint32_t kFormat =
+    3;  // 2: the adaptive step schedule; 3: polarity noise keyed by time
 
 // The cells, in the checkpoint's order (velocities right after positions when kept).
 void writeCells(Writer& w, const CellSet& c, bool velocities) {

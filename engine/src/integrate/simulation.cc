@@ -47,7 +47,7 @@ void Simulation::init() {
     law_.k = p.k_contact;
     law_.h0 = contactRangeH0(p);
     terms_.push_back(std::make_unique<ContactAdhesion>());
-    const bool implicit = integrator_.kind() == IntegratorKind::ContactImplicit;
+    const bool implicit = integrator_.contactStiffnessDt(1.0) > 0;
     const bool frictionless =
         p.xi_normal.value_or(p.xi) == 0 && p.xi_tangential.value_or(p.xi) == 0;
     if (implicit || !frictionless) terms_.push_back(std::make_unique<ContactFriction>(p));
@@ -193,13 +193,23 @@ StepReport Simulation::tryStep() {
     rep.reason = std::move(f.reason);
     return rep;
   };
+  // geo_prev_ keeps the start of the step's geometry for the end-of-step updates and the Moved
+  // guards; ros2 evaluates its second stage in geo_ and contacts_ (the Solved guards see those).
+  const bool two_stage = integrator_.twoStage();
+  if (two_stage) {
+    std::swap(geo_prev_, geo_);
+    if (auto f = secondStage(dt, rep.cg)) return failed(std::move(*f));
+  }
   if (auto f = runGuards(StepGuard::Phase::Solved, view)) return failed(std::move(*f));
+  if (!two_stage) std::swap(geo_prev_, geo_);
 
   cells_.v = Eigen::Map<const Eigen::Matrix3Xd>(v_.data(), 3, cells_.numVertices());
+  if (two_stage) cells_.x = x0_;
   cells_.x += dt * cells_.v;
-  for (const auto& term : terms_) term->endStep(ctx, cells_);  // ε of the start of the step
+  // ε of the start of the step (and of the predicted end, still in geo_, for ros2).
+  const StepContext start = atGeometry(ctx, geo_prev_, two_stage ? &geo_ : nullptr);
+  for (const auto& term : terms_) term->endStep(start, cells_);
   t0 = Clock::now();
-  std::swap(geo_prev_, geo_);
   computeGeometry(cells_, geo_);
   times_.geometry += since(t0);
   view.geo_before = &geo_prev_;
@@ -225,6 +235,68 @@ StepReport Simulation::tryStep() {
   view.geo_before = nullptr;  // the meshes may have changed
   if (auto f = runGuards(StepGuard::Phase::Detected, view)) return failed(std::move(*f));
   return rep;
+}
+
+StepContext Simulation::atGeometry(const StepContext& c, const Geometry& geo,
+                                   const Geometry* geo_end) {
+  return {c.cells, geo,    c.topo, c.dt, c.t, c.contacts, c.step, c.contact_stiffness_dt,
+          c.t_end, geo_end};
+}
+
+std::optional<StepFailure> Simulation::secondStage(double dt, SolveStats& cg) {
+  // Stage 1 must be usable before anything is evaluated at x*: NaNs in the broad phase, or a
+  // prediction from an unconverged solve, would only produce a later, less clear failure.
+  std::ostringstream why;
+  if (!v_.allFinite() || !f_.allFinite()) {
+    why << "non-finite " << (f_.allFinite() ? "velocity" : "force")
+        << " in the first stage at t=" << time() << " s";
+    return StepFailure{FailureKind::NonFinite, why.str()};
+  }
+  if (!cg.converged) {
+    why << "CG did not reach the tolerance " << spec_.numerics.cg_tol << " in " << cg.iterations
+        << " iterations in the first stage (relative residual " << cg.residual
+        << ") at t=" << time() << " s";
+    return StepFailure{FailureKind::CgNotConverged, why.str()};
+  }
+  x0_ = cells_.x;
+  k1_ = Eigen::Map<const Eigen::Matrix3Xd>(v_.data(), 3, cells_.numVertices());
+  cells_.x = x0_ + dt * k1_;
+  auto t0 = Clock::now();
+  computeGeometry(cells_, geo_);
+  times_.geometry += since(t0);
+  t0 = Clock::now();
+  detect();
+  times_.contacts += since(t0);
+
+  StepContext predicted = context();
+  // The pressure at x* with the PI integral predicted as ROS2 predicts every state variable,
+  // I* = I₀ + Δt ε₀; I₀ is restored for the end of the step.
+  pi0_ = cells_.pi_integral;
+  pressure_->endStep(atGeometry(predicted, geo_prev_, nullptr), cells_);
+  t0 = Clock::now();
+  integrator_.computeForces(predicted, terms_, f2_);
+  times_.forces += since(t0);
+  cells_.pi_integral = pi0_;
+  // Γ* k₁ without the spring stiffness, then Γ* + γΔt K* for the solve.
+  t0 = Clock::now();
+  const double stiffness = predicted.contact_stiffness_dt;
+  predicted.contact_stiffness_dt = 0;
+  integrator_.prepareFriction(predicted, terms_);
+  g_.resize(k1_.size());
+  integrator_.applyFriction(k1_.data(), g_.data());
+  predicted.contact_stiffness_dt = stiffness;
+  integrator_.prepareFriction(predicted, terms_);
+  times_.matrix += since(t0);
+  f2_ -= 2 * Eigen::Map<const Eigen::Matrix3Xd>(g_.data(), 3, cells_.numVertices());
+  t0 = Clock::now();
+  Eigen::VectorXd k2 = -v_;  // k₂ ≈ −k₁ where the forces change little over the step
+  const SolveStats s2 = integrator_.solve(f2_, k2);
+  times_.solve += since(t0);
+  cg.iterations += s2.iterations;
+  cg.converged = cg.converged && s2.converged;
+  cg.residual = std::max(cg.residual, s2.residual);
+  v_ = 1.5 * v_ + 0.5 * k2;  // the step's effective velocity: x₁ = x₀ + Δt v
+  return std::nullopt;
 }
 
 StepReport Simulation::remeshAll() {

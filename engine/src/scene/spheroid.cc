@@ -19,7 +19,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr char kMagic[8] = {'A', 'F', 'S', 'P', 'H', 'R', '0', '1'};
+// 02: polarity noise keyed by time (spheroids prepared before follow another realisation).
+constexpr char kMagic[8] = {'A', 'F', 'S', 'P', 'H', 'R', '0', '2'};
 constexpr double kWindowS = 60;  // compaction is judged over this much simulated time
 
 std::string hex16(std::uint64_t h) {

@@ -63,10 +63,15 @@ double CytoplasmPressure::addForces(const StepContext& ctx, Eigen::Matrix3Xd& f)
 }
 
 void CytoplasmPressure::endStep(const StepContext& ctx, CellSet& cells) const {
-  // Explicit (forward) integration of ε over the step, with ε at the start of the step.
+  // Explicit (forward) integration of ε over the step, with ε at the start of the step; the
+  // trapezoid with the predicted end for ros2 (forward Euler there would make it first order).
   for (int c = 0; c < cells.numCells(); ++c) {
     const double vstar = cells.target_volume[c];
-    cells.pi_integral[c] += (ctx.geo.cell_volume[c] - vstar) / vstar * ctx.dt;
+    const double eps = (ctx.geo.cell_volume[c] - vstar) / vstar;
+    if (ctx.geo_end)
+      cells.pi_integral[c] += 0.5 * (eps + (ctx.geo_end->cell_volume[c] - vstar) / vstar) * ctx.dt;
+    else
+      cells.pi_integral[c] += eps * ctx.dt;
   }
 }
 
