@@ -139,6 +139,68 @@ TEST(Doublet, InternalForcesWithContactsConserveMomentum) {
         << "vertex " << i;
 }
 
+// ros2's W-matrix carries the consistent stiffness of the contact springs, k ∫ δg² dS / 2: per
+// pair the moments ∫λλ dS add up to the pair's area and to ∫λ_i dS; the assembled Γ is
+// symmetric positive definite, the step's diagonal-plus-product form applies the same operator,
+// and v·K v is the spring energy of the normal velocity field (checked against the moments).
+TEST(Doublet, Ros2ConsistentContactStiffnessIsOneSpdOperator) {
+  Simulation sim(doubletSpec(0.4375, IntegratorKind::Ros2));
+  for (int k = 0; k < 1500; ++k) ASSERT_TRUE(sim.step().ok());
+  ASSERT_GT(sim.contacts().pairs.size(), 10u);
+  for (const ContactPair& p : sim.contacts().pairs) {
+    double sum = 0;
+    for (int i = 0; i < 3; ++i) {
+      double row_ab = 0, row_aa = 0, row_bb = 0, col_ab = 0;
+      for (int k = 0; k < 3; ++k) {
+        row_ab += p.c.m_ab[3 * i + k];
+        col_ab += p.c.m_ab[3 * k + i];
+        row_aa += p.c.m_aa[3 * i + k];
+        row_bb += p.c.m_bb[3 * i + k];
+        EXPECT_EQ(p.c.m_aa[3 * i + k], p.c.m_aa[3 * k + i]);
+      }
+      EXPECT_NEAR(row_ab, row_aa, 1e-12 * p.c.area);  // Σ_k λ^B_k = 1 on the polygon
+      EXPECT_NEAR(col_ab, row_bb, 1e-12 * p.c.area);
+      sum += row_ab;
+    }
+    EXPECT_NEAR(sum, p.c.area, 1e-12 * p.c.area);
+  }
+  const Eigen::MatrixXd a = Eigen::MatrixXd(sim.assembleFriction());
+  EXPECT_LT((a - a.transpose()).norm(), 1e-12 * a.norm());
+  EXPECT_EQ(Eigen::LLT<Eigen::MatrixXd>(a).info(), Eigen::Success);
+  sim.prepareFriction();
+  Rng rng(5, 3);
+  Eigen::VectorXd v(a.rows()), y(a.rows());
+  for (Eigen::Index k = 0; k < v.size(); ++k) v[k] = rng.uniform() - 0.5;
+  sim.applyFriction(v.data(), y.data());
+  EXPECT_LT((y - a * v).norm(), 1e-12 * (a * v).norm());
+  for (int i = 0; i < sim.cells().numVertices(); ++i)
+    ASSERT_LT((sim.frictionMatrix().diagonalBlock(i) - a.block<3, 3>(3 * i, 3 * i)).norm(),
+              1e-12 * a.norm())
+        << "vertex " << i;
+  // The stiffness part alone: Γ(with K) − Γ(without) = γΔt k ∫ δg² for the field of v.
+  double energy = 0;
+  for (const ContactPair& p : sim.contacts().pairs) {
+    const Tri& ta = sim.cells().tri[p.ta];
+    const Tri& tb = sim.cells().tri[p.tb];
+    const Vec3& n = p.c.normal;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) {
+        const double ai = n.dot(v.segment<3>(3 * ta[i])), aj = n.dot(v.segment<3>(3 * ta[j]));
+        const double bi = n.dot(v.segment<3>(3 * tb[i])), bj = n.dot(v.segment<3>(3 * tb[j]));
+        energy += p.c.m_aa[3 * i + j] * ai * aj + p.c.m_bb[3 * i + j] * bi * bj -
+                  2 * p.c.m_ab[3 * i + j] * ai * bj;
+      }
+  }
+  const SceneSpec& s = sim.spec();
+  SceneSpec no_k = s;
+  no_k.numerics.integrator = IntegratorKind::SemiImplicit;  // same friction, no springs in Γ
+  Simulation bare(no_k, sim.cells());
+  const Eigen::MatrixXd a0 = Eigen::MatrixXd(bare.assembleFriction());
+  const double expected = Integrator::kRos2Gamma * s.numerics.dt_s * s.cells.k_contact * energy;
+  EXPECT_NEAR(v.dot((a - a0) * v), expected, 1e-9 * std::abs(expected));
+  EXPECT_GT(energy, 0);
+}
+
 TEST(Doublet, SemiImplicitIsUnstableAtTheSupplementTimeStepAndSaysSo) {
   // Δt = 0.1 s, k_AB = 71.1 nN/µm³: the explicit contact spring relaxes in ~ms, far below Δt.
   // Without the adaptive time step the first failed step ends the run.

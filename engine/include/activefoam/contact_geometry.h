@@ -18,6 +18,9 @@ namespace activefoam {
 struct ContactLaw {
   double k = 71.1;   // nN/µm³
   double h0 = 0.06;  // µm
+  // Also integrate TriangleContact::m_* (the consistent stiffness, which only ros2 uses; ~27
+  // more products per quadrature point in the narrow phase).
+  bool stiffness_moments = false;
 };
 
 struct TriangleContact {
@@ -36,6 +39,10 @@ struct TriangleContact {
   // w_ik = bary_a[i]·bary_b[k]); non-negative, each sums to 1.
   std::array<double, 3> bary_a{0, 0, 0};
   std::array<double, 3> bary_b{0, 0, 0};
+  // ∫ λ^A_i λ^B_k dS, ∫ λ^A_i λ^A_j dS, ∫ λ^B_k λ^B_l dS (row-major 3 × 3): the consistent
+  // stiffness of the spring field, ½ k ∫ δg² dS with δg = Σ λ^B u^B − Σ λ^A u^A (normal parts).
+  // Exact for Exact and Dunavant7; zero unless ContactLaw::stiffness_moments.
+  std::array<double, 9> m_ab{}, m_aa{}, m_bb{};
   double energy = 0;    // ∫ ½ k g² dS over the contact polygon (for consistency tests)
   double mean_gap = 0;  // ∫ g dS / S_AB
 };

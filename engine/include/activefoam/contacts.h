@@ -94,7 +94,9 @@ class ContactAdhesion : public ForceTerm {
 // Friction (S14–S16) with barycentric weights w_ik = λ_i^A(c) λ_k^B(c), plus — for the
 // contact-implicit integrator (StepContext::contact_stiffness_dt = Δt) — the linearised normal
 // stiffness Δt k_AB S w_ik n̂n̂ᵀ of the contact springs, so that Γ v = F becomes (Γ + Δt K_c) v = F.
-// Both are PSD couplings.
+// Both are PSD couplings. With StepContext::consistent_stiffness (ros2) K_c is instead the
+// stiffness of the spring field, k ∫ δg² dS / 2 (TriangleContact::m_*): PSD, and it also couples
+// the vertices of each triangle among themselves (mesh edges, applied in the product).
 class ContactFriction : public ForceTerm {
  public:
   explicit ContactFriction(const CellParams& p)
@@ -115,6 +117,7 @@ class ContactFriction : public ForceTerm {
     double wa[3], wb[3];
     double s, d;
     double n[3];
+    double ks;  // factor of the consistent stiffness (0 unless consistent_stiffness)
   };
   // Its friction block, with the stiffness factor of the step (StepContext).
   Eigen::Matrix3d pairMatrix(const ContactPair& p, double stiffness_dt) const;
@@ -122,7 +125,10 @@ class ContactFriction : public ForceTerm {
   mutable std::vector<PairOp> ops_;     // the pairs of the last addFrictionDiagonal
   mutable ContactIncidence incidence_;  // theirs, when the contact list came without one
   mutable const ContactIncidence* inc_ = nullptr;
-  mutable std::vector<double> g_;  // per pair: G u_B (what A's vertices get), then G u_A
+  mutable const ContactList* con_ = nullptr;  // the pairs of the last addFrictionDiagonal
+  // per pair: G u_B (what A's vertices get), G u_A, then the consistent stiffness' normal
+  // force on A's three and B's three vertices (off-diagonal part)
+  mutable std::vector<double> g_;
 };
 
 // S8–S11: active migration. P_i^a = p_a (S_c,l/S_l) ((x_i − x_c,l)/‖x_i − x_c,l‖)·p̂_l acts as a

@@ -28,6 +28,10 @@ struct StepContext {
   // Factor of the contact springs' linearised normal stiffness K_c in Γ: Δt for the
   // contact-implicit integrator, 0 for the semi-implicit one (the integrator decides).
   double contact_stiffness_dt = 0;
+  // How K_c spreads a pair's spring over its vertices: false, one spring at the pair's centroid
+  // (w_ik = λ_i^A(c) λ_k^B(c), the friction's weights); true, the consistent stiffness of the
+  // spring field, k ∫ λλ dS (ros2: its accuracy at large Δt depends on K_c being the Jacobian).
+  bool consistent_stiffness = false;
   // s, time at the end of the step as the stepper counts it (exactly the next step's t); 0: t + dt.
   double t_end = 0;
   double endTime() const { return t_end > 0 ? t_end : t + dt; }

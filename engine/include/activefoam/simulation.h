@@ -147,6 +147,7 @@ class Simulation {
             with_contacts_ ? &contacts_ : nullptr,
             stepper_.steps(),
             integrator_.contactStiffnessDt(dt),
+            integrator_.twoStage(),
             stepper_.timeAt(stepper_.ticks() + stepper_.stepTicks())};
   }
   // One try of a step of length stepper_.dt(); the schedule is advanced by the caller.

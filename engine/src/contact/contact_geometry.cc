@@ -107,18 +107,19 @@ const std::array<QuadPoint, 1>& centroidRule() {
 
 // Accumulated integrals over the contact polygon (2D coordinates).
 struct Integrals {
-  double area = 0;                    // ∫ dS
-  Vec2 y = Vec2::Zero();              // ∫ y dS
-  double g = 0;                       // ∫ g dS
-  double g2 = 0;                      // ∫ g² dS
-  Vec2 gy = Vec2::Zero();             // ∫ g y dS
-  std::array<double, 3> ga{0, 0, 0};  // ∫ g λ^A_i dS
-  std::array<double, 3> gb{0, 0, 0};  // ∫ g λ^B_i dS
+  double area = 0;                         // ∫ dS
+  Vec2 y = Vec2::Zero();                   // ∫ y dS
+  double g = 0;                            // ∫ g dS
+  double g2 = 0;                           // ∫ g² dS
+  Vec2 gy = Vec2::Zero();                  // ∫ g y dS
+  std::array<double, 3> ga{0, 0, 0};       // ∫ g λ^A_i dS
+  std::array<double, 3> gb{0, 0, 0};       // ∫ g λ^B_i dS
+  std::array<double, 9> ab{}, aa{}, bb{};  // ∫ λ^A_i λ^B_k, λ^A_i λ^A_j, λ^B_k λ^B_l dS
 };
 
 template <class Rule>
 void integrate(const Polygon& poly, const Rule& rule, double g0, const Vec2& grad_g,
-               const Barycentric& lam_a, const Barycentric& lam_b, Integrals& I) {
+               const Barycentric& lam_a, const Barycentric& lam_b, bool moments, Integrals& I) {
   const Vec2& v0 = poly.v[0];
   for (int t = 1; t + 1 < poly.n; ++t) {
     const Vec2& v1 = poly.v[t];
@@ -138,6 +139,11 @@ void integrate(const Polygon& poly, const Rule& rule, double g0, const Vec2& gra
       for (int i = 0; i < 3; ++i) {
         I.ga[i] += w * g * la[i];
         I.gb[i] += w * g * lb[i];
+        for (int k = 0; k < 3 && moments; ++k) {
+          I.ab[3 * i + k] += w * la[i] * lb[k];
+          I.aa[3 * i + k] += w * la[i] * la[k];
+          I.bb[3 * i + k] += w * lb[i] * lb[k];
+        }
       }
     }
   }
@@ -232,13 +238,13 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
   Integrals I;
   switch (quadrature) {
     case ContactQuadrature::Exact:
-      integrate(poly, edgeMidpointRule(), g0, g_grad, lam_a, lam_b, I);
+      integrate(poly, edgeMidpointRule(), g0, g_grad, lam_a, lam_b, law.stiffness_moments, I);
       break;
     case ContactQuadrature::Dunavant7:
-      integrate(poly, dunavant7Rule(), g0, g_grad, lam_a, lam_b, I);
+      integrate(poly, dunavant7Rule(), g0, g_grad, lam_a, lam_b, law.stiffness_moments, I);
       break;
     case ContactQuadrature::Centroid:
-      integrate(poly, centroidRule(), g0, g_grad, lam_a, lam_b, I);
+      integrate(poly, centroidRule(), g0, g_grad, lam_a, lam_b, law.stiffness_moments, I);
       break;
   }
 
@@ -264,6 +270,15 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
   out.center_of_pressure = loaded ? toMidSurface(I.gy / I.g) : out.centroid;
   out.bary_a = clampBarycentric(lam_a(centroid2));
   out.bary_b = clampBarycentric(lam_b(centroid2));
+  // (w λ_i) λ_j and (w λ_j) λ_i round differently: mirror, so that K is exactly symmetric.
+  for (int i = 0; i < 3; ++i)
+    for (int j = i + 1; j < 3; ++j) {
+      I.aa[3 * j + i] = I.aa[3 * i + j];
+      I.bb[3 * j + i] = I.bb[3 * i + j];
+    }
+  out.m_ab = I.ab;
+  out.m_aa = I.aa;
+  out.m_bb = I.bb;
   out.energy = 0.5 * k * I.g2;
   out.mean_gap = I.g / I.area;
   return out;

@@ -130,7 +130,11 @@ Eigen::Matrix3d ContactFriction::pairMatrix(const ContactPair& p, double stiffne
 void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& gamma) const {
   ops_.clear();
   inc_ = nullptr;
+  con_ = ctx.contacts;
   if (!ctx.contacts) return;
+  // The centroid spring goes with the friction blocks; the consistent one separately.
+  const double spring_dt = ctx.consistent_stiffness ? 0.0 : ctx.contact_stiffness_dt;
+  const double ks = ctx.consistent_stiffness ? ctx.contact_stiffness_dt * k_ : 0.0;
   const ContactList& con = *ctx.contacts;
   inc_ = &incidenceOf(con, ctx.cells, incidence_);
   const auto np = static_cast<std::int64_t>(con.pairs.size());
@@ -150,7 +154,8 @@ void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& g
         op.wb[i] = p.c.bary_b[i];
       }
       op.s = p.c.area * xi_t_;
-      op.d = p.c.area * (xi_n_ + ctx.contact_stiffness_dt * k_ - xi_t_);
+      op.d = p.c.area * (xi_n_ + spring_dt * k_ - xi_t_);
+      op.ks = ks;
       for (int k = 0; k < 3; ++k) op.n[k] = p.c.normal[k];
     }
     // Σ_k w_ik G = λ_i^A (Σ_k λ_k^B) G on vertex i of A, and the same for B; each thread owns
@@ -163,11 +168,15 @@ void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& g
         const int code = inc.entry[e], k = code % 3;
         const ContactPair& p = con.pairs[code / 6];
         const bool side_a = code % 6 < 3;
+        if (ks > 0) {
+          const double m = side_a ? p.c.m_aa[4 * k] : p.c.m_bb[4 * k];
+          gamma.addDiagonal(inc.vertex[j], (ks * m) * (p.c.normal * p.c.normal.transpose()));
+        }
         const double w = side_a ? p.c.bary_a[k] : p.c.bary_b[k];
         if (!(w > 0)) continue;
         const auto& other = side_a ? p.c.bary_b : p.c.bary_a;
         const double so = other[0] + other[1] + other[2];
-        gamma.addDiagonal(inc.vertex[j], (w * so) * pairMatrix(p, ctx.contact_stiffness_dt));
+        gamma.addDiagonal(inc.vertex[j], (w * so) * pairMatrix(p, spring_dt));
       }
   }
 }
@@ -178,7 +187,9 @@ void ContactFriction::addCouplingProduct(const double* v, double* y) const {
   // per vertex, the same sums as one thread walking the pairs.
   const auto np = static_cast<std::int64_t>(ops_.size());
   if (np == 0) return;
-  g_.resize(6 * ops_.size());
+  const bool consistent = ops_[0].ks > 0;
+  const int stride = consistent ? 12 : 6;
+  g_.resize(stride * ops_.size());
   double* g = g_.data();
   const ContactIncidence& inc = *inc_;
   const int nv = static_cast<int>(inc.vertex.size());
@@ -195,10 +206,36 @@ void ContactFriction::addCouplingProduct(const double* v, double* y) const {
         }
       const double na = op.n[0] * ua[0] + op.n[1] * ua[1] + op.n[2] * ua[2];
       const double nb = op.n[0] * ub[0] + op.n[1] * ub[1] + op.n[2] * ub[2];
-      double* gq = g + 6 * q;
+      double* gq = g + stride * q;
       for (int c = 0; c < 3; ++c) {
         gq[c] = op.s * ub[c] + op.d * nb * op.n[c];      // G u_B, for A's vertices
         gq[3 + c] = op.s * ua[c] + op.d * na * op.n[c];  // G u_A, for B's vertices
+      }
+      if (consistent) {
+        // Normal components of the vertices' velocities, then the off-diagonal part of
+        // K = k [M_aa, −M_ab; −M_abᵀ, M_bb] ⊗ n̂n̂ᵀ (the diagonal sits in Γ).
+        const TriangleContact& tc = con_->pairs[q].c;
+        double an[3], bn[3];
+        for (int i = 0; i < 3; ++i) {
+          an[i] = bn[i] = 0;
+          for (int c = 0; c < 3; ++c) {
+            an[i] += op.n[c] * v[3 * op.a[i] + c];
+            bn[i] += op.n[c] * v[3 * op.b[i] + c];
+          }
+        }
+        for (int i = 0; i < 3; ++i) {
+          double fa = 0, fb = 0;
+          for (int j = 0; j < 3; ++j) {
+            if (j != i) {
+              fa += tc.m_aa[3 * i + j] * an[j];
+              fb += tc.m_bb[3 * i + j] * bn[j];
+            }
+            fa -= tc.m_ab[3 * i + j] * bn[j];
+            fb -= tc.m_ab[3 * j + i] * an[j];
+          }
+          gq[6 + i] = op.ks * fa;
+          gq[9 + i] = op.ks * fb;
+        }
       }
     }
 #pragma omp for schedule(static)
@@ -208,8 +245,13 @@ void ContactFriction::addCouplingProduct(const double* v, double* y) const {
         const int code = inc.entry[e], k = code % 3, q = code / 6;
         const bool side_a = code % 6 < 3;
         const double w = side_a ? ops_[q].wa[k] : ops_[q].wb[k];
-        const double* gq = g + 6 * static_cast<std::int64_t>(q) + (side_a ? 0 : 3);
+        const double* gp = g + stride * static_cast<std::int64_t>(q);
+        const double* gq = gp + (side_a ? 0 : 3);
         for (int c = 0; c < 3; ++c) yv[c] -= w * gq[c];
+        if (consistent) {
+          const double fk = gp[(side_a ? 6 : 9) + k];
+          for (int c = 0; c < 3; ++c) yv[c] += fk * ops_[q].n[c];
+        }
       }
     }
   }
@@ -217,8 +259,10 @@ void ContactFriction::addCouplingProduct(const double* v, double* y) const {
 
 void ContactFriction::addFriction(const StepContext& ctx, BlockMatrix& gamma) const {
   if (!ctx.contacts) return;
+  const double spring_dt = ctx.consistent_stiffness ? 0.0 : ctx.contact_stiffness_dt;
+  const double ks = ctx.consistent_stiffness ? ctx.contact_stiffness_dt * k_ : 0.0;
   for (const ContactPair& p : ctx.contacts->pairs) {
-    const Eigen::Matrix3d g = pairMatrix(p, ctx.contact_stiffness_dt);
+    const Eigen::Matrix3d g = pairMatrix(p, spring_dt);
     const Tri& a = ctx.cells.tri[p.ta];
     const Tri& b = ctx.cells.tri[p.tb];
     for (int i = 0; i < 3; ++i)
@@ -226,6 +270,17 @@ void ContactFriction::addFriction(const StepContext& ctx, BlockMatrix& gamma) co
         const double w = p.c.bary_a[i] * p.c.bary_b[k];
         if (w > 0) gamma.addCoupling(a[i], b[k], w * g);
       }
+    if (!(ks > 0)) continue;
+    // δg has coefficients c = (−λ^A, +λ^B) summing to zero, so c cᵀ = Σ_{p<q} (−c_p c_q)
+    // (e_p − e_q)(e_p − e_q)ᵀ: couplings +k∫λ^Aλ^B across, −k∫λλ within a triangle.
+    const Eigen::Matrix3d nn = p.c.normal * p.c.normal.transpose();
+    for (int i = 0; i < 3; ++i) {
+      for (int k = 0; k < 3; ++k) gamma.addCoupling(a[i], b[k], (ks * p.c.m_ab[3 * i + k]) * nn);
+      for (int j = i + 1; j < 3; ++j) {
+        gamma.addCoupling(a[i], a[j], (-ks * p.c.m_aa[3 * i + j]) * nn);
+        gamma.addCoupling(b[i], b[j], (-ks * p.c.m_bb[3 * i + j]) * nn);
+      }
+    }
   }
 }
 

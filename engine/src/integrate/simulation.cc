@@ -46,6 +46,7 @@ void Simulation::init() {
   if (with_contacts_) {
     law_.k = p.k_contact;
     law_.h0 = contactRangeH0(p);
+    law_.stiffness_moments = integrator_.twoStage();
     terms_.push_back(std::make_unique<ContactAdhesion>());
     const bool implicit = integrator_.contactStiffnessDt(1.0) > 0;
     const bool frictionless =
@@ -239,8 +240,17 @@ StepReport Simulation::tryStep() {
 
 StepContext Simulation::atGeometry(const StepContext& c, const Geometry& geo,
                                    const Geometry* geo_end) {
-  return {c.cells, geo,    c.topo, c.dt, c.t, c.contacts, c.step, c.contact_stiffness_dt,
-          c.t_end, geo_end};
+  return {c.cells,
+          geo,
+          c.topo,
+          c.dt,
+          c.t,
+          c.contacts,
+          c.step,
+          c.contact_stiffness_dt,
+          c.consistent_stiffness,
+          c.t_end,
+          geo_end};
 }
 
 std::optional<StepFailure> Simulation::secondStage(double dt, SolveStats& cg) {
