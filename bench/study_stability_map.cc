@@ -91,7 +91,8 @@ int main(int argc, char** argv) {
   };
   const std::vector<Ladder> ladders = {
       {IntegratorKind::SemiImplicit, {0.0025, 0.005, 0.01, 0.02, 0.04}},
-      {IntegratorKind::ContactImplicit, {0.1, 0.25, 0.5, 1, 2, 4}}};
+      {IntegratorKind::ContactImplicit, {0.1, 0.25, 0.5, 1, 2, 4}},
+      {IntegratorKind::Ros2, {0.1, 0.25, 0.5, 1, 2, 4}}};
 
   std::ofstream csv(dir / "stability-map.csv");
   csv << "integrator,k_factor,k_contact,pa_reduced,dt_s,outcome,t_end_s,steps,wall_s\n";

@@ -43,6 +43,7 @@ TEST(StabilityMap, StableCellsRunAThousandStepsWithoutFailure) {
     n.dt_s = largest;
     n.adaptive = false;  // stable at this fixed Δt, not by halving it
     n.integrator = integrator == "semi-implicit" ? IntegratorKind::SemiImplicit
+                   : integrator == "ros2"        ? IntegratorKind::Ros2
                                                  : IntegratorKind::ContactImplicit;
     Simulation sim(doubletStudySpec(n, pa, k_factor));
     StepReport r;
