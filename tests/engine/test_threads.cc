@@ -203,6 +203,13 @@ TEST(Threads, MotileDoubletRunIsBitIdenticalForAnyThreadCount) {
   expectSameRuns(motileDoublet(), kFine);
 }
 
+// ros2: two solves, contacts at the predicted state, the consistent stiffness' product.
+TEST(Threads, Ros2MotileDoubletRunIsBitIdenticalForAnyThreadCount) {
+  SceneSpec s = motileDoublet();
+  s.numerics.integrator = IntegratorKind::Ros2;
+  expectSameRuns(s, kFine);
+}
+
 // The adaptive time step at work (rejected tries, rollback, halved and regrown steps): the
 // semi-implicit doublet at Δt = 0.1 s oscillates from t ≈ 28 s and is retried at 0.05 s.
 TEST(Threads, AdaptiveRunWithRejectedStepsIsBitIdenticalForAnyThreadCount) {
