@@ -1,6 +1,7 @@
 // The per-step contact set between cells (DESIGN.md §4.6–4.7) and the terms that use it.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <unordered_map>
@@ -119,13 +120,18 @@ class ContactFriction : public ForceTerm {
     double n[3];
     double ks;  // factor of the consistent stiffness (0 unless consistent_stiffness)
   };
+  // The consistent stiffness' moments per pair (ros2 only): m_ab (9), then the off-diagonal
+  // m_aa (01, 02, 12) and m_bb (01, 02, 12). Copied from the contacts so that a product streams
+  // 120 bytes per pair, not the whole TriangleContact (reading those doubled the time per CG
+  // iteration), and kept apart so that contact-implicit's pair ops stay as small as they were.
+  using Moments = std::array<double, 15>;
+  mutable std::vector<Moments> moments_;
   // Its friction block, with the stiffness factor of the step (StepContext).
   Eigen::Matrix3d pairMatrix(const ContactPair& p, double stiffness_dt) const;
   double xi_n_, xi_t_, k_;
   mutable std::vector<PairOp> ops_;     // the pairs of the last addFrictionDiagonal
   mutable ContactIncidence incidence_;  // theirs, when the contact list came without one
   mutable const ContactIncidence* inc_ = nullptr;
-  mutable const ContactList* con_ = nullptr;  // the pairs of the last addFrictionDiagonal
   // per pair: G u_B (what A's vertices get), G u_A, then the consistent stiffness' normal
   // force on A's three and B's three vertices (off-diagonal part)
   mutable std::vector<double> g_;

@@ -130,7 +130,6 @@ Eigen::Matrix3d ContactFriction::pairMatrix(const ContactPair& p, double stiffne
 void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& gamma) const {
   ops_.clear();
   inc_ = nullptr;
-  con_ = ctx.contacts;
   if (!ctx.contacts) return;
   // The centroid spring goes with the friction blocks; the consistent one separately.
   const double spring_dt = ctx.consistent_stiffness ? 0.0 : ctx.contact_stiffness_dt;
@@ -139,6 +138,7 @@ void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& g
   inc_ = &incidenceOf(con, ctx.cells, incidence_);
   const auto np = static_cast<std::int64_t>(con.pairs.size());
   ops_.resize(con.pairs.size());
+  moments_.resize(ks > 0 ? con.pairs.size() : 0);
 #pragma omp parallel if (np > grain().min_items)
   {
 #pragma omp for schedule(static)
@@ -156,6 +156,12 @@ void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& g
       op.s = p.c.area * xi_t_;
       op.d = p.c.area * (xi_n_ + spring_dt * k_ - xi_t_);
       op.ks = ks;
+      if (ks > 0) {
+        Moments& m = moments_[q];
+        for (int k = 0; k < 9; ++k) m[k] = p.c.m_ab[k];
+        m[9] = p.c.m_aa[1], m[10] = p.c.m_aa[2], m[11] = p.c.m_aa[5];
+        m[12] = p.c.m_bb[1], m[13] = p.c.m_bb[2], m[14] = p.c.m_bb[5];
+      }
       for (int k = 0; k < 3; ++k) op.n[k] = p.c.normal[k];
     }
     // Σ_k w_ik G = λ_i^A (Σ_k λ_k^B) G on vertex i of A, and the same for B; each thread owns
@@ -214,7 +220,6 @@ void ContactFriction::addCouplingProduct(const double* v, double* y) const {
       if (consistent) {
         // Normal components of the vertices' velocities, then the off-diagonal part of
         // K = k [M_aa, −M_ab; −M_abᵀ, M_bb] ⊗ n̂n̂ᵀ (the diagonal sits in Γ).
-        const TriangleContact& tc = con_->pairs[q].c;
         double an[3], bn[3];
         for (int i = 0; i < 3; ++i) {
           an[i] = bn[i] = 0;
@@ -223,15 +228,18 @@ void ContactFriction::addCouplingProduct(const double* v, double* y) const {
             bn[i] += op.n[c] * v[3 * op.b[i] + c];
           }
         }
+        const Moments& m = moments_[q];
+        // Off-diagonal index of (i, j), i ≠ j, in the symmetric triples: 01 → 0, 02 → 1, 12 → 2.
+        auto off = [](int i, int j) { return i + j - 1; };
         for (int i = 0; i < 3; ++i) {
           double fa = 0, fb = 0;
           for (int j = 0; j < 3; ++j) {
             if (j != i) {
-              fa += tc.m_aa[3 * i + j] * an[j];
-              fb += tc.m_bb[3 * i + j] * bn[j];
+              fa += m[9 + off(i, j)] * an[j];
+              fb += m[12 + off(i, j)] * bn[j];
             }
-            fa -= tc.m_ab[3 * i + j] * bn[j];
-            fb -= tc.m_ab[3 * j + i] * an[j];
+            fa -= m[3 * i + j] * bn[j];
+            fb -= m[3 * j + i] * an[j];
           }
           gq[6 + i] = op.ks * fa;
           gq[9 + i] = op.ks * fb;
