@@ -28,6 +28,29 @@ double theta(const Simulation& sim) {
   return doubletContactAngleDeg(sim.cells(), sim.contacts());
 }
 
+// With contacts Γ (friction + the contact springs' stiffness) is symmetric positive definite (a
+// Cholesky factorisation exists), and a step, which applies the contact couplings as a product,
+// applies the same Γ to a random vector, with the full diagonal blocks for the preconditioner.
+// Returns the assembled Γ.
+Eigen::MatrixXd expectOneSpdOperator(Simulation& sim, std::uint64_t stream) {
+  const Eigen::MatrixXd a = Eigen::MatrixXd(sim.assembleFriction());
+  EXPECT_LT((a - a.transpose()).norm(), 1e-12 * a.norm());
+  EXPECT_EQ(Eigen::LLT<Eigen::MatrixXd>(a).info(), Eigen::Success);
+  sim.prepareFriction();
+  Rng rng(5, stream);
+  Eigen::VectorXd v(a.rows()), y(a.rows());
+  for (Eigen::Index k = 0; k < v.size(); ++k) v[k] = rng.uniform() - 0.5;
+  sim.applyFriction(v.data(), y.data());
+  EXPECT_LT((y - a * v).norm(), 1e-12 * (a * v).norm());
+  for (int i = 0; i < sim.cells().numVertices(); ++i) {
+    EXPECT_LT((sim.frictionMatrix().diagonalBlock(i) - a.block<3, 3>(3 * i, 3 * i)).norm(),
+              1e-12 * a.norm())
+        << "vertex " << i;
+    if (::testing::Test::HasFailure()) break;
+  }
+  return a;
+}
+
 double distance(const Simulation& sim) {
   return (sim.geometry().cell_centroid[1] - sim.geometry().cell_centroid[0]).norm();
 }
@@ -122,21 +145,7 @@ TEST(Doublet, InternalForcesWithContactsConserveMomentum) {
   EXPECT_LT(torque.norm(), 1e-12 * scale);
   // With contacts Γ (friction + the contact-implicit stiffness) is still symmetric positive
   // definite: a Cholesky factorisation exists.
-  const Eigen::MatrixXd a = Eigen::MatrixXd(sim.assembleFriction());
-  EXPECT_LT((a - a.transpose()).norm(), 1e-12 * a.norm());
-  EXPECT_EQ(Eigen::LLT<Eigen::MatrixXd>(a).info(), Eigen::Success);
-  // A step applies the contact couplings as a product: the same Γ, and the CG preconditioner
-  // sees the full diagonal blocks.
-  sim.prepareFriction();
-  Rng rng(5, 2);
-  Eigen::VectorXd v(a.rows()), y(a.rows());
-  for (Eigen::Index k = 0; k < v.size(); ++k) v[k] = rng.uniform() - 0.5;
-  sim.applyFriction(v.data(), y.data());
-  EXPECT_LT((y - a * v).norm(), 1e-12 * (a * v).norm());
-  for (int i = 0; i < sim.cells().numVertices(); ++i)
-    ASSERT_LT((sim.frictionMatrix().diagonalBlock(i) - a.block<3, 3>(3 * i, 3 * i)).norm(),
-              1e-12 * a.norm())
-        << "vertex " << i;
+  expectOneSpdOperator(sim, 2);
 }
 
 // ros2's W-matrix carries the consistent stiffness of the contact springs, k ∫ δg² dS / 2: per
@@ -164,19 +173,10 @@ TEST(Doublet, Ros2ConsistentContactStiffnessIsOneSpdOperator) {
     }
     EXPECT_NEAR(sum, p.c.area, 1e-12 * p.c.area);
   }
-  const Eigen::MatrixXd a = Eigen::MatrixXd(sim.assembleFriction());
-  EXPECT_LT((a - a.transpose()).norm(), 1e-12 * a.norm());
-  EXPECT_EQ(Eigen::LLT<Eigen::MatrixXd>(a).info(), Eigen::Success);
-  sim.prepareFriction();
-  Rng rng(5, 3);
-  Eigen::VectorXd v(a.rows()), y(a.rows());
+  const Eigen::MatrixXd a = expectOneSpdOperator(sim, 3);
+  Rng rng(5, 4);
+  Eigen::VectorXd v(a.rows());
   for (Eigen::Index k = 0; k < v.size(); ++k) v[k] = rng.uniform() - 0.5;
-  sim.applyFriction(v.data(), y.data());
-  EXPECT_LT((y - a * v).norm(), 1e-12 * (a * v).norm());
-  for (int i = 0; i < sim.cells().numVertices(); ++i)
-    ASSERT_LT((sim.frictionMatrix().diagonalBlock(i) - a.block<3, 3>(3 * i, 3 * i)).norm(),
-              1e-12 * a.norm())
-        << "vertex " << i;
   // The stiffness part alone: Γ(with K) − Γ(without) = γΔt k ∫ δg² for the field of v.
   double energy = 0;
   for (const ContactPair& p : sim.contacts().pairs) {

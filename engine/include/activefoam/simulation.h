@@ -182,7 +182,7 @@ class Simulation {
   Eigen::Matrix3Xd f_;
   Eigen::VectorXd v_;
   Eigen::Matrix3Xd x0_, k1_, f2_;  // ros2: start positions, first stage, second stage's F
-  Eigen::VectorXd g_;              // ros2: Γ* k₁
+  Eigen::VectorXd g_, k2_;         // ros2: Γ* k₁, the second stage
   std::vector<double> pi0_;        // ros2: the PI integrals at the start of the step
   std::int64_t remesh_ops_ = 0;
   std::int64_t steps_rejected_ = 0;

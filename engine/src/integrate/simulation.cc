@@ -299,13 +299,13 @@ std::optional<StepFailure> Simulation::secondStage(double dt, SolveStats& cg) {
   times_.matrix += since(t0);
   f2_ -= 2 * Eigen::Map<const Eigen::Matrix3Xd>(g_.data(), 3, cells_.numVertices());
   t0 = Clock::now();
-  Eigen::VectorXd k2 = -v_;  // k₂ ≈ −k₁ where the forces change little over the step
-  const SolveStats s2 = integrator_.solve(f2_, k2);
+  k2_ = -v_;  // k₂ ≈ −k₁ where the forces change little over the step
+  const SolveStats s2 = integrator_.solve(f2_, k2_);
   times_.solve += since(t0);
   cg.iterations += s2.iterations;
   cg.converged = cg.converged && s2.converged;
   cg.residual = std::max(cg.residual, s2.residual);
-  v_ = 1.5 * v_ + 0.5 * k2;  // the step's effective velocity: x₁ = x₀ + Δt v
+  v_ = 1.5 * v_ + 0.5 * k2_;  // the step's effective velocity: x₁ = x₀ + Δt v
   return std::nullopt;
 }
 
