@@ -223,6 +223,9 @@ TEST(Spec, SetFieldConvertsNumbers) {
   EXPECT_EQ(std::get<std::string>(*getField(s, "scene.kind")), "doublet");
   EXPECT_EQ(setField(s, "numerics.preconditioner", std::string("block-jacobi")), std::nullopt);
   EXPECT_EQ(s.numerics.preconditioner, PreconditionerKind::BlockJacobi);
+  EXPECT_EQ(setField(s, "numerics.preconditioner", std::string("incomplete-cholesky")),
+            std::nullopt);
+  EXPECT_EQ(s.numerics.preconditioner, PreconditionerKind::IncompleteCholesky);
 }
 
 TEST(Spec, SetFieldErrorsNameTheKey) {
@@ -406,6 +409,7 @@ TEST(Spec, EnumNamesAreTheChoices) {
   EXPECT_EQ(toString(SceneKind::Spheroid), "spheroid");
   EXPECT_EQ(toString(IntegratorKind::SemiImplicit), "semi-implicit");
   EXPECT_EQ(toString(PreconditionerKind::BlockJacobi), "block-jacobi");
+  EXPECT_EQ(toString(PreconditionerKind::IncompleteCholesky), "incomplete-cholesky");
   EXPECT_EQ(toString(ContactQuadrature::Dunavant7), "dunavant7");
   EXPECT_EQ(toString(FidelityPreset::Reference), "reference");
 }

@@ -199,6 +199,13 @@ TEST(Threads, FusionRunIsBitIdenticalForAnyThreadCount) {
   expectSameRuns(fusion2x4(), kFine);
 }
 
+// The incomplete-Cholesky factor is built and applied in one fixed order whatever the threads.
+TEST(Threads, IncompleteCholeskyFusionRunIsBitIdenticalForAnyThreadCount) {
+  SceneSpec s = fusion2x4();
+  s.numerics.preconditioner = PreconditionerKind::IncompleteCholesky;
+  expectSameRuns(s, kFine);
+}
+
 TEST(Threads, MotileDoubletRunIsBitIdenticalForAnyThreadCount) {
   expectSameRuns(motileDoublet(), kFine);
 }

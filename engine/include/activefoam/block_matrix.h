@@ -3,6 +3,7 @@
 // or the contact set changes: setFromTriplets every step would cost more than the CG solve).
 #pragma once
 
+#include <functional>
 #include <utility>
 #include <vector>
 
@@ -12,6 +13,9 @@
 namespace activefoam {
 
 using SpMat = Eigen::SparseMatrix<double, Eigen::RowMajor>;
+
+// Receives one block A_ij of a symmetric matrix (A_ji = A_ijᵀ is implied for i ≠ j).
+using BlockSink = std::function<void(int i, int j, const Eigen::Matrix3d& m)>;
 
 class BlockMatrix {
  public:
@@ -29,6 +33,8 @@ class BlockMatrix {
   // block row streamed together (the CG solve is most of a step; this is its inner loop).
   void multiply(const double* x, double* y) const;
   Eigen::Matrix3d diagonalBlock(int i) const;
+  // Every stored block A_ij with j ≤ i (the lower triangle, diagonal included), row by row.
+  void forEachLowerBlock(const BlockSink& sink) const;
 
  private:
   // Offset of block k's first value in the scalar value array.

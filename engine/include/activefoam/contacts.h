@@ -110,6 +110,7 @@ class ContactFriction : public ForceTerm {
   bool hasCouplingProduct() const override { return true; }
   void addFrictionDiagonal(const StepContext& ctx, BlockMatrix& gamma) const override;
   void addCouplingProduct(const double* v, double* y) const override;
+  void forEachCouplingBlock(const BlockSink& sink) const override;
 
  private:
   // One contact pair as the product needs it: G = s I + d n̂n̂ᵀ, barycentric weights.

@@ -57,6 +57,10 @@ class ForceTerm {
   virtual bool hasCouplingProduct() const { return false; }
   virtual void addFrictionDiagonal(const StepContext& /*ctx*/, BlockMatrix& /*gamma*/) const {}
   virtual void addCouplingProduct(const double* /*v*/, double* /*y*/) const {}
+  // The product's couplings as blocks C_ij, i ≠ j (C_ji = C_ijᵀ; a vertex pair may come more
+  // than once, to be summed), for a preconditioner that needs them assembled; valid between the
+  // same two calls as the product.
+  virtual void forEachCouplingBlock(const BlockSink& /*sink*/) const {}
   // Updates per-cell state once the step is taken (positions already advanced).
   virtual void endStep(const StepContext& /*ctx*/, CellSet& /*cells*/) const {}
 };

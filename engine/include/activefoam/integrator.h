@@ -202,8 +202,15 @@ class Integrator {
   void prepareFriction(const StepContext& ctx, const Terms& terms);
   const BlockMatrix& frictionMatrix() const { return gamma_; }
   void applyFriction(const double* v, double* y) const;  // y = Γ v
-  // Solves Γ v = F; v holds the warm start on entry.
-  SolveStats solve(const Eigen::Matrix3Xd& f, Eigen::VectorXd& v);
+  // Γ as blocks: the assembled lower triangle, then the product's couplings (what the
+  // incomplete-Cholesky factor is built from).
+  void forEachFrictionBlock(const BlockSink& sink) const;
+  // Solves Γ v = F; v holds the warm start on entry. With the incomplete-Cholesky
+  // preconditioner the factor of this Γ is built first, unless `reuse_factor` asks for the one
+  // of the previous solve (ros2's second stage, whose Γ* differs from Γ₀ by O(Δt)): nothing of
+  // the factor outlives a step, so rollback and resume need not know about it.
+  SolveStats solve(const Eigen::Matrix3Xd& f, Eigen::VectorXd& v, bool reuse_factor = false);
+  const IncompleteCholesky& factor() const { return factor_; }
 
  private:
   IntegratorKind kind_;
@@ -211,6 +218,8 @@ class Integrator {
   std::uint64_t pattern_version_ = ~std::uint64_t{0};
   std::vector<const ForceTerm*> product_terms_;  // terms with a coupling product
   LinearSolver solver_;
+  PreconditionerKind preconditioner_;
+  IncompleteCholesky factor_;
 };
 
 }  // namespace activefoam

@@ -17,7 +17,7 @@ namespace activefoam {
 
 enum class SceneKind { Cell, Doublet, Spheroid, Fusion };
 enum class IntegratorKind { SemiImplicit, ContactImplicit, Ros2 };
-enum class PreconditionerKind { Jacobi, BlockJacobi };
+enum class PreconditionerKind { Jacobi, BlockJacobi, IncompleteCholesky };
 enum class ContactQuadrature { Exact, Dunavant7, Centroid };
 // Fidelity presets (issue 6, docs/study/): named numerics from the speed/accuracy study.
 enum class FidelityPreset { Draft, Standard, Reference };

@@ -265,6 +265,31 @@ void ContactFriction::addCouplingProduct(const double* v, double* y) const {
   }
 }
 
+void ContactFriction::forEachCouplingBlock(const BlockSink& sink) const {
+  // The off-diagonal blocks that addCouplingProduct applies: −w_ik G across the pair, and for
+  // the consistent stiffness −k m_ab n̂n̂ᵀ across, +k m_aa n̂n̂ᵀ within each triangle.
+  const bool consistent = !ops_.empty() && ops_[0].ks > 0;
+  for (std::size_t q = 0; q < ops_.size(); ++q) {
+    const PairOp& op = ops_[q];
+    const Vec3 n(op.n[0], op.n[1], op.n[2]);
+    const Eigen::Matrix3d nn = n * n.transpose();
+    const Eigen::Matrix3d g = op.s * Eigen::Matrix3d::Identity() + op.d * nn;
+    for (int i = 0; i < 3; ++i)
+      for (int k = 0; k < 3; ++k) {
+        Eigen::Matrix3d m = -(op.wa[i] * op.wb[k]) * g;
+        if (consistent) m -= (op.ks * moments_[q][3 * i + k]) * nn;
+        sink(op.a[i], op.b[k], m);
+      }
+    if (!consistent) continue;
+    const Moments& mo = moments_[q];
+    for (int i = 0; i < 3; ++i)
+      for (int j = i + 1; j < 3; ++j) {
+        sink(op.a[i], op.a[j], (op.ks * mo[9 + i + j - 1]) * nn);
+        sink(op.b[i], op.b[j], (op.ks * mo[12 + i + j - 1]) * nn);
+      }
+  }
+}
+
 void ContactFriction::addFriction(const StepContext& ctx, BlockMatrix& gamma) const {
   if (!ctx.contacts) return;
   const double spring_dt = ctx.consistent_stiffness ? 0.0 : ctx.contact_stiffness_dt;

@@ -113,6 +113,17 @@ Eigen::Matrix3d BlockMatrix::diagonalBlock(int i) const {
   return m;
 }
 
+void BlockMatrix::forEachLowerBlock(const BlockSink& sink) const {
+  Eigen::Matrix3d m;
+  for (int i = 0; i < n_; ++i)
+    for (int k = row_begin_[i]; k < row_begin_[i + 1] && cols_[k] <= i; ++k) {
+      const double* b = a_.valuePtr() + offset_[k];
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) m(r, c) = b[r * width_[k] + c];
+      sink(i, cols_[k], m);
+    }
+}
+
 int BlockMatrix::findBlock(int i, int j) const {
   const auto first = cols_.begin() + row_begin_[i], last = cols_.begin() + row_begin_[i + 1];
   const auto it = std::lower_bound(first, last, j);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 #include "activefoam/contacts.h"
@@ -277,7 +278,9 @@ std::vector<char> RemeshPolicy::due(std::int64_t ticks, const CellSet& cells, co
 // ---- Integrator ------------------------------------------------------------------------------
 
 Integrator::Integrator(const NumericsParams& n)
-    : kind_(n.integrator), solver_(n.preconditioner, n.cg_tol, static_cast<int>(n.cg_max_iter)) {}
+    : kind_(n.integrator),
+      solver_(n.preconditioner, n.cg_tol, static_cast<int>(n.cg_max_iter)),
+      preconditioner_(n.preconditioner) {}
 
 double Integrator::computeForces(const StepContext& ctx, const Terms& terms,
                                  Eigen::Matrix3Xd& f) const {
@@ -315,10 +318,30 @@ void Integrator::applyFriction(const double* v, double* y) const {
   for (const ForceTerm* t : product_terms_) t->addCouplingProduct(v, y);
 }
 
-SolveStats Integrator::solve(const Eigen::Matrix3Xd& f, Eigen::VectorXd& v) {
+void Integrator::forEachFrictionBlock(const BlockSink& sink) const {
+  gamma_.forEachLowerBlock(sink);
+  for (const ForceTerm* t : product_terms_) t->forEachCouplingBlock(sink);
+}
+
+SolveStats Integrator::solve(const Eigen::Matrix3Xd& f, Eigen::VectorXd& v, bool reuse_factor) {
   Eigen::Map<const Eigen::VectorXd> b(f.data(), f.size());
+  const IncompleteCholesky* factor = nullptr;
+  if (preconditioner_ == PreconditionerKind::IncompleteCholesky) {
+    if (!reuse_factor || factor_.numBlocks() != gamma_.numBlocks()) {
+      const bool ok = factor_.factor(gamma_.numBlocks(),
+                                     [this](const BlockSink& sink) { forEachFrictionBlock(sink); });
+      if (!ok) {
+        // Γ is SPD whenever the step is sane; a factor that breaks down at every shift means
+        // non-finite entries, which the CG guard reports.
+        SolveStats s;
+        s.residual = std::numeric_limits<double>::quiet_NaN();
+        return s;
+      }
+    }
+    factor = &factor_;
+  }
   return solver_.solve([this](const double* in, double* out) { applyFriction(in, out); }, gamma_, b,
-                       v);
+                       v, factor);
 }
 
 }  // namespace activefoam

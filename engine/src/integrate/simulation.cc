@@ -300,7 +300,7 @@ std::optional<StepFailure> Simulation::secondStage(double dt, SolveStats& cg) {
   f2_ -= 2 * Eigen::Map<const Eigen::Matrix3Xd>(g_.data(), 3, cells_.numVertices());
   t0 = Clock::now();
   k2_ = -v_;  // k₂ ≈ −k₁ where the forces change little over the step
-  const SolveStats s2 = integrator_.solve(f2_, k2_);
+  const SolveStats s2 = integrator_.solve(f2_, k2_, /*reuse_factor=*/true);
   times_.solve += since(t0);
   cg.iterations += s2.iterations;
   cg.converged = cg.converged && s2.converged;

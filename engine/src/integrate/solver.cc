@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <map>
+#include <stdexcept>
 
 #include "activefoam/threads.h"
 
@@ -80,6 +82,10 @@ SolveStats LinearSolver::pcg(const Multiply& mul, const Eigen::VectorXd& b, Eige
   forEach(n, threaded, [&](std::int64_t k) { r[k] = bd[k] - q[k]; });
   double rr = dot(r, r, n, chunk, threaded);
   auto precondition = [&] {  // z = M⁻¹ r; returns r·z
+    if (factor_) {
+      factor_->apply(r, z);
+      return dot(r, z, n, chunk, threaded);
+    }
     return deterministicSum(nb, block_chunk, threaded, [&](std::int64_t begin, std::int64_t end) {
       double rz = 0;
       for (std::int64_t i = begin; i < end; ++i) {
@@ -120,11 +126,26 @@ SolveStats LinearSolver::pcg(const Multiply& mul, const Eigen::VectorXd& b, Eige
 }
 
 SolveStats LinearSolver::solve(const BlockMatrix& a, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
-  return solve([&](const double* in, double* out) { a.multiply(in, out); }, a, b, x);
+  const IncompleteCholesky* factor = nullptr;
+  if (kind_ == PreconditionerKind::IncompleteCholesky) {
+    if (!own_factor_.factor(a.numBlocks(), [&](const BlockSink& s) { a.forEachLowerBlock(s); }))
+      throw std::invalid_argument("incomplete Cholesky: the matrix is not SPD");
+    factor = &own_factor_;
+  }
+  return solve([&](const double* in, double* out) { a.multiply(in, out); }, a, b, x, factor);
 }
 
 SolveStats LinearSolver::solve(const Product& a, const BlockMatrix& diagonal,
-                               const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+                               const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                               const IncompleteCholesky* factor) {
+  if (kind_ == PreconditionerKind::IncompleteCholesky) {
+    if (!factor || factor->numBlocks() != diagonal.numBlocks())
+      throw std::invalid_argument("incomplete Cholesky: no factor of this matrix");
+    factor_ = factor;
+    const SolveStats s = pcg(a, b, x);
+    factor_ = nullptr;
+    return s;
+  }
   inv_.resize(diagonal.numBlocks());
   for (int i = 0; i < diagonal.numBlocks(); ++i) setPreconditioner(i, diagonal.diagonalBlock(i));
   return pcg(a, b, x);
@@ -132,6 +153,33 @@ SolveStats LinearSolver::solve(const Product& a, const BlockMatrix& diagonal,
 
 SolveStats LinearSolver::solve(const SpMat& a, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   const Eigen::Index nb = a.rows() / 3;
+  if (kind_ == PreconditionerKind::IncompleteCholesky) {
+    // The lower triangle's blocks, one block row at a time.
+    const bool ok = own_factor_.factor(static_cast<int>(nb), [&](const BlockSink& sink) {
+      std::map<Eigen::Index, Eigen::Matrix3d> row;
+      for (Eigen::Index i = 0; i < nb; ++i) {
+        row.clear();
+        for (int r = 0; r < 3; ++r)
+          for (SpMat::InnerIterator it(a, 3 * i + r); it; ++it) {
+            const Eigen::Index j = it.col() / 3;
+            if (j > i) continue;
+            row.try_emplace(j, Eigen::Matrix3d::Zero()).first->second(r, it.col() % 3) =
+                it.value();
+          }
+        for (const auto& [j, m] : row) sink(static_cast<int>(i), static_cast<int>(j), m);
+      }
+    });
+    if (!ok) throw std::invalid_argument("incomplete Cholesky: the matrix is not SPD");
+    factor_ = &own_factor_;
+    const SolveStats s = pcg(
+        [&](const double* in, double* out) {
+          Eigen::Map<Eigen::VectorXd>(out, a.rows()) =
+              a * Eigen::Map<const Eigen::VectorXd>(in, a.cols());
+        },
+        b, x);
+    factor_ = nullptr;
+    return s;
+  }
   inv_.resize(nb);
   for (Eigen::Index i = 0; i < nb; ++i) {
     Eigen::Matrix3d d = Eigen::Matrix3d::Zero();
