@@ -252,6 +252,77 @@ void BM_ConjugateGradient(benchmark::State& state) {  // one step's solve from a
 }
 BENCHMARK(BM_ConjugateGradient)->ArgsProduct({{100, 200}, {1, 2}})->Unit(benchmark::kMillisecond);
 
+// The incomplete-Cholesky preconditioner on the relaxed aggregate's Γ (cells + contact
+// couplings): its factorisation (a step pays it once, ros2 too) and one application (once per CG
+// iteration), and the CG solve it gives from a cold start against BM_ConjugateGradient's Jacobi.
+// Sequential by design (one fixed order: the same bits for any thread count).
+void BM_IncompleteCholeskyFactor(benchmark::State& state) {
+  std::string why;
+  auto sim = relaxedAggregate(static_cast<int>(state.range(0)), true, &why);
+  if (!sim) return state.SkipWithError(why.c_str());
+  sim->prepareFriction();
+  IncompleteCholesky ic;
+  for (auto _ : state) {
+    if (!ic.factor(sim->cells().numVertices(),
+                   [&](const BlockSink& s) { sim->forEachFrictionBlock(s); }))
+      state.SkipWithError("factor failed");
+  }
+  state.counters["blocks"] = static_cast<double>(ic.numStoredBlocks());
+  state.counters["shift"] = ic.shift();
+}
+BENCHMARK(BM_IncompleteCholeskyFactor)->Arg(100)->Arg(200)->Unit(benchmark::kMillisecond);
+
+void BM_IncompleteCholeskyApply(benchmark::State& state) {
+  std::string why;
+  auto sim = relaxedAggregate(static_cast<int>(state.range(0)), true, &why);
+  if (!sim) return state.SkipWithError(why.c_str());
+  sim->prepareFriction();
+  IncompleteCholesky ic;
+  if (!ic.factor(sim->cells().numVertices(),
+                 [&](const BlockSink& s) { sim->forEachFrictionBlock(s); }))
+    return state.SkipWithError("factor failed");
+  const Eigen::Index m = 3 * static_cast<Eigen::Index>(sim->cells().numVertices());
+  Eigen::VectorXd r(m), z(m);
+  for (Eigen::Index i = 0; i < m; ++i) r[i] = std::sin(0.37 * static_cast<double>(i));
+  for (auto _ : state) {
+    ic.apply(r.data(), z.data());
+    benchmark::DoNotOptimize(z.data());
+  }
+}
+BENCHMARK(BM_IncompleteCholeskyApply)->Arg(100)->Arg(200)->Unit(benchmark::kMicrosecond);
+
+void BM_ConjugateGradientIncompleteCholesky(benchmark::State& state) {  // factor + solve, cold
+  std::string why;
+  auto sim = relaxedAggregate(static_cast<int>(state.range(0)), true, &why);
+  if (!sim) return state.SkipWithError(why.c_str());
+  setThreads(static_cast<int>(state.range(1)));
+  Eigen::Matrix3Xd f;
+  sim->computeForces(f);
+  sim->prepareFriction();
+  const SceneSpec& spec = sim->spec();
+  LinearSolver solver(PreconditionerKind::IncompleteCholesky, spec.numerics.cg_tol,
+                      static_cast<int>(spec.numerics.cg_max_iter));
+  const Eigen::Index m = 3 * static_cast<Eigen::Index>(sim->cells().numVertices());
+  const Eigen::VectorXd b = Eigen::Map<const Eigen::VectorXd>(f.data(), m);
+  Eigen::VectorXd v;
+  IncompleteCholesky ic;
+  int iters = 0;
+  for (auto _ : state) {
+    v = Eigen::VectorXd::Zero(m);
+    ic.factor(sim->cells().numVertices(),
+              [&](const BlockSink& s) { sim->forEachFrictionBlock(s); });
+    iters = solver
+                .solve([&](const double* in, double* out) { sim->applyFriction(in, out); },
+                       sim->frictionMatrix(), b, v, &ic)
+                .iterations;
+    benchmark::DoNotOptimize(v.data());
+  }
+  state.counters["cg_iters"] = iters;
+}
+BENCHMARK(BM_ConjugateGradientIncompleteCholesky)
+    ->ArgsProduct({{100, 200}, {1, 2}})
+    ->Unit(benchmark::kMillisecond);
+
 // The broad phase along a recorded trajectory of the 100-cell aggregate above (motile cells,
 // contact-implicit, remeshing as the scene needs): from scratch every step (skin < 0) against the
 // Verlet lists of CandidateCache with the given skin. Arguments: skin in nm (−1: from scratch),

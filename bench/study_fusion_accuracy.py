@@ -65,6 +65,18 @@ CONFIGS = [
     ("ros2", "integrator", {"numerics.integrator": "ros2"}),
     ("ros2-dt-1", "integrator", {"numerics.integrator": "ros2", "numerics.dt_s": 1.0}),
     ("ros2-dt-0.25", "integrator", {"numerics.integrator": "ros2", "numerics.dt_s": 0.25}),
+    # Issue 15 item 1: the contact stiffness k_AB as a numerical knob (h0 = √(W/k_AB) grows as
+    # k_AB shrinks; the supplement says h0 ≪ R does not matter). Softer springs, fewer CG
+    # iterations; the rows at Δt = 0.1 s separate the model change from the Δt error.
+    ("kab-0.25", "k_contact", {"cells.k_contact": 71.1 / 4}),
+    ("kab-0.0625", "k_contact", {"cells.k_contact": 71.1 / 16}),
+    ("standard-kab-0.0625", "k_contact", {"numerics.dt_s": 0.1, "cells.k_contact": 71.1 / 16}),
+    # Issue 15 item 2: the block incomplete-Cholesky preconditioner (same solution within ε_CG).
+    ("ic", "preconditioner", {"numerics.preconditioner": "incomplete-cholesky"}),
+    ("ros2-ic", "integrator", {"numerics.integrator": "ros2",
+                               "numerics.preconditioner": "incomplete-cholesky"}),
+    ("ros2-dt-1-ic", "integrator", {"numerics.integrator": "ros2", "numerics.dt_s": 1.0,
+                                    "numerics.preconditioner": "incomplete-cholesky"}),
 ]
 
 

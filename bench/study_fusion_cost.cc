@@ -9,13 +9,18 @@
 //   build/release/runner/foam-run bench/specs/fusion_reference.toml --out /tmp/ref
 //       --spheroid-cache /tmp/ref-cache     (prepares and caches the two spheroids)
 //   OMP_NUM_THREADS=1 build/release/bench/study_fusion_cost /tmp/ref-cache [steps] [n_cells]
-//       [prep_max_s]
+//       [prep_max_s] [configs]
+// configs: comma-separated integrator:Δt:preconditioner, e.g.
+// "contact-implicit:0.5:jacobi,ros2:0.5:incomplete-cholesky" (default: contact-implicit at 0.1
+// and 0.5 s and semi-implicit at 0.005 s, Jacobi).
 // prep_max_s = 0 times the packed, unrelaxed spheroids (no preparation needed; contacts are
 // fewer than in relaxed ones, so it underestimates the cost per step).
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include "activefoam/simulation.h"
 #include "activefoam/spheroid.h"
@@ -24,7 +29,8 @@ using namespace activefoam;
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: study_fusion_cost CACHE_DIR [steps] [n_cells] [prep_max_s]\n");
+    std::fprintf(stderr,
+                 "usage: study_fusion_cost CACHE_DIR [steps] [n_cells] [prep_max_s] [configs]\n");
     return 2;
   }
   const SpheroidCache cache(argv[1]);
@@ -42,19 +48,38 @@ int main(int argc, char** argv) {
       base, &cache, {[](const std::string& l) { std::fprintf(stderr, "%s\n", l.c_str()); }});
 
   std::printf(
-      "| integrator | Δt (s) | CG iters/step | ms/step | geometry | contacts | forces | "
+      "| integrator | Δt (s) | preconditioner | CG iters/step | ms/step | geometry | contacts | forces | "
       "matrix | solve | remesh | wall per simulated min | projected 24 h |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
-  struct Config {
-    IntegratorKind integrator;
-    double dt;
-  };
-  for (const Config c :
-       {Config{IntegratorKind::ContactImplicit, 0.1}, Config{IntegratorKind::ContactImplicit, 0.5},
-        Config{IntegratorKind::SemiImplicit, 0.005}}) {
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  std::vector<std::string> configs = {"contact-implicit:0.1:jacobi", "contact-implicit:0.5:jacobi",
+                                      "semi-implicit:0.005:jacobi"};
+  if (argc > 5) {
+    configs.clear();
+    std::stringstream list(argv[5]);
+    for (std::string item; std::getline(list, item, ',');) configs.push_back(item);
+  }
+  for (const std::string& config : configs) {
     SceneSpec s = base;
-    s.numerics.integrator = c.integrator;
-    s.numerics.dt_s = c.dt;
+    std::string integrator, dt, pre;
+    std::stringstream parts(config);
+    std::getline(parts, integrator, ':');
+    std::getline(parts, dt, ':');
+    std::getline(parts, pre, ':');
+    for (auto [key, text] : {std::pair<const char*, std::string>{"numerics.integrator", integrator},
+                             {"numerics.dt_s", dt},
+                             {"numerics.preconditioner", pre}}) {
+      const auto error = setField(s, key, key == std::string("numerics.dt_s")
+                                              ? SpecValue(std::atof(text.c_str()))
+                                              : SpecValue(text));
+      if (error) {
+        std::fprintf(stderr, "%s: %s\n", config.c_str(), error->str().c_str());
+        return 2;
+      }
+    }
+    struct {
+      IntegratorKind integrator;
+      double dt;
+    } c{s.numerics.integrator, s.numerics.dt_s};
     s = resolve(s);
     Simulation sim(s, cells);
     for (int k = 0; k < 3; ++k) sim.step();
@@ -78,9 +103,10 @@ int main(int argc, char** argv) {
     auto ms = [&](double now, double then) { return done ? 1e3 * (now - then) / done : 0.0; };
     const double per_min = per * 60 / c.dt, per_day = per * 86400 / c.dt;
     std::printf(
-        "| %s | %g | %.1f | %.0f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f min | "
+        "| %s | %g | %s | %.1f | %.0f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f min | "
         "%.0f h |%s\n",
-        std::string(toString(c.integrator)).c_str(), c.dt, done ? double(iters) / done : 0.0,
+        std::string(toString(c.integrator)).c_str(), c.dt,
+        std::string(toString(s.numerics.preconditioner)).c_str(), done ? double(iters) / done : 0.0,
         1e3 * per, ms(p.geometry, before.geometry), ms(p.contacts, before.contacts),
         ms(p.forces, before.forces), ms(p.matrix, before.matrix), ms(p.solve, before.solve),
         ms(p.remesh, before.remesh), per_min / 60, per_day / 3600,
