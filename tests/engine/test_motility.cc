@@ -22,7 +22,7 @@ TEST(ActiveMigration, ActionPlusReactionSumsToZeroPerCell) {
   cells.polarity[0] = Vec3(0.3, -0.8, 0.5).normalized();
   cells.polarity[1] = Vec3(-0.9, 0.1, 0.4).normalized();
   const ActiveMigration term(s.cells, s.seed);
-  const StepContext ctx{cells, sim.geometry(), Topology{}, 0.1, 0.0, &sim.contacts(), 0};
+  const StepContext ctx{cells, sim.geometry(), Topology{}, 0.1, 0.0, &sim.contacts()};
   Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, cells.numVertices());
   term.addForces(ctx, f);
   for (int c = 0; c < 2; ++c) {
@@ -45,7 +45,7 @@ TEST(ActiveMigration, NoContactNoTraction) {
   Simulation sim(s);
   ASSERT_EQ(sim.contacts().pairs.size(), 0u);
   const ActiveMigration term(s.cells, s.seed);
-  const StepContext ctx{sim.cells(), sim.geometry(), Topology{}, 0.1, 0.0, &sim.contacts(), 0};
+  const StepContext ctx{sim.cells(), sim.geometry(), Topology{}, 0.1, 0.0, &sim.contacts()};
   Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, sim.cells().numVertices());
   term.addForces(ctx, f);
   EXPECT_EQ(f.norm(), 0.0);

@@ -24,7 +24,6 @@ struct StepContext {
   double dt;  // s, this step's length (the integrator's, not the spec's)
   double t;   // s, time at the start of the step
   const ContactList* contacts = nullptr;  // this step's contacts; null in single-cell scenes
-  std::int64_t step = 0;                  // steps taken before this one
   // Factor of the contact springs' linearised normal stiffness K_c in Γ: Δt for the
   // contact-implicit integrator, 0 for the semi-implicit one (the integrator decides).
   double contact_stiffness_dt = 0;

@@ -148,7 +148,6 @@ class Simulation {
             dt,
             time(),
             with_contacts_ ? &contacts_ : nullptr,
-            stepper_.steps(),
             integrator_.contactStiffnessDt(dt),
             integrator_.twoStage(),
             stepper_.timeAt(stepper_.ticks() + stepper_.stepTicks())};
