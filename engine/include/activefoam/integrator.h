@@ -110,6 +110,7 @@ struct GuardView {
   const ContactLaw* law = nullptr;          // scenes with contacts
   double t = 0;                             // time at the start of the step
   double dt = 0;                            // the step's length
+  double step_error_um = -1;  // ros2's error estimate of the step (`Solved`); −1: none
 };
 
 // A check that a step must pass, run at one point of the step. A failed check rejects the step:
@@ -145,6 +146,9 @@ std::string interpenetration(const CellSet& cells, const ContactList& contacts, 
 // contact oscillation (scenes with contacts), inverted triangle, volume drift, and
 // interpenetration (scenes with contacts).
 std::vector<std::unique_ptr<StepGuard>> standardGuards(bool with_contacts);
+// ros2 with numerics.max_step_error_um > 0: rejects a step whose error estimate exceeds it, except
+// at the floor of the adaptive schedule (an accuracy check, not a failure: it never ends a run).
+std::unique_ptr<StepGuard> stepErrorGuard();
 
 // When to remesh (numerics.remesh_every_s): every cell at multiples of τ_r, and in between any
 // cell with a triangle below half of A_m (contacts zipping up squeeze rim triangles from A_m to

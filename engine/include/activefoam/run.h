@@ -47,7 +47,8 @@ enum class FailureKind {
   Interpenetration,
   ContactOscillation,
   Cancelled,
-  PreparationFailed  // a spheroid's relaxation (fusion scene) failed
+  PreparationFailed,  // a spheroid's relaxation (fusion scene) failed
+  StepError           // ros2's error estimate above numerics.max_step_error_um (rejections only)
 };
 std::string_view toString(FailureKind);
 

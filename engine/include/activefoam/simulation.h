@@ -154,6 +154,7 @@ class Simulation {
   }
   // One try of a step of length stepper_.dt(); the schedule is advanced by the caller.
   StepReport tryStep();
+  double step_error_ = 0;  // ros2: Δt/2 max|k₁ + k₂| of the last second stage, µm
   // ros2: predicts x* = x₀ + Δt k₁ (k₁ in v_), re-evaluates geometry, contacts, forces and Γ
   // there, solves the second stage and leaves the step's velocity in v_, x* in cells_ (x₀ in
   // x0_). A failure of the first stage is returned before anything is evaluated at x*.

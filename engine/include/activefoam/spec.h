@@ -82,6 +82,10 @@ struct NumericsParams {
   // steps Δt grows back. false: the first failed step ends the run (the studies measure that).
   bool adaptive = true;
   std::optional<double> dt_min_s;
+  // ros2 only: a step whose error estimate Δt/2 · max_i |k₁ + k₂|_i (µm: the distance between
+  // the second-order step and its embedded first-order one, linearly implicit Euler) exceeds
+  // this is rejected and retried at half the length; at dt_min_s it is taken. 0: off.
+  double max_step_error_um = 0;
 
   friend bool operator==(const NumericsParams&, const NumericsParams&) = default;
 };

@@ -230,6 +230,23 @@ std::string interpenetration(const CellSet& cells, const ContactList& contacts, 
   return {};
 }
 
+class StepErrorGuard : public StepGuard {
+ public:
+  std::string_view name() const override { return "step-error"; }
+  Phase phase() const override { return Phase::Solved; }
+  std::optional<StepFailure> check(const GuardView& g) override {
+    const NumericsParams& n = g.spec.numerics;
+    if (!(n.max_step_error_um > 0) || !(g.step_error_um > n.max_step_error_um)) return std::nullopt;
+    if (0.5 * g.dt < n.dt_min_s.value_or(n.dt_s / 64)) return std::nullopt;  // at the floor
+    std::ostringstream why;
+    why << "error estimate " << g.step_error_um << " µm of a " << g.dt
+        << " s step exceeds numerics.max_step_error_um = " << n.max_step_error_um << at(g.t);
+    return StepFailure{FailureKind::StepError, why.str()};
+  }
+};
+
+std::unique_ptr<StepGuard> stepErrorGuard() { return std::make_unique<StepErrorGuard>(); }
+
 std::vector<std::unique_ptr<StepGuard>> standardGuards(bool with_contacts) {
   std::vector<std::unique_ptr<StepGuard>> g;
   g.push_back(std::make_unique<NonFiniteGuard>());

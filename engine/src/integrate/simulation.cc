@@ -55,6 +55,8 @@ void Simulation::init() {
     if (p.p_a > 0) terms_.push_back(std::make_unique<ActiveMigration>(p, spec_.seed));
   }
   guards_ = standardGuards(with_contacts_);
+  if (integrator_.twoStage() && spec_.numerics.max_step_error_um > 0)
+    guards_.push_back(stepErrorGuard());
   updateTopology(cells_, topo_);
   computeGeometry(cells_, geo_);
   detect();
@@ -200,6 +202,7 @@ StepReport Simulation::tryStep() {
   if (two_stage) {
     std::swap(geo_prev_, geo_);
     if (auto f = secondStage(dt, rep.cg)) return failed(std::move(*f));
+    view.step_error_um = step_error_;
   }
   if (auto f = runGuards(StepGuard::Phase::Solved, view)) return failed(std::move(*f));
   if (!two_stage) std::swap(geo_prev_, geo_);
@@ -304,6 +307,11 @@ std::optional<StepFailure> Simulation::secondStage(double dt, SolveStats& cg) {
   cg.iterations += s2.iterations;
   cg.converged = cg.converged && s2.converged;
   cg.residual = std::max(cg.residual, s2.residual);
+  // x₁ − (x₀ + Δt k₁) = Δt/2 (k₁ + k₂): the embedded first-order step's distance, the estimate.
+  double e2 = 0;
+  for (Eigen::Index i = 0; i < v_.size(); i += 3)
+    e2 = std::max(e2, (v_.segment<3>(i) + k2_.segment<3>(i)).squaredNorm());
+  step_error_ = 0.5 * dt * std::sqrt(e2);
   v_ = 1.5 * v_ + 0.5 * k2_;  // the step's effective velocity: x₁ = x₀ + Δt v
   return std::nullopt;
 }

@@ -162,6 +162,8 @@ std::string_view toString(FailureKind k) {
       return "cancelled";
     case FailureKind::PreparationFailed:
       return "preparation-failed";
+    case FailureKind::StepError:
+      return "step-error";
   }
   return "unknown";
 }

@@ -196,6 +196,11 @@ const std::vector<Entry>& entries() {
                       "last one ≥ this); default dt_s/64",
                       true),
                  [](SceneSpec& s) -> Slot { return &s.numerics.dt_min_s; }});
+    t.push_back({real("numerics.max_step_error_um", kClosed, 0, 100, kClosed, "µm",
+                      "ros2 only: retry at half the time step a step whose error estimate "
+                      "Δt/2·max|k₁ + k₂| (second-order step against its embedded first-order "
+                      "one) exceeds this; taken anyway at numerics.dt_min_s; 0 = off"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.max_step_error_um; }});
     // ---- [scene]
     t.push_back({real("scene.axes_ratio", kClosed, 0.2, 5, kClosed, "",
                       "cell: start as an ellipsoid (q r, r, r/q) of equal volume; 1 = sphere"),
@@ -584,6 +589,17 @@ std::vector<SpecError> validate(const SceneSpec& spec) {
       dmin && ok({"numerics.dt_s", "numerics.dt_min_s"}) && *dmin > dt)
     error("numerics.dt_min_s", formatNumber(*dmin) + " s exceeds numerics.dt_s = " +
                                    formatNumber(dt) + " s (the floor of the adaptive time step)");
+
+  if (spec.numerics.max_step_error_um > 0) {
+    if (ok({"numerics.integrator"}) && spec.numerics.integrator != IntegratorKind::Ros2)
+      error("numerics.max_step_error_um",
+            "needs numerics.integrator = ros2 (the only integrator with an error estimate); "
+            "set it to 0 for " +
+                std::string(toString(spec.numerics.integrator)));
+    else if (ok({"numerics.adaptive"}) && !spec.numerics.adaptive)
+      error("numerics.max_step_error_um",
+            "needs numerics.adaptive = true (a step over the estimate is retried at half Δt)");
+  }
 
   // Remeshing thresholds: a split halves a triangle, so the halves must stay above A_m.
   const double amin = spec.numerics.remesh_min_area_factor;
