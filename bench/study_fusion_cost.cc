@@ -48,7 +48,8 @@ int main(int argc, char** argv) {
       base, &cache, {[](const std::string& l) { std::fprintf(stderr, "%s\n", l.c_str()); }});
 
   std::printf(
-      "| integrator | Δt (s) | preconditioner | CG iters/step | ms/step | geometry | contacts | forces | "
+      "| integrator | Δt (s) | preconditioner | CG iters/step | ms/step | geometry | contacts | "
+      "forces | "
       "matrix | solve | remesh | wall per simulated min | projected 24 h |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   std::vector<std::string> configs = {"contact-implicit:0.1:jacobi", "contact-implicit:0.5:jacobi",
@@ -68,9 +69,10 @@ int main(int argc, char** argv) {
     for (auto [key, text] : {std::pair<const char*, std::string>{"numerics.integrator", integrator},
                              {"numerics.dt_s", dt},
                              {"numerics.preconditioner", pre}}) {
-      const auto error = setField(s, key, key == std::string("numerics.dt_s")
-                                              ? SpecValue(std::atof(text.c_str()))
-                                              : SpecValue(text));
+      const auto error =
+          setField(s, key,
+                   key == std::string("numerics.dt_s") ? SpecValue(std::atof(text.c_str()))
+                                                       : SpecValue(text));
       if (error) {
         std::fprintf(stderr, "%s: %s\n", config.c_str(), error->str().c_str());
         return 2;

@@ -92,9 +92,12 @@ struct IC0 {
           int p = rp[i], q = rp[k];
           const int pe = kk, qe = rp[k + 1] - 1;
           while (p < pe && q < qe) {
-            if (ci[p] == ci[q]) s -= v[p++] * v[q++];
-            else if (ci[p] < ci[q]) ++p;
-            else ++q;
+            if (ci[p] == ci[q])
+              s -= v[p++] * v[q++];
+            else if (ci[p] < ci[q])
+              ++p;
+            else
+              ++q;
           }
           if (k == i) {
             s *= 1.0;
@@ -222,7 +225,8 @@ int main(int argc, char** argv) {
     icf.build(a);
     const double fsetup = 1e3 * secs(t1);
     x = xprev;
-    const Res rf = pcg(a, b, x, [&](auto& r, auto& z) { icf.apply(r, z); }, tol);
+    const Res rf = pcg(
+        a, b, x, [&](auto& r, auto& z) { icf.apply(r, z); }, tol);
     if (a.rows() != ic.n) {
       ic = icf;
       built_at = k;
@@ -230,7 +234,8 @@ int main(int argc, char** argv) {
       ++refreshes;
     }
     x = xprev;
-    Res rs = pcg(a, b, x, [&](auto& r, auto& z) { ic.apply(r, z); }, tol);
+    Res rs = pcg(
+        a, b, x, [&](auto& r, auto& z) { ic.apply(r, z); }, tol);
     const auto lc = coarse(a);
     x = xprev;
     const Res rc = pcg(
@@ -241,18 +246,25 @@ int main(int argc, char** argv) {
         },
         tol);
     sc += rc.it;
-    std::printf("| %d | %zu | %d (%.1f ms) | %d (%.1f ms, setup %.0f) | %d (%.1f ms, age %d) | "
-                "%d (%.1f ms) |\n",
-                k, sim.contacts().pairs.size(), rj.it, rj.ms, rf.it, rf.ms, fsetup, rs.it, rs.ms,
-                k - built_at, rc.it, rc.ms);
+    std::printf(
+        "| %d | %zu | %d (%.1f ms) | %d (%.1f ms, setup %.0f) | %d (%.1f ms, age %d) | "
+        "%d (%.1f ms) |\n",
+        k, sim.contacts().pairs.size(), rj.it, rj.ms, rf.it, rf.ms, fsetup, rs.it, rs.ms,
+        k - built_at, rc.it, rc.ms);
     std::fflush(stdout);
-    sj += rj.it; sf += rf.it; ss += rs.it; ++steps;
-    tj += rj.ms; tf += rf.ms + fsetup; ts += rs.ms;
+    sj += rj.it;
+    sf += rf.it;
+    ss += rs.it;
+    ++steps;
+    tj += rj.ms;
+    tf += rf.ms + fsetup;
+    ts += rs.ms;
     xprev = xs;
   }
-  std::printf("mean: jacobi %.1f it %.1f ms; fresh %.1f it %.1f ms incl setup; stale %.1f it "
-              "%.1f ms + setup %.1f ms/step (%d refreshes); jacobi + coarse %.1f it\n",
-              double(sj) / steps, tj / steps, double(sf) / steps, tf / steps, double(ss) / steps,
-              ts / steps, tsetup / steps, refreshes, double(sc) / steps);
+  std::printf(
+      "mean: jacobi %.1f it %.1f ms; fresh %.1f it %.1f ms incl setup; stale %.1f it "
+      "%.1f ms + setup %.1f ms/step (%d refreshes); jacobi + coarse %.1f it\n",
+      double(sj) / steps, tj / steps, double(sf) / steps, tf / steps, double(ss) / steps,
+      ts / steps, tsetup / steps, refreshes, double(sc) / steps);
   return 0;
 }

@@ -58,8 +58,8 @@ Eigen::MatrixXd expectOneSpdOperator(Simulation& sim, std::uint64_t stream) {
   EXPECT_LT((blocks - a).norm(), 1e-12 * a.norm());
 
   IncompleteCholesky ic;
-  const bool factored =
-      ic.factor(sim.cells().numVertices(), [&](const BlockSink& s) { sim.forEachFrictionBlock(s); });
+  const bool factored = ic.factor(sim.cells().numVertices(),
+                                  [&](const BlockSink& s) { sim.forEachFrictionBlock(s); });
   EXPECT_TRUE(factored);
   if (!factored) return a;
   EXPECT_EQ(ic.shift(), 0);

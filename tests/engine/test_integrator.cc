@@ -469,8 +469,7 @@ TEST(Ros2, ErrorEstimateHalvesTheStepsWhereTheErrorIsLarge) {
   s.numerics.dt_min_s = 0.5 / 64;
   ASSERT_TRUE(validate(s).empty());
   const double r = s.cells.radius_mean_um;
-  auto run = [&](const SceneSpec& spec, double t_end, std::int64_t* steps,
-                 std::int64_t* rejected) {
+  auto run = [&](const SceneSpec& spec, double t_end, std::int64_t* steps, std::int64_t* rejected) {
     CellSet cells;
     cells.addCell(ellipsoidCell(r, 2.2, 80, Vec3::Zero()), r);
     Simulation sim(spec, std::move(cells));
@@ -496,12 +495,12 @@ TEST(Ros2, ErrorEstimateHalvesTheStepsWhereTheErrorIsLarge) {
   const double e_plain = (plain - ref).colwise().norm().maxCoeff();
   const double e_ctl = (controlled - ref).colwise().norm().maxCoeff();
   std::cout << "[ step-error ] plain " << steps_plain << " steps, error " << e_plain
-            << " µm; controlled " << steps_ctl << " steps (" << rejected_ctl
-            << " rejected), error " << e_ctl << " µm\n";
+            << " µm; controlled " << steps_ctl << " steps (" << rejected_ctl << " rejected), error "
+            << e_ctl << " µm\n";
   EXPECT_GT(rejected_ctl, 0);
   EXPECT_GT(steps_ctl, steps_plain);
   EXPECT_LT(steps_ctl, 4 * steps_plain);  // not Δt/4 throughout: long steps where they pass
-  EXPECT_LT(3 * e_ctl, e_plain);  // measured 4.6× (37 steps, 4 rejected, against 16)
+  EXPECT_LT(3 * e_ctl, e_plain);          // measured 4.6× (37 steps, 4 rejected, against 16)
   SceneSpec loose = s;
   loose.numerics.max_step_error_um = 100;
   const Eigen::Matrix3Xd same = run(loose, t_end, nullptr, &rejected_loose);

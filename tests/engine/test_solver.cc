@@ -165,8 +165,8 @@ TEST(IncompleteCholesky, IsTheExactFactorWhereNothingFillsIn) {
   // One CG iteration then solves the system exactly.
   const SpMat sparse = a.sparseView();
   Eigen::VectorXd v = Eigen::VectorXd::Zero(3 * n);
-  const SolveStats s = LinearSolver(PreconditionerKind::IncompleteCholesky, 1e-10, 100)
-                           .solve(sparse, r, v);
+  const SolveStats s =
+      LinearSolver(PreconditionerKind::IncompleteCholesky, 1e-10, 100).solve(sparse, r, v);
   EXPECT_TRUE(s.converged);
   EXPECT_LE(s.iterations, 2);
 }
@@ -213,8 +213,8 @@ TEST(IncompleteCholesky, SumsRepeatedBlocksAndDropsOnlyTheFill) {
   EXPECT_GT((a * z1 - r).norm(), 1e-6 * r.norm());  // the dropped fill: not an exact inverse
   const SpMat sparse = a.sparseView();
   Eigen::VectorXd v = Eigen::VectorXd::Zero(3 * n);
-  const SolveStats s = LinearSolver(PreconditionerKind::IncompleteCholesky, 1e-12, 100)
-                           .solve(sparse, r, v);
+  const SolveStats s =
+      LinearSolver(PreconditionerKind::IncompleteCholesky, 1e-12, 100).solve(sparse, r, v);
   EXPECT_TRUE(s.converged);
   EXPECT_LT((a * v - r).norm(), 1e-11 * r.norm());
 }

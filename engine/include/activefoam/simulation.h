@@ -117,9 +117,7 @@ class Simulation {
   void prepareFriction() { integrator_.prepareFriction(context(), terms_); }
   const BlockMatrix& frictionMatrix() const { return integrator_.frictionMatrix(); }
   void applyFriction(const double* v, double* y) const { integrator_.applyFriction(v, y); }
-  void forEachFrictionBlock(const BlockSink& sink) const {
-    integrator_.forEachFrictionBlock(sink);
-  }
+  void forEachFrictionBlock(const BlockSink& sink) const { integrator_.forEachFrictionBlock(sink); }
   // The whole Γ assembled, contact couplings included (tests and tools; builds its pattern on
   // every call).
   SpMat assembleFriction();

@@ -14,14 +14,16 @@ namespace {
 inline void subtractABt(double* s, const double* a, const double* b) {
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c)
-      s[3 * r + c] -= a[3 * r] * b[3 * c] + a[3 * r + 1] * b[3 * c + 1] + a[3 * r + 2] * b[3 * c + 2];
+      s[3 * r + c] -=
+          a[3 * r] * b[3 * c] + a[3 * r + 1] * b[3 * c + 1] + a[3 * r + 2] * b[3 * c + 2];
 }
 
 // out = a bᵀ
 inline void multiplyABt(double* out, const double* a, const double* b) {
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c)
-      out[3 * r + c] = a[3 * r] * b[3 * c] + a[3 * r + 1] * b[3 * c + 1] + a[3 * r + 2] * b[3 * c + 2];
+      out[3 * r + c] =
+          a[3 * r] * b[3 * c] + a[3 * r + 1] * b[3 * c + 1] + a[3 * r + 2] * b[3 * c + 2];
 }
 
 // The inverse of the lower Cholesky factor of the symmetric block s (its lower part is read);

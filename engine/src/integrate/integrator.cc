@@ -245,7 +245,9 @@ class StepErrorGuard : public StepGuard {
   }
 };
 
-std::unique_ptr<StepGuard> stepErrorGuard() { return std::make_unique<StepErrorGuard>(); }
+std::unique_ptr<StepGuard> stepErrorGuard() {
+  return std::make_unique<StepErrorGuard>();
+}
 
 std::vector<std::unique_ptr<StepGuard>> standardGuards(bool with_contacts) {
   std::vector<std::unique_ptr<StepGuard>> g;

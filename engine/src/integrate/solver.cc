@@ -163,8 +163,7 @@ SolveStats LinearSolver::solve(const SpMat& a, const Eigen::VectorXd& b, Eigen::
           for (SpMat::InnerIterator it(a, 3 * i + r); it; ++it) {
             const Eigen::Index j = it.col() / 3;
             if (j > i) continue;
-            row.try_emplace(j, Eigen::Matrix3d::Zero()).first->second(r, it.col() % 3) =
-                it.value();
+            row.try_emplace(j, Eigen::Matrix3d::Zero()).first->second(r, it.col() % 3) = it.value();
           }
         for (const auto& [j, m] : row) sink(static_cast<int>(i), static_cast<int>(j), m);
       }

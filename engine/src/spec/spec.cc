@@ -153,11 +153,11 @@ const std::vector<Entry>& entries() {
     t.push_back({integer("numerics.cg_max_iter", 1, 1e6,
                          "CG iterations per step before the run fails as not converged"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.cg_max_iter; }});
-    t.push_back({choice("numerics.preconditioner",
-                        {"jacobi", "block-jacobi", "incomplete-cholesky"},
-                        "CG preconditioner: diagonal, 3×3 block diagonal, or block IC(0) of Γ "
-                        "with the contact couplings (refactored every step)"),
-                 [](SceneSpec& s) -> Slot { return &s.numerics.preconditioner; }});
+    t.push_back(
+        {choice("numerics.preconditioner", {"jacobi", "block-jacobi", "incomplete-cholesky"},
+                "CG preconditioner: diagonal, 3×3 block diagonal, or block IC(0) of Γ "
+                "with the contact couplings (refactored every step)"),
+         [](SceneSpec& s) -> Slot { return &s.numerics.preconditioner; }});
     t.push_back({integer("numerics.triangles_per_cell", 80, 1280,
                          "initial triangles per cell (icosphere with 1, 2 or 3 subdivisions)",
                          {"80", "320", "1280"}),
