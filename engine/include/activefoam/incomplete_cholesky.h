@@ -43,7 +43,9 @@ class IncompleteCholesky {
   std::vector<double> a_;     // A's blocks (row-major 3×3), kept for retries with a shift
   std::vector<double> l_;     // L's blocks
   std::vector<double> dinv_;  // per row: L_ii⁻¹ (lower triangular, row-major)
-  std::vector<int> scratch_;
+  // Assembly buffers, kept between factorisations.
+  std::vector<int> scratch_, begin_, fill_, cols_, slot_of_, slots_;
+  std::vector<double> vals_, sums_;
 };
 
 }  // namespace activefoam

@@ -58,7 +58,10 @@ bool IncompleteCholesky::factor(int num_blocks, const BlockSource& blocks) {
   const int n = num_blocks;
   // Bucket the blocks by lower-triangle row, then sort each short row by column (stable:
   // duplicates are summed in the order the source gave them).
-  std::vector<int> begin(n + 1, 0);
+  // The buffers are members: a step's ~10⁵ blocks are tens of MB, which freshly allocated (and
+  // zeroed, and faulted in) every step cost more than their reuse.
+  std::vector<int>& begin = begin_;
+  begin.assign(n + 1, 0);
   bool in_range = true;
   blocks([&](int i, int j, const Eigen::Matrix3d&) {
     if (i < 0 || j < 0 || i >= n || j >= n)
@@ -68,8 +71,12 @@ bool IncompleteCholesky::factor(int num_blocks, const BlockSource& blocks) {
   });
   if (!in_range) return false;
   std::partial_sum(begin.begin(), begin.end(), begin.begin());
-  std::vector<int> fill(begin.begin(), begin.end() - 1), cols(begin[n]);
-  std::vector<double> vals(9 * static_cast<std::size_t>(begin[n]));
+  std::vector<int>& fill = fill_;
+  std::vector<int>& cols = cols_;
+  std::vector<double>& vals = vals_;
+  fill.assign(begin.begin(), begin.end() - 1);
+  cols.resize(begin[n]);
+  vals.resize(9 * static_cast<std::size_t>(begin[n]));
   blocks([&](int i, int j, const Eigen::Matrix3d& m) {
     if (i < 0 || j < 0 || i >= n || j >= n) return;
     const int row = std::max(i, j);
@@ -87,8 +94,10 @@ bool IncompleteCholesky::factor(int num_blocks, const BlockSource& blocks) {
   a_.reserve(vals.size());
   // A row's blocks repeat (a vertex pair is in many contact pairs): sum them into one slot per
   // column in the order given, then sort the few distinct columns.
-  std::vector<int> slot_of(n, -1), slots;
-  std::vector<double> sums;
+  std::vector<int>& slot_of = slot_of_;
+  std::vector<int>& slots = slots_;
+  std::vector<double>& sums = sums_;
+  slot_of.assign(n, -1);
   for (int i = 0; i < n; ++i) {
     slots.clear();
     sums.clear();
