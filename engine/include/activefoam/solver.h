@@ -42,6 +42,9 @@ class LinearSolver {
  private:
   template <typename Multiply>
   SolveStats pcg(const Multiply& mul, const Eigen::VectorXd& b, Eigen::VectorXd& x);
+  template <typename Multiply>
+  SolveStats pcgWith(const IncompleteCholesky* factor, const Multiply& mul,
+                     const Eigen::VectorXd& b, Eigen::VectorXd& x);
   void setPreconditioner(int block, const Eigen::Matrix3d& d);
   PreconditionerKind kind_;
   const IncompleteCholesky* factor_ = nullptr;  // during a solve with the IC kind

@@ -125,6 +125,15 @@ SolveStats LinearSolver::pcg(const Multiply& mul, const Eigen::VectorXd& b, Eige
   return s;
 }
 
+template <typename Multiply>
+SolveStats LinearSolver::pcgWith(const IncompleteCholesky* factor, const Multiply& mul,
+                                 const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+  factor_ = factor;  // read by pcg's preconditioner step; never kept past the solve
+  const SolveStats s = pcg(mul, b, x);
+  factor_ = nullptr;
+  return s;
+}
+
 SolveStats LinearSolver::solve(const BlockMatrix& a, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   const IncompleteCholesky* factor = nullptr;
   if (kind_ == PreconditionerKind::IncompleteCholesky) {
@@ -141,10 +150,7 @@ SolveStats LinearSolver::solve(const Product& a, const BlockMatrix& diagonal,
   if (kind_ == PreconditionerKind::IncompleteCholesky) {
     if (!factor || factor->numBlocks() != diagonal.numBlocks())
       throw std::invalid_argument("incomplete Cholesky: no factor of this matrix");
-    factor_ = factor;
-    const SolveStats s = pcg(a, b, x);
-    factor_ = nullptr;
-    return s;
+    return pcgWith(factor, a, b, x);
   }
   inv_.resize(diagonal.numBlocks());
   for (int i = 0; i < diagonal.numBlocks(); ++i) setPreconditioner(i, diagonal.diagonalBlock(i));
@@ -153,6 +159,10 @@ SolveStats LinearSolver::solve(const Product& a, const BlockMatrix& diagonal,
 
 SolveStats LinearSolver::solve(const SpMat& a, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   const Eigen::Index nb = a.rows() / 3;
+  const auto product = [&](const double* in, double* out) {
+    Eigen::Map<Eigen::VectorXd>(out, a.rows()) =
+        a * Eigen::Map<const Eigen::VectorXd>(in, a.cols());
+  };
   if (kind_ == PreconditionerKind::IncompleteCholesky) {
     // The lower triangle's blocks, one block row at a time.
     const bool ok = own_factor_.factor(static_cast<int>(nb), [&](const BlockSink& sink) {
@@ -169,15 +179,7 @@ SolveStats LinearSolver::solve(const SpMat& a, const Eigen::VectorXd& b, Eigen::
       }
     });
     if (!ok) throw std::invalid_argument("incomplete Cholesky: the matrix is not SPD");
-    factor_ = &own_factor_;
-    const SolveStats s = pcg(
-        [&](const double* in, double* out) {
-          Eigen::Map<Eigen::VectorXd>(out, a.rows()) =
-              a * Eigen::Map<const Eigen::VectorXd>(in, a.cols());
-        },
-        b, x);
-    factor_ = nullptr;
-    return s;
+    return pcgWith(&own_factor_, product, b, x);
   }
   inv_.resize(nb);
   for (Eigen::Index i = 0; i < nb; ++i) {
@@ -187,12 +189,7 @@ SolveStats LinearSolver::solve(const SpMat& a, const Eigen::VectorXd& b, Eigen::
         if (it.col() >= 3 * i && it.col() < 3 * i + 3) d(r, it.col() - 3 * i) = it.value();
     setPreconditioner(static_cast<int>(i), d);
   }
-  return pcg(
-      [&](const double* in, double* out) {
-        Eigen::Map<Eigen::VectorXd>(out, a.rows()) =
-            a * Eigen::Map<const Eigen::VectorXd>(in, a.cols());
-      },
-      b, x);
+  return pcg(product, b, x);
 }
 
 }  // namespace activefoam
