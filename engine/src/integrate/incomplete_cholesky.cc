@@ -56,10 +56,9 @@ bool IncompleteCholesky::factor(int num_blocks, const BlockSource& blocks) {
   n_ = 0;
   shift_ = 0;
   const int n = num_blocks;
-  // Bucket the blocks by lower-triangle row, then sort each short row by column (stable:
-  // duplicates are summed in the order the source gave them).
-  // The buffers are members: a step's ~10⁵ blocks are tens of MB, which freshly allocated (and
-  // zeroed, and faulted in) every step cost more than their reuse.
+  // Bucket the blocks by lower-triangle row; each row's repeats are summed below, in the order
+  // the source gave them. The buffers are members: a step's ~10⁵ blocks are tens of MB, which
+  // freshly allocated (and zeroed, and faulted in) every step cost more than their reuse.
   std::vector<int>& begin = begin_;
   begin.assign(n + 1, 0);
   bool in_range = true;
@@ -88,10 +87,8 @@ bool IncompleteCholesky::factor(int num_blocks, const BlockSource& blocks) {
       for (int c = 0; c < 3; ++c) v[3 * r + c] = i >= j ? m(r, c) : m(c, r);
   });
   row_begin_.assign(n + 1, 0);
-  col_.clear();
+  col_.clear();  // capacity kept: the next step's pattern is about as large
   a_.clear();
-  col_.reserve(begin[n]);
-  a_.reserve(vals.size());
   // A row's blocks repeat (a vertex pair is in many contact pairs): sum them into one slot per
   // column in the order given, then sort the few distinct columns.
   std::vector<int>& slot_of = slot_of_;
