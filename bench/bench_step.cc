@@ -225,6 +225,13 @@ void BM_NarrowPhase(benchmark::State& state) {  // detectContacts on a fresh can
 }
 BENCHMARK(BM_NarrowPhase)->ArgsProduct({{100, 200}, {1, 2}})->Unit(benchmark::kMillisecond);
 
+// One step's incomplete-Cholesky factor of Γ (prepareFriction first), as Integrator::solve builds
+// it.
+bool factorFriction(const Simulation& sim, IncompleteCholesky& ic) {
+  return ic.factor(sim.cells().numVertices(),
+                   [&](const BlockSink& s) { sim.forEachFrictionBlock(s); });
+}
+
 // One step's solve from a cold start; with incomplete Cholesky the factorisation is included.
 void coldSolve(benchmark::State& state, PreconditionerKind pre) {
   std::string why;
@@ -244,9 +251,7 @@ void coldSolve(benchmark::State& state, PreconditionerKind pre) {
   int iters = 0;
   for (auto _ : state) {
     v = Eigen::VectorXd::Zero(m);
-    if (factored && !ic.factor(sim->cells().numVertices(),
-                               [&](const BlockSink& s) { sim->forEachFrictionBlock(s); }))
-      return state.SkipWithError("factor failed");
+    if (factored && !factorFriction(*sim, ic)) return state.SkipWithError("factor failed");
     iters = solver
                 .solve([&](const double* in, double* out) { sim->applyFriction(in, out); },
                        sim->frictionMatrix(), b, v, factored ? &ic : nullptr)
@@ -272,9 +277,7 @@ void BM_IncompleteCholeskyFactor(benchmark::State& state) {
   sim->prepareFriction();
   IncompleteCholesky ic;
   for (auto _ : state) {
-    if (!ic.factor(sim->cells().numVertices(),
-                   [&](const BlockSink& s) { sim->forEachFrictionBlock(s); }))
-      state.SkipWithError("factor failed");
+    if (!factorFriction(*sim, ic)) state.SkipWithError("factor failed");
   }
   state.counters["blocks"] = static_cast<double>(ic.numStoredBlocks());
   state.counters["shift"] = ic.shift();
@@ -287,9 +290,7 @@ void BM_IncompleteCholeskyApply(benchmark::State& state) {
   if (!sim) return state.SkipWithError(why.c_str());
   sim->prepareFriction();
   IncompleteCholesky ic;
-  if (!ic.factor(sim->cells().numVertices(),
-                 [&](const BlockSink& s) { sim->forEachFrictionBlock(s); }))
-    return state.SkipWithError("factor failed");
+  if (!factorFriction(*sim, ic)) return state.SkipWithError("factor failed");
   const Eigen::Index m = 3 * static_cast<Eigen::Index>(sim->cells().numVertices());
   Eigen::VectorXd r(m), z(m);
   for (Eigen::Index i = 0; i < m; ++i) r[i] = std::sin(0.37 * static_cast<double>(i));

@@ -214,7 +214,6 @@ class Integrator {
   // of the previous solve (ros2's second stage, whose Γ* differs from Γ₀ by O(Δt)): nothing of
   // the factor outlives a step, so rollback and resume need not know about it.
   SolveStats solve(const Eigen::Matrix3Xd& f, Eigen::VectorXd& v, bool reuse_factor = false);
-  const IncompleteCholesky& factor() const { return factor_; }
 
  private:
   IntegratorKind kind_;
