@@ -228,8 +228,9 @@ BENCHMARK(BM_NarrowPhase)->ArgsProduct({{100, 200}, {1, 2}})->Unit(benchmark::kM
 // One step's incomplete-Cholesky factor of Γ (prepareFriction first), as Integrator::solve builds
 // it.
 bool factorFriction(const Simulation& sim, IncompleteCholesky& ic) {
-  return ic.factor(sim.cells().numVertices(),
-                   [&](const BlockSink& s) { sim.forEachFrictionBlock(s); });
+  return ic.factor(
+      sim.cells().numVertices(), [&](const BlockSink& s) { sim.forEachFrictionBlock(s); },
+      sim.cells().cell_vertex_begin);
 }
 
 // One step's solve from a cold start; with incomplete Cholesky the factorisation is included.
@@ -269,11 +270,12 @@ BENCHMARK(BM_ConjugateGradient)->ArgsProduct({{100, 200}, {1, 2}})->Unit(benchma
 // The incomplete-Cholesky preconditioner on the relaxed aggregate's Γ (cells + contact
 // couplings): its factorisation (a step pays it once, ros2 too) and one application (once per CG
 // iteration), and the CG solve it gives from a cold start against BM_ConjugateGradient's Jacobi.
-// Sequential by design (one fixed order: the same bits for any thread count).
+// The second argument is the thread count: the cells of one colour run in parallel.
 void BM_IncompleteCholeskyFactor(benchmark::State& state) {
   std::string why;
   auto sim = relaxedAggregate(static_cast<int>(state.range(0)), true, &why);
   if (!sim) return state.SkipWithError(why.c_str());
+  setThreads(static_cast<int>(state.range(1)));
   sim->prepareFriction();
   IncompleteCholesky ic;
   for (auto _ : state) {
@@ -281,13 +283,37 @@ void BM_IncompleteCholeskyFactor(benchmark::State& state) {
   }
   state.counters["blocks"] = static_cast<double>(ic.numStoredBlocks());
   state.counters["shift"] = ic.shift();
+  state.counters["colours"] = ic.numColours();
 }
-BENCHMARK(BM_IncompleteCholeskyFactor)->Arg(100)->Arg(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_IncompleteCholeskyFactor)
+    ->ArgsProduct({{100, 200}, {1, 2}})
+    ->Unit(benchmark::kMillisecond);
+
+// The factor's input alone: Γ's blocks as the step emits them (cells' assembled blocks and the
+// contact couplings), counted and discarded — the share of BM_IncompleteCholeskyFactor that is
+// not the factorisation (and runs on one thread: a callback in emission order).
+void BM_FrictionBlocks(benchmark::State& state) {
+  std::string why;
+  auto sim = relaxedAggregate(static_cast<int>(state.range(0)), true, &why);
+  if (!sim) return state.SkipWithError(why.c_str());
+  sim->prepareFriction();
+  long count = 0;
+  for (auto _ : state) {
+    count = 0;
+    sim->forEachFrictionBlock([&](int, int, const Eigen::Matrix3d& m) {
+      benchmark::DoNotOptimize(m.data());
+      ++count;
+    });
+  }
+  state.counters["blocks"] = static_cast<double>(count);
+}
+BENCHMARK(BM_FrictionBlocks)->Arg(100)->Arg(200)->Unit(benchmark::kMillisecond);
 
 void BM_IncompleteCholeskyApply(benchmark::State& state) {
   std::string why;
   auto sim = relaxedAggregate(static_cast<int>(state.range(0)), true, &why);
   if (!sim) return state.SkipWithError(why.c_str());
+  setThreads(static_cast<int>(state.range(1)));
   sim->prepareFriction();
   IncompleteCholesky ic;
   if (!factorFriction(*sim, ic)) return state.SkipWithError("factor failed");
@@ -299,7 +325,9 @@ void BM_IncompleteCholeskyApply(benchmark::State& state) {
     benchmark::DoNotOptimize(z.data());
   }
 }
-BENCHMARK(BM_IncompleteCholeskyApply)->Arg(100)->Arg(200)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_IncompleteCholeskyApply)
+    ->ArgsProduct({{100, 200}, {1, 2}})
+    ->Unit(benchmark::kMicrosecond);
 
 void BM_ConjugateGradientIncompleteCholesky(benchmark::State& state) {  // factor + solve, cold
   coldSolve(state, PreconditionerKind::IncompleteCholesky);

@@ -4,6 +4,7 @@
 #include <Eigen/Dense>
 #include <Eigen/SparseCholesky>
 
+#include "activefoam/threads.h"
 #include "test_support.h"
 
 using namespace activefoam;
@@ -232,4 +233,180 @@ TEST(IncompleteCholesky, RefusesWhatIsNotPositiveDefinite) {
     sink(1, 0, 0.1 * Eigen::Matrix3d::Identity());
   }));
   EXPECT_FALSE(ic.factor(1, [&](const BlockSink& sink) { sink(0, 3, neg); }));  // out of range
+}
+
+namespace {
+
+// An SPD matrix of `groups` groups of 2–6 rows (a cell's vertices): a chain inside each group,
+// and couplings between random pairs of groups (contacts), each a dissipative block +c on the
+// two diagonals and −c across.
+struct GroupedMatrix {
+  int n = 0;
+  std::vector<int> group_begin{0};
+  Eigen::MatrixXd a;
+  std::vector<std::pair<int, int>> pairs;  // coupled rows (i > j)
+};
+
+GroupedMatrix groupedMatrix(int groups, Rng& rng) {
+  GroupedMatrix g;
+  for (int k = 0; k < groups; ++k)
+    g.group_begin.push_back(g.group_begin.back() + 2 + static_cast<int>(5 * rng.uniform()) % 5);
+  g.n = g.group_begin.back();
+  g.a = Eigen::MatrixXd::Zero(3 * g.n, 3 * g.n);
+  auto couple = [&](int i, int j) {
+    Eigen::Matrix3d m;
+    for (int k = 0; k < 9; ++k) m(k) = rng.uniform() - 0.5;
+    const Eigen::Matrix3d c = m * m.transpose() + 0.2 * Eigen::Matrix3d::Identity();
+    g.a.block<3, 3>(3 * i, 3 * i) += c;
+    g.a.block<3, 3>(3 * j, 3 * j) += c;
+    g.a.block<3, 3>(3 * i, 3 * j) -= c;
+    g.a.block<3, 3>(3 * j, 3 * i) -= c;
+    g.pairs.emplace_back(std::max(i, j), std::min(i, j));
+  };
+  for (int k = 0; k < groups; ++k)
+    for (int r = g.group_begin[k]; r + 1 < g.group_begin[k + 1]; ++r) couple(r + 1, r);
+  for (int e = 0; e < 3 * groups; ++e) {
+    const int p = static_cast<int>(groups * rng.uniform()) % groups;
+    const int q = static_cast<int>(groups * rng.uniform()) % groups;
+    if (p == q) continue;
+    const int i = g.group_begin[p] +
+                  static_cast<int>(8 * rng.uniform()) % (g.group_begin[p + 1] - g.group_begin[p]);
+    const int j = g.group_begin[q] +
+                  static_cast<int>(8 * rng.uniform()) % (g.group_begin[q + 1] - g.group_begin[q]);
+    couple(i, j);
+  }
+  for (int i = 0; i < g.n; ++i) g.a.block<3, 3>(3 * i, 3 * i) += 0.05 * Eigen::Matrix3d::Identity();
+  return g;
+}
+
+// Emits g's blocks in the row numbering `at` (identity if empty): diagonals, then the pairs.
+void emitGrouped(const GroupedMatrix& g, const std::vector<int>& at, const BlockSink& sink) {
+  auto id = [&](int i) { return at.empty() ? i : at[i]; };
+  for (int i = 0; i < g.n; ++i) sink(id(i), id(i), g.a.block<3, 3>(3 * i, 3 * i));
+  for (auto [i, j] : g.pairs) sink(id(i), id(j), g.a.block<3, 3>(3 * i, 3 * j));
+}
+
+}  // namespace
+
+// With groups, the factor is IC(0) of P A Pᵀ, P ordering the groups by a colouring in which no
+// two groups of one colour are coupled: the plain factor of the renumbered matrix, rows kept
+// together and in order inside their group.
+TEST(IncompleteCholesky, GroupsAreFactoredColourByColour) {
+  Rng rng(17, 3);
+  const GroupedMatrix g = groupedMatrix(30, rng);
+  IncompleteCholesky grouped, plain;
+  ASSERT_TRUE(grouped.factor(
+      g.n, [&](const BlockSink& s) { emitGrouped(g, {}, s); }, g.group_begin));
+  const std::vector<int>& p = grouped.permutation();
+  ASSERT_EQ(static_cast<int>(p.size()), g.n);
+  std::vector<int> seen(g.n, 0);
+  for (int i = 0; i < g.n; ++i) ++seen[p[i]];
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), g.n);
+  for (std::size_t k = 0; k + 1 < g.group_begin.size(); ++k)
+    for (int r = g.group_begin[k]; r + 1 < g.group_begin[k + 1]; ++r) EXPECT_EQ(p[r + 1], p[r] + 1);
+  EXPECT_GT(grouped.numColours(), 1);
+  EXPECT_LT(grouped.numColours(), 12);  // greedy: at most the largest degree + 1
+  for (auto [i, j] : g.pairs) {         // coupled rows of two groups are never of one colour
+    const auto group = [&](int r) {
+      return std::upper_bound(g.group_begin.begin(), g.group_begin.end(), r) -
+             g.group_begin.begin();
+    };
+    if (group(i) != group(j)) {
+      EXPECT_NE(grouped.colourOfRow(p[i]), grouped.colourOfRow(p[j]));
+    }
+  }
+  ASSERT_TRUE(plain.factor(g.n, [&](const BlockSink& s) { emitGrouped(g, p, s); }));
+  EXPECT_EQ(plain.numStoredBlocks(), grouped.numStoredBlocks());
+  Eigen::VectorXd r(3 * g.n), rp(3 * g.n), z(3 * g.n), zp(3 * g.n);
+  for (Eigen::Index k = 0; k < r.size(); ++k) r[k] = rng.uniform() - 0.5;
+  for (int i = 0; i < g.n; ++i) rp.segment<3>(3 * p[i]) = r.segment<3>(3 * i);
+  grouped.apply(r.data(), z.data());
+  plain.apply(rp.data(), zp.data());
+  Eigen::VectorXd zback(3 * g.n);  // the plain solution in the caller's numbering
+  for (int i = 0; i < g.n; ++i) zback.segment<3>(3 * i) = zp.segment<3>(3 * p[i]);
+  // Not the same bits: the grouped backward solve gathers the couplings between groups that the
+  // plain one scatters.
+  EXPECT_LT((z - zback).norm(), 1e-13 * z.norm());
+  // And it preconditions CG to the solution.
+  const SpMat sparse = g.a.sparseView();
+  LinearSolver cg(PreconditionerKind::IncompleteCholesky, 1e-12, 200);
+  Eigen::VectorXd v = Eigen::VectorXd::Zero(3 * g.n);
+  LinearSolver jacobi(PreconditionerKind::Jacobi, 1e-12, 2000);
+  Eigen::VectorXd w = Eigen::VectorXd::Zero(3 * g.n);
+  BlockMatrix diagonal;  // the Jacobi preconditioner's blocks
+  diagonal.setPattern(g.n, {});
+  for (int i = 0; i < g.n; ++i) diagonal.addDiagonal(i, g.a.block<3, 3>(3 * i, 3 * i));
+  const auto product = [&](const double* in, double* out) {
+    Eigen::Map<Eigen::VectorXd>(out, 3 * g.n) =
+        g.a * Eigen::Map<const Eigen::VectorXd>(in, 3 * g.n);
+  };
+  const SolveStats s = cg.solve(product, diagonal, r, v, &grouped);
+  const SolveStats sj = jacobi.solve(product, diagonal, r, w);
+  EXPECT_TRUE(s.converged);
+  EXPECT_LT((g.a * v - r).norm(), 1e-10 * r.norm());
+  EXPECT_LT(s.iterations, sj.iterations);
+}
+
+// The groups of one colour run in parallel: factor and application give the same bits on 1, 2
+// and 3 threads (a fine grain so that every parallel path is taken).
+TEST(IncompleteCholesky, GroupedFactorIsTheSameForAnyThreadCount) {
+  Rng rng(17, 4);
+  const GroupedMatrix g = groupedMatrix(60, rng);
+  Eigen::VectorXd r(3 * g.n);
+  for (Eigen::Index k = 0; k < r.size(); ++k) r[k] = rng.uniform() - 0.5;
+  const int saved_threads = threads();
+  const Grain saved_grain = grain();
+  setGrain(Grain{64, 0});
+  std::vector<Eigen::VectorXd> z;
+  for (int t : {1, 2, 3}) {
+    setThreads(t);
+    IncompleteCholesky ic;
+    ASSERT_TRUE(ic.factor(
+        g.n, [&](const BlockSink& s) { emitGrouped(g, {}, s); }, g.group_begin));
+    z.emplace_back(3 * g.n);
+    ic.apply(r.data(), z.back().data());
+  }
+  setThreads(saved_threads);
+  setGrain(saved_grain);
+  for (std::size_t k = 1; k < z.size(); ++k)
+    for (Eigen::Index i = 0; i < r.size(); ++i) ASSERT_EQ(z[0][i], z[k][i]) << "entry " << i;
+}
+
+TEST(IncompleteCholesky, RefusesGroupsThatDoNotTileTheRows) {
+  IncompleteCholesky ic;
+  const auto diagonal = [](const BlockSink& sink) {
+    for (int i = 0; i < 4; ++i) sink(i, i, Eigen::Matrix3d::Identity());
+  };
+  EXPECT_TRUE(ic.factor(4, diagonal, {0, 1, 4}));
+  EXPECT_FALSE(ic.factor(4, diagonal, {0, 3}));        // row 3 in no group
+  EXPECT_FALSE(ic.factor(4, diagonal, {0, 3, 2, 4}));  // decreasing
+  EXPECT_FALSE(ic.factor(4, diagonal, {1, 4}));        // row 0 in no group
+  EXPECT_TRUE(ic.empty());
+}
+
+// A breakdown is retried on A + α diag(A), α doubling from 1e-3: here the second pivot,
+// (1 + α) − 1.5² / (1 + α), first turns positive at α = 1e-3 · 2⁹ = 0.512. The retry starts
+// from A again (the failed try overwrote it), so the factor is exactly that of the shifted A.
+TEST(IncompleteCholesky, RetriesABreakdownWithAShiftedDiagonal) {
+  const Eigen::Matrix3d id = Eigen::Matrix3d::Identity();
+  for (const std::vector<int>& groups : {std::vector<int>{}, std::vector<int>{0, 1, 2}}) {
+    IncompleteCholesky ic;
+    ASSERT_TRUE(ic.factor(
+        2,
+        [&](const BlockSink& sink) {
+          sink(0, 0, id);
+          sink(1, 0, 1.5 * id);
+          sink(1, 1, id);
+        },
+        groups));
+    EXPECT_DOUBLE_EQ(ic.shift(), 0.512);
+    Eigen::MatrixXd shifted = Eigen::MatrixXd::Zero(6, 6);
+    shifted.topLeftCorner(3, 3) = shifted.bottomRightCorner(3, 3) = 1.512 * id;
+    shifted.topRightCorner(3, 3) = shifted.bottomLeftCorner(3, 3) = 1.5 * id;
+    Eigen::VectorXd x(6), z(6);
+    x << 1, -2, 0.5, 3, 0.25, -1;
+    const Eigen::VectorXd r = shifted * x;
+    ic.apply(r.data(), z.data());  // no fill to drop: the exact inverse of the shifted matrix
+    EXPECT_LT((z - x).norm(), 1e-9 * x.norm());
+  }
 }

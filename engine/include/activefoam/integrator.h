@@ -223,6 +223,7 @@ class Integrator {
   LinearSolver solver_;
   PreconditionerKind preconditioner_;
   IncompleteCholesky factor_;
+  std::vector<int> cell_vertex_begin_;  // of the cells Γ was prepared for
 };
 
 }  // namespace activefoam

@@ -321,6 +321,7 @@ void Integrator::prepareFriction(const StepContext& ctx, const Terms& terms) {
   } else {
     gamma_.setZero();
   }
+  cell_vertex_begin_ = ctx.cells.cell_vertex_begin;
   product_terms_.clear();
   for (const auto& term : terms) {
     if (term->hasCouplingProduct()) {
@@ -347,8 +348,11 @@ SolveStats Integrator::solve(const Eigen::Matrix3Xd& f, Eigen::VectorXd& v, bool
   const IncompleteCholesky* factor = nullptr;
   if (preconditioner_ == PreconditionerKind::IncompleteCholesky) {
     if (!reuse_factor || factor_.numBlocks() != gamma_.numBlocks()) {
-      const bool ok = factor_.factor(gamma_.numBlocks(),
-                                     [this](const BlockSink& sink) { forEachFrictionBlock(sink); });
+      // The cells are the factor's groups: its triangular solves run the cells of one colour
+      // (no two of them in contact) in parallel.
+      const bool ok = factor_.factor(
+          gamma_.numBlocks(), [this](const BlockSink& sink) { forEachFrictionBlock(sink); },
+          cell_vertex_begin_);
       if (!ok) {
         // Γ is SPD whenever the step is sane; a factor that breaks down at every shift means
         // non-finite entries, which the CG guard reports.
