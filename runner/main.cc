@@ -345,6 +345,8 @@ int main(int argc, char** argv) {
   // foamd refuses these; foam-run runs them (measuring where methods fail is a study's job).
   for (const SpecError& e : measuredUnstable(spec))
     std::cerr << "foam-run: warning: " << e.str() << "; running anyway\n";
+  for (const SpecError& e : silentlyWrong(spec))
+    std::cerr << "foam-run: warning: " << e.str() << "; running anyway\n";
 
   // ---- the output folder
   const fs::path dir = args.out;

@@ -172,6 +172,11 @@ ConvertResult convertSpec(const v1::SceneSpec& typed, std::string_view spec_text
     out.errors = unstable;
     return out;
   }
+  // Likewise a run that would "succeed" with a wrong answer (a gap the adhesion cannot close).
+  if (auto wrong = silentlyWrong(*ready.spec); !wrong.empty()) {
+    out.errors = wrong;
+    return out;
+  }
   if (!sceneAvailable(ready.spec->scene)) {
     std::string avail;
     for (SceneKind k :

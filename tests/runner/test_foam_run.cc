@@ -120,6 +120,23 @@ TEST_F(FoamRun, InvalidSpecExits2NamingTheKeyAndWritesNothing) {
   }
 }
 
+// A gap beyond the adhesion range runs (a study may want it) but is named on stderr: foamd
+// refuses the same spec (SpecConvert.AGapBeyondTheAdhesionRangeIsRefusedAndTheDefaultIsInsideIt).
+TEST_F(FoamRun, AGapBeyondTheAdhesionRangeRunsWithAWarning) {
+  if (engineMissing()) GTEST_SKIP() << "no engine in this build";
+  const fs::path s = spec(
+      "scene = \"doublet\"\nduration_s = 1\nsample_every_s = 0.5\nsnapshot_every_s = 0\n"
+      "[cells]\nalpha = 0.9\n[scene]\ngap_um = 0.05\n[numerics]\ntriangles_per_cell = 80\n");
+  const Result r = run(quote(s.string()) + " -q --out " + quote((dir_ / "o").string()));
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("foam-run: warning: scene.gap_um: 0.05 µm is at or beyond the adhesion "
+                       "range h0 = √(w/k_AB) = 0.0265"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("running anyway"), std::string::npos) << r.err;
+  EXPECT_TRUE(fs::exists(dir_ / "o" / "summary.json"));
+}
+
 TEST_F(FoamRun, TheDesignExampleMessage) {
   const fs::path s = spec("scene = \"cell\"\n[numerics]\ndt_s = -1\n");
   const Result r = run(quote(s.string()) + " --out " + quote((dir_ / "o").string()));

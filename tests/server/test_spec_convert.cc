@@ -3,6 +3,7 @@
 
 #include <google/protobuf/descriptor.h>
 
+#include <cmath>
 #include <set>
 
 #include "activefoam/spec.h"
@@ -71,7 +72,7 @@ TEST(SpecConvert, RoundTripThroughProto) {
   s.snapshot_every_s = 5;
   s.cells.alpha = 0.5;
   s.numerics.triangles_per_cell = 80;
-  s.scene_params.gap_um = 0.1;
+  s.scene_params.gap_um = 0.03;  // inside h0 = 59 nm at α = 0.5
   const SceneSpec resolved = resolve(s);
   const ConvertResult r = convertSpec(toProto(resolved));
   ASSERT_TRUE(r.ok()) << errorText(r.errors);
@@ -137,6 +138,31 @@ TEST(SpecConvert, AnAccuracyTargetPicksAPresetAndTheStoredSpecRecordsIt) {
   const ConvertResult bad = convertSpec(m);
   ASSERT_FALSE(bad.ok());
   EXPECT_EQ(bad.errors[0].field, "accuracy.trajectory_deg");
+}
+
+// A gap the adhesion cannot close would "succeed" with cells that never touch: refused, naming
+// the gap, the adhesion range and the keys it comes from. Unset, the gap lies inside the range.
+TEST(SpecConvert, AGapBeyondTheAdhesionRangeIsRefusedAndTheDefaultIsInsideIt) {
+  v1::SceneSpec m;
+  m.mutable_doublet()->set_gap_um(0.05);
+  m.set_duration_s(10);
+  m.set_sample_every_s(1);
+  m.mutable_cells()->set_alpha(0.9);  // h0 = √(0.1 γ / k_AB) = 26.5 nm
+  ConvertResult r = convertSpec(m);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.errors[0].field, "scene.gap_um");
+  for (const char* part :
+       {"h0 = √(w/k_AB) = 0.0265", "cells.alpha = 0.9", "cells.k_contact", "allowed [0, 0.0265"})
+    EXPECT_NE(r.errors[0].message.find(part), std::string::npos) << r.errors[0].message;
+  m.mutable_doublet()->clear_gap_um();
+  r = convertSpec(m);
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  const double h0 = std::sqrt(0.1 * 0.5 / 71.1);
+  EXPECT_DOUBLE_EQ(*r.spec->scene_params.gap_um, 0.8 * h0);
+  m.mutable_cells()->clear_alpha();  // the defaults: h0 = 63 nm, the supplement's 50 nm gap
+  r = convertSpec(m);
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_DOUBLE_EQ(*r.spec->scene_params.gap_um, 0.05);
 }
 
 TEST(SpecConvert, SettingsTheStabilityStudyMeasuredToFailAreRefusedNamingTheLimit) {

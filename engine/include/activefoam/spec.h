@@ -91,8 +91,10 @@ struct NumericsParams {
 };
 
 struct SceneParams {
-  double axes_ratio = 1.3;     // cell: start as ellipsoid (q r, r, r/q) at equal volume; 1 = sphere
-  double gap_um = 0.05;        // doublet / fusion: initial gap between the two cells / spheroids
+  double axes_ratio = 1.3;  // cell: start as ellipsoid (q r, r, r/q) at equal volume; 1 = sphere
+  // doublet / fusion: initial gap between the two cells / spheroids, µm; unset: defaultGapUm,
+  // inside the adhesion range (a gap beyond h0 = √(w/k_AB) never closes for passive cells).
+  std::optional<double> gap_um;
   std::int64_t n_cells = 100;  // spheroid: N; fusion: N per spheroid unless a/b are given
   std::int64_t n_cells_a = 0;  // fusion: cells in spheroid A (0 = n_cells)
   std::int64_t n_cells_b = 0;  // fusion: cells in spheroid B (0 = n_cells)
@@ -266,5 +268,15 @@ inline constexpr double kMaxSnapshots = 1.0e5;       // duration_s / snapshot_ev
 double tauShell(const CellParams& c);        // η / (2√3 γ)
 double adhesionW(const CellParams& c);       // w = (1 − α) γ
 double contactRangeH0(const CellParams& c);  // h0 = √(w / k_AB)
+// The initial gap of doublet and fusion when scene.gap_um is unset: min(0.05 µm, 0.8 h0) — the
+// supplement's 50 nm where that is inside the adhesion range (all defaults: h0 = 63 nm), closer
+// where weak adhesion or stiff contacts shrink the range (α = 0.9: h0 = 26 nm).
+double defaultGapUm(const CellParams& c);
+// scene.gap_um, or its default.
+double initialGapUm(const SceneSpec& spec);
+// Settings that run but are known to give a wrong answer without failing: an initial gap of
+// doublet or fusion at or beyond the adhesion range (the cells or spheroids never touch). foamd
+// refuses them; foam-run warns.
+std::vector<SpecError> silentlyWrong(const SceneSpec& spec);
 
 }  // namespace activefoam

@@ -15,9 +15,8 @@ SceneSpec doubletStudySpec(const NumericsParams& numerics, double pa_reduced, do
   s.cells.radius_gamma_k = 0;  // equal radii
   s.cells.p_a = pa_reduced * 2 * s.cells.gamma / s.cells.radius_mean_um;
   s.cells.k_contact *= k_factor;
-  // Start within contact range: h0 = √(w/k_AB) shrinks with stiffer contacts (k_AB × 4 puts the
-  // default 50 nm gap outside it, and passive cells would never touch).
-  s.scene_params.gap_um = std::min(s.scene_params.gap_um, 0.8 * contactRangeH0(s.cells));
+  // The gap is left to its default, min(50 nm, 0.8 h0): h0 = √(w/k_AB) shrinks with stiffer
+  // contacts (k_AB × 4 puts 50 nm outside it, and passive cells would never touch).
   s.numerics = numerics;
   return resolve(s);
 }

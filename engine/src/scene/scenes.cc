@@ -104,7 +104,7 @@ CellSet buildScene(const SceneSpec& spec) {
       const double ra = drawRadius(spec.cells, rng), rb = drawRadius(spec.cells, rng);
       TriMesh a = ellipsoidCell(ra, 1.0, tris, Vec3::Zero());
       TriMesh b = ellipsoidCell(rb, 1.0, tris, Vec3::Zero());
-      const double shift = a.x.row(0).maxCoeff() - b.x.row(0).minCoeff() + spec.scene_params.gap_um;
+      const double shift = a.x.row(0).maxCoeff() - b.x.row(0).minCoeff() + initialGapUm(spec);
       b.x.row(0).array() += shift;
       cells.addCell(a, ra);
       cells.addCell(b, rb);

@@ -289,11 +289,12 @@ CellSet buildFusionCells(const SceneSpec& spec, const SpheroidCache* cache, cons
       prepareSpheroid(spheroidPrepSpec(spec, nb, spheroidSeed(spec.seed, 1)), cache, obs);
   // Touching: first the extremes gap_um apart, then B moved towards A until the closest points
   // straight across are gap_um apart (lumpy aggregates touch off their extremes).
-  double shift = a.cells.x.row(0).maxCoeff() - b.cells.x.row(0).minCoeff() + sp.gap_um;
+  const double gap = initialGapUm(spec);
+  double shift = a.cells.x.row(0).maxCoeff() - b.cells.x.row(0).minCoeff() + gap;
   b.cells.x.row(0).array() += shift;
   const double clearance = clearanceAlongX(a.cells, b.cells, 2 * spec.cells.radius_mean_um);
   b.cells.x.row(0).array() -= shift;
-  if (std::isfinite(clearance)) shift -= clearance - sp.gap_um;
+  if (std::isfinite(clearance)) shift -= clearance - gap;
   CellSet cells;
   Rng rng(spec.seed, 0);
   for (int s = 0; s < 2; ++s) {

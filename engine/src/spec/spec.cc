@@ -207,7 +207,8 @@ const std::vector<Entry>& entries() {
                  [](SceneSpec& s) -> Slot { return &s.scene_params.axes_ratio; }});
     t.push_back({real("scene.gap_um", kClosed, 0, 10, kClosed, "µm",
                       "doublet: initial gap between the two cells; fusion: between the two "
-                      "spheroids"),
+                      "spheroids; unset: min(0.05, 0.8 h0), h0 = √(w/k_AB) the adhesion range",
+                      true),
                  [](SceneSpec& s) -> Slot { return &s.scene_params.gap_um; }});
     t.push_back(
         {integer("scene.n_cells", 1, 2000, "spheroid: number of cells N; fusion: N per spheroid"),
@@ -342,6 +343,7 @@ SceneSpec resolveUnchecked(const SceneSpec& spec) {
   const double ts = tauShell(c);
   if (!c.tau_k_s) c.tau_k_s = 2.0 * ts;
   if (!r.numerics.remesh_every_s) r.numerics.remesh_every_s = 5.0 * ts;
+  if (!r.scene_params.gap_um) r.scene_params.gap_um = defaultGapUm(c);
   if (!r.numerics.dt_min_s) r.numerics.dt_min_s = r.numerics.dt_s / 64;
   if (!c.xi_normal) c.xi_normal = c.xi;
   if (!c.xi_tangential) c.xi_tangential = c.xi;
@@ -773,6 +775,32 @@ double adhesionW(const CellParams& c) {
 }
 double contactRangeH0(const CellParams& c) {
   return std::sqrt(adhesionW(c) / c.k_contact);
+}
+double defaultGapUm(const CellParams& c) {
+  return std::min(0.05, 0.8 * contactRangeH0(c));
+}
+
+double initialGapUm(const SceneSpec& spec) {
+  return spec.scene_params.gap_um.value_or(defaultGapUm(spec.cells));
+}
+
+std::vector<SpecError> silentlyWrong(const SceneSpec& spec) {
+  std::vector<SpecError> out;
+  if (spec.scene != SceneKind::Doublet && spec.scene != SceneKind::Fusion) return out;
+  const SceneSpec r = resolveUnchecked(spec);
+  const double h0 = contactRangeH0(r.cells), gap = *r.scene_params.gap_um;
+  if (gap >= h0)
+    out.push_back({"scene.gap_um",
+                   formatNumber(gap) + " µm is at or beyond the adhesion range h0 = √(w/k_AB) = " +
+                       formatNumber(h0) + " µm (cells.alpha = " + formatNumber(r.cells.alpha) +
+                       ", cells.gamma = " + formatNumber(r.cells.gamma) +
+                       " nN/µm, cells.k_contact = " + formatNumber(r.cells.k_contact) +
+                       " nN/µm³): the " +
+                       (spec.scene == SceneKind::Doublet ? "cells" : "spheroids") +
+                       " would not touch unless motility brings them together; allowed [0, " +
+                       formatNumber(h0) + ") µm, or leave it unset (default min(0.05, 0.8 h0) = " +
+                       formatNumber(defaultGapUm(r.cells)) + " µm)"});
+  return out;
 }
 
 std::string formatNumber(double v) {
