@@ -24,7 +24,8 @@ SceneSpec smallFusion() {
   s.seed = 5;
   s.scene_params.n_cells_a = 3;
   s.scene_params.n_cells_b = 4;
-  s.scene_params.prep_max_s = 10;
+  s.scene_params.prep_max_s = 10;  // not compact: a few steps of relaxation suffice here
+  s.scene_params.allow_uncompacted = true;
   s.numerics.triangles_per_cell = 80;
   s.numerics.dt_s = 0.5;
   s.duration_s = 10;
@@ -122,6 +123,34 @@ TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
   EXPECT_FALSE(redone.from_cache);
   EXPECT_EQ(redone.cells.x, first.cells.x);  // deterministic in its seed
   EXPECT_TRUE(cache.load(prep).has_value());
+}
+
+// A spheroid still compacting would fuse while it shrinks (issue 16): unless the spec allows
+// it, the job fails with preparation-failed, naming the rate reached and the limit — also when
+// the uncompacted spheroid comes from the cache.
+TEST(FusionScene, AnUncompactedSpheroidFailsThePreparationNamingItsRate) {
+  TempDir dir;
+  SceneSpec s = smallFusion();
+  s.scene_params.allow_uncompacted = false;
+  s.scene_params.prep_max_s = 70;  // one 60 s window measured; compact needs ≥ 120 s
+  RunObserver obs;
+  obs.spheroid_cache_dir = dir.path.string();
+  for (int pass = 0; pass < 2; ++pass) {  // prepared, then from the cache
+    const RunSummary r = runScene(s, obs);
+    EXPECT_EQ(r.failure, FailureKind::PreparationFailed) << r.reason;
+    EXPECT_EQ(r.steps, 0);
+    for (const char* part :
+         {"spheroid A (3 cells) is not compact after scene.prep_max_s = 70 s", "changes by ",
+          "the limit scene.compact_rate_per_s is 5e-5 /s", "scene.allow_uncompacted = true"})
+      EXPECT_NE(r.reason.find(part), std::string::npos) << part << "\n" << r.reason;
+    EXPECT_EQ(r.reason.find("not measured"), std::string::npos) << r.reason;
+  }
+  s.scene_params.allow_uncompacted = true;
+  const RunSummary r = runScene(s, obs);
+  EXPECT_TRUE(r.ok()) << r.reason;
+  s.scene_params.allow_uncompacted = false;  // no relaxation asked for: the packed cells
+  s.scene_params.prep_max_s = 0;
+  EXPECT_TRUE(runScene(s, obs).ok());
 }
 
 TEST(FusionScene, SamplesFitsAndResumeFromCheckpoint) {

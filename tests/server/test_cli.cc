@@ -212,7 +212,8 @@ TEST(Cli, FusionJobResultsPlotAndExport) {
   const std::string submit =
       d.foam() +
       " submit --scene fusion --set scene.n_cells_a=3 --set scene.n_cells_b=3"
-      " --set scene.prep_max_s=10 --set numerics.dt_s=0.1 --set duration_s=20"
+      " --set scene.prep_max_s=10 --set scene.allow_uncompacted=true"
+      " --set numerics.dt_s=0.1 --set duration_s=20"
       " --set sample_every_s=1 --set numerics.triangles_per_cell=80 --set snapshot_every_s=10"
       " --wait 2>/dev/null";
   Proc r;

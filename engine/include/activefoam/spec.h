@@ -102,6 +102,9 @@ struct SceneParams {
   double prep_dt_s = 0.5;            // time step of the relaxation (contact-implicit)
   double prep_max_s = 1800;          // longest relaxation, s (0: the packed cells as they are)
   double compact_rate_per_s = 5e-5;  // compact: |ΔRg|/Rg over 60 s below this × 60 s
+  // A spheroid not compact after prep_max_s (> 0) fails the job unless this is set (its rate of
+  // compaction is named). prep_max_s = 0 asks for the packed cells as they are.
+  bool allow_uncompacted = false;
 
   friend bool operator==(const SceneParams&, const SceneParams&) = default;
 };

@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -20,6 +21,9 @@ struct PreparedSpheroid {
   double relaxed_s = 0;           // simulated time of the relaxation
   bool compact = false;           // the compaction criterion was met (else stopped at prep_max_s)
   double radius_gyration_um = 0;  // at the end of the relaxation
+  // |dRg/dt|/Rg over the last 60 s window (1/s); NaN before the first window, and for spheroids
+  // cached by versions that did not store it.
+  double compaction_rate_per_s = std::numeric_limits<double>::quiet_NaN();
   bool from_cache = false;
   std::string key;  // the cache key (16 hex digits)
 };

@@ -78,6 +78,9 @@ std::string specFingerprint(const SceneSpec& spec) {
     if (f.key == "numerics.preset" || f.key.rfind("accuracy.", 0) == 0) continue;
     // Keys added with the adaptive time step, left out at their defaults (see spec.h).
     if (f.key == "numerics.adaptive" && spec.numerics.adaptive) continue;
+    // Changes no state: whether a run may start from uncompacted spheroids (left out at its
+    // default, so that keys of earlier versions stay valid).
+    if (f.key == "scene.allow_uncompacted" && !spec.scene_params.allow_uncompacted) continue;
     if (f.key == "numerics.dt_min_s" &&
         spec.numerics.dt_min_s.value_or(spec.numerics.dt_s / 64) == spec.numerics.dt_s / 64)
       continue;

@@ -169,6 +169,7 @@ std::optional<PreparedSpheroid> SpheroidCache::load(const SceneSpec& prep) const
     s.compact = r.pod<std::uint8_t>() != 0;
     s.radius_gyration_um = r.pod<double>();
     s.cells = deserializeCells(r.str());
+    if (!r.done()) s.compaction_rate_per_s = r.pod<double>();  // absent in older files
     if (!r.done() || s.cells.numCells() != prep.scene_params.n_cells) return std::nullopt;
     s.from_cache = true;
     s.key = spheroidCacheKey(prep);
@@ -189,6 +190,7 @@ void SpheroidCache::store(const SceneSpec& prep, const PreparedSpheroid& s) cons
   w.pod(static_cast<std::uint8_t>(s.compact));
   w.pod(s.radius_gyration_um);
   w.str(serializeCells(s.cells));
+  w.pod(s.compaction_rate_per_s);
   const std::string data = w.take();
   const fs::path file = cacheFile(dir_, prep);
   // Unique temporary name per writer: two runs preparing the same spheroid do not collide.
@@ -252,6 +254,7 @@ PreparedSpheroid prepareSpheroid(const SceneSpec& prep, const SpheroidCache* cac
       const double now = rg();
       const double rate = std::abs(now - rg_prev) / now / kWindowS;
       rg_prev = now;
+      out.compaction_rate_per_s = rate;
       log("  relaxing: t = " + formatNumber(sim.time()) + " s, radius of gyration " +
           formatNumber(std::round(now * 1000) / 1000) +
           " µm, |dRg/dt|/Rg = " + formatNumber(std::round(rate * 1e8) / 1e8) + " /s");
@@ -287,6 +290,22 @@ CellSet buildFusionCells(const SceneSpec& spec, const SpheroidCache* cache, cons
       prepareSpheroid(spheroidPrepSpec(spec, na, spheroidSeed(spec.seed, 0)), cache, obs);
   PreparedSpheroid b =
       prepareSpheroid(spheroidPrepSpec(spec, nb, spheroidSeed(spec.seed, 1)), cache, obs);
+  // A spheroid still compacting would fuse while it shrinks: θ(t) and the fits would mix the
+  // two (issue 16). prep_max_s = 0 asks for the packed cells as they are.
+  if (sp.prep_max_s > 0 && !sp.allow_uncompacted)
+    for (const PreparedSpheroid* s : {&a, &b})
+      if (!s->compact)
+        throw PrepFailed(
+            std::string("spheroid ") + (s == &a ? "A" : "B") + " (" +
+            std::to_string(s == &a ? na : nb) + " cells) is not compact after scene.prep_max_s = " +
+            formatNumber(sp.prep_max_s) + " s: its radius of gyration changes by " +
+            (std::isnan(s->compaction_rate_per_s)
+                 ? std::string("a rate not measured (no 60 s window completed, or cached by an "
+                               "earlier version)")
+                 : formatNumber(std::round(s->compaction_rate_per_s * 1e8) / 1e8) + " /s") +
+            ", the limit scene.compact_rate_per_s is " + formatNumber(sp.compact_rate_per_s) +
+            " /s; raise scene.prep_max_s, or set scene.allow_uncompacted = true to fuse it as it "
+            "is");
   // Touching: first the extremes gap_um apart, then B moved towards A until the closest points
   // straight across are gap_um apart (lumpy aggregates touch off their extremes).
   const double gap = initialGapUm(spec);

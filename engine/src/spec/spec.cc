@@ -228,6 +228,10 @@ const std::vector<Entry>& entries() {
                       "fusion: a spheroid is prepared (compact) when its radius of "
                       "gyration changes by less than this (relative, per second) over 60 s"),
                  [](SceneSpec& s) -> Slot { return &s.scene_params.compact_rate_per_s; }});
+    t.push_back({boolean("scene.allow_uncompacted",
+                         "fusion: fuse spheroids that are not compact after scene.prep_max_s "
+                         "as they are; false: the job fails with preparation-failed"),
+                 [](SceneSpec& s) -> Slot { return &s.scene_params.allow_uncompacted; }});
     // ---- [accuracy]
     t.push_back({real("accuracy.contact_angle_deg", kOpen, 0, 90, kClosed, "°",
                       "accuracy target instead of numerics: largest acceptable error of the "
