@@ -270,13 +270,22 @@ BENCHMARK(BM_ConjugateGradient)->ArgsProduct({{100, 200}, {1, 2}})->Unit(benchma
 // The incomplete-Cholesky preconditioner on the relaxed aggregate's Γ (cells + contact
 // couplings): its factorisation (a step pays it once, ros2 too) and one application (once per CG
 // iteration), and the CG solve it gives from a cold start against BM_ConjugateGradient's Jacobi.
-// The second argument is the thread count: the cells of one colour run in parallel.
-void BM_IncompleteCholeskyFactor(benchmark::State& state) {
+// Arguments: cells; threads (the cells of one colour run in parallel), 1 if absent.
+std::unique_ptr<Simulation> preparedAggregate(benchmark::State& state) {
   std::string why;
   auto sim = relaxedAggregate(static_cast<int>(state.range(0)), true, &why);
-  if (!sim) return state.SkipWithError(why.c_str());
+  if (!sim) {
+    state.SkipWithError(why.c_str());
+    return nullptr;
+  }
   setThreads(static_cast<int>(state.range(1)));
   sim->prepareFriction();
+  return sim;
+}
+
+void BM_IncompleteCholeskyFactor(benchmark::State& state) {
+  auto sim = preparedAggregate(state);
+  if (!sim) return;
   IncompleteCholesky ic;
   for (auto _ : state) {
     if (!factorFriction(*sim, ic)) state.SkipWithError("factor failed");
@@ -293,10 +302,8 @@ BENCHMARK(BM_IncompleteCholeskyFactor)
 // contact couplings), counted and discarded — the share of BM_IncompleteCholeskyFactor that is
 // not the factorisation (and runs on one thread: a callback in emission order).
 void BM_FrictionBlocks(benchmark::State& state) {
-  std::string why;
-  auto sim = relaxedAggregate(static_cast<int>(state.range(0)), true, &why);
-  if (!sim) return state.SkipWithError(why.c_str());
-  sim->prepareFriction();
+  auto sim = preparedAggregate(state);
+  if (!sim) return;
   long count = 0;
   for (auto _ : state) {
     count = 0;
@@ -307,14 +314,11 @@ void BM_FrictionBlocks(benchmark::State& state) {
   }
   state.counters["blocks"] = static_cast<double>(count);
 }
-BENCHMARK(BM_FrictionBlocks)->Arg(100)->Arg(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_FrictionBlocks)->Args({100, 1})->Args({200, 1})->Unit(benchmark::kMillisecond);
 
 void BM_IncompleteCholeskyApply(benchmark::State& state) {
-  std::string why;
-  auto sim = relaxedAggregate(static_cast<int>(state.range(0)), true, &why);
-  if (!sim) return state.SkipWithError(why.c_str());
-  setThreads(static_cast<int>(state.range(1)));
-  sim->prepareFriction();
+  auto sim = preparedAggregate(state);
+  if (!sim) return;
   IncompleteCholesky ic;
   if (!factorFriction(*sim, ic)) return state.SkipWithError("factor failed");
   const Eigen::Index m = 3 * static_cast<Eigen::Index>(sim->cells().numVertices());
