@@ -1,6 +1,8 @@
 // The assembled friction matrix and the CG solve.
 #include <gtest/gtest.h>
 
+#include <numeric>
+
 #include <Eigen/Dense>
 #include <Eigen/SparseCholesky>
 
@@ -409,4 +411,28 @@ TEST(IncompleteCholesky, RetriesABreakdownWithAShiftedDiagonal) {
     ic.apply(r.data(), z.data());  // no fill to drop: the exact inverse of the shifted matrix
     EXPECT_LT((z - x).norm(), 1e-9 * x.norm());
   }
+}
+
+// Beyond kMaxColouredGroups the colouring's bit matrix would grow too large: the rows are then
+// one sequence in their own order — exactly the plain factor.
+TEST(IncompleteCholesky, TooManyGroupsAreOneSequence) {
+  const int n = IncompleteCholesky::kMaxColouredGroups + 1;
+  std::vector<int> groups(n + 1);
+  std::iota(groups.begin(), groups.end(), 0);  // a group per row
+  const auto chain = [&](const BlockSink& sink) {
+    for (int i = 0; i < n; ++i) {
+      sink(i, i, (2.5 + 0.1 * (i % 7)) * Eigen::Matrix3d::Identity());
+      if (i > 0) sink(i, i - 1, -Eigen::Matrix3d::Identity());
+    }
+  };
+  IncompleteCholesky grouped, plain;
+  ASSERT_TRUE(grouped.factor(n, chain, groups));
+  ASSERT_TRUE(plain.factor(n, chain));
+  EXPECT_EQ(grouped.numColours(), 1);
+  for (int i = 0; i < n; ++i) ASSERT_EQ(grouped.permutation()[i], i);
+  Eigen::VectorXd r(3 * n), z1(3 * n), z2(3 * n);
+  for (Eigen::Index k = 0; k < r.size(); ++k) r[k] = std::sin(0.3 * static_cast<double>(k));
+  grouped.apply(r.data(), z1.data());
+  plain.apply(r.data(), z2.data());
+  EXPECT_EQ(z1, z2);
 }

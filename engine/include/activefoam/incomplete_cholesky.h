@@ -68,11 +68,10 @@ class IncompleteCholesky {
   // colour c are k ∈ [colour_begin_[c], colour_begin_[c + 1]).
   std::vector<int> group_row_, colour_begin_;
   // The lower triangle in factor numbering by 3×3 blocks (row-major), A's and then, in place,
-  // L's: row i's blocks are [row_begin_[i], row_end_[i]) (packed, row_end_[i] =
-  // row_begin_[i + 1]), sorted by column, the diagonal last; own_begin_[i]: the first inside
-  // its own group; and, for the backward solve's gather, the transpose of the blocks before it
-  // (see assemble()).
-  std::vector<int> row_begin_, row_end_, col_, own_begin_;
+  // L's: block CSR, row i's blocks [row_begin_[i], row_begin_[i + 1]) sorted by column, the
+  // diagonal last; own_begin_[i]: the first inside its own group; and, for the backward solve's
+  // gather, the transpose of the blocks before it (see assemble()).
+  std::vector<int> row_begin_, col_, own_begin_;
   std::vector<int> cross_begin_, cross_row_, cross_block_;
   std::vector<double> l_;
   std::vector<double> dinv_;  // per row: L_ii⁻¹ (lower triangular, row-major)

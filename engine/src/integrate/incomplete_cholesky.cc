@@ -250,13 +250,9 @@ bool IncompleteCholesky::assemble(int n, const BlockSource& blocks,
   stored_ = stored;
   // Packed: the solves stream L once per CG iteration, and the unused slots would more than
   // double what they read.
-  row_begin_.resize(static_cast<std::size_t>(n));
-  row_end_.resize(static_cast<std::size_t>(n));
-  for (int r = 0, at = 0; r < n; ++r) {
-    row_begin_[r] = at;
-    at += slot_end[r] - slot_begin[r];
-    row_end_[r] = at;
-  }
+  row_begin_.resize(static_cast<std::size_t>(n) + 1);
+  row_begin_[0] = 0;
+  for (int r = 0; r < n; ++r) row_begin_[r + 1] = row_begin_[r] + slot_end[r] - slot_begin[r];
   col_.resize(static_cast<std::size_t>(stored));
 #pragma omp parallel for schedule(static) if (threaded_)
   for (int r = 0; r < n; ++r)
@@ -294,7 +290,7 @@ bool IncompleteCholesky::assemble(int n, const BlockSource& blocks,
 }
 
 void IncompleteCholesky::packValues() {
-  const int n = static_cast<int>(row_begin_.size());
+  const int n = static_cast<int>(row_begin_.size()) - 1;
   l_.resize(9 * stored_);
 #pragma omp parallel for schedule(static) if (threaded_)
   for (int r = 0; r < n; ++r)
@@ -311,7 +307,7 @@ int IncompleteCholesky::colourOfRow(int factor_row) const {
 
 bool IncompleteCholesky::factorRows(int begin, int end, double shift) {
   for (int i = begin; i < end; ++i) {
-    const int di = row_end_[i] - 1;
+    const int di = row_begin_[i + 1] - 1;
     if (shift > 0)
       for (int k = 0; k < 3; ++k) l_[9 * static_cast<std::size_t>(di) + 4 * k] *= 1 + shift;
     for (int kk = row_begin_[i]; kk <= di; ++kk) {
@@ -319,7 +315,7 @@ bool IncompleteCholesky::factorRows(int begin, int end, double shift) {
       double* s = l_.data() + 9 * static_cast<std::size_t>(kk);
       // S = A_ik − Σ_j L_ij L_kjᵀ over the columns j < k that rows i and k share.
       int p = row_begin_[i], q = row_begin_[k];
-      const int qe = row_end_[k] - 1;
+      const int qe = row_begin_[k + 1] - 1;
       while (p < kk && q < qe) {
         if (col_[p] == col_[q]) {
           subtractABt(s, l_.data() + 9 * static_cast<std::size_t>(p),
@@ -355,7 +351,7 @@ void IncompleteCholesky::apply(const double* r, double* z) const {
         for (int i = group_row_[g]; i < group_row_[g + 1]; ++i) {
           const double* ri = r + 3 * static_cast<std::ptrdiff_t>(iperm_[i]);
           double s0 = ri[0], s1 = ri[1], s2 = ri[2];
-          const int di = row_end_[i] - 1;
+          const int di = row_begin_[i + 1] - 1;
           for (int kk = row_begin_[i]; kk < di; ++kk) {
             const double* l = l_.data() + 9 * static_cast<std::size_t>(kk);
             const double* wj = w + 3 * static_cast<std::ptrdiff_t>(col_[kk]);
@@ -391,7 +387,7 @@ void IncompleteCholesky::apply(const double* r, double* z) const {
           zi[0] = w[3 * i] = t0;
           zi[1] = w[3 * i + 1] = t1;
           zi[2] = w[3 * i + 2] = t2;
-          const int di = row_end_[i] - 1;
+          const int di = row_begin_[i + 1] - 1;
           for (int kk = own_begin_[i]; kk < di; ++kk) {
             const double* l = l_.data() + 9 * static_cast<std::size_t>(kk);
             double* wj = w + 3 * static_cast<std::ptrdiff_t>(col_[kk]);

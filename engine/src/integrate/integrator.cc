@@ -321,7 +321,8 @@ void Integrator::prepareFriction(const StepContext& ctx, const Terms& terms) {
   } else {
     gamma_.setZero();
   }
-  cell_vertex_begin_ = ctx.cells.cell_vertex_begin;
+  if (preconditioner_ == PreconditionerKind::IncompleteCholesky)
+    cell_vertex_begin_ = ctx.cells.cell_vertex_begin;  // the factor's groups (solve())
   product_terms_.clear();
   for (const auto& term : terms) {
     if (term->hasCouplingProduct()) {
