@@ -24,6 +24,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <set>
 #include <sstream>
 #include <thread>
 
@@ -374,6 +375,64 @@ std::string plotSamples(const v1::JobResults& r, const std::string& column,
   return "";
 }
 
+enum class TableFormat { Text, Csv, Json };
+
+// QueryResults as a table: one row per job, its parameters then its results (columns: the
+// union over rows, sorted; a job without a value shows nan / null).
+void printResultsTable(const v1::QueryResultsResponse& resp, TableFormat format) {
+  std::set<std::string> param_keys, result_keys;
+  std::vector<std::map<std::string, double>> results(resp.rows_size());
+  for (int i = 0; i < resp.rows_size(); ++i) {
+    for (const auto& [k, v] : resp.rows(i).params()) param_keys.insert(k);
+    for (const auto& r : resp.rows(i).results()) {
+      result_keys.insert(r.name());
+      results[i][r.name()] = r.value();
+    }
+  }
+  auto number = [](double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.17g", v);
+    return std::string(std::isnan(v) ? "nan" : b);
+  };
+  if (format == TableFormat::Json) {
+    nlohmann::json rows = nlohmann::json::array();
+    for (int i = 0; i < resp.rows_size(); ++i) {
+      const auto& row = resp.rows(i);
+      nlohmann::json j{{"job_id", row.job_id()}, {"outcome", row.outcome()}};
+      j["params"] = nlohmann::json::object();
+      for (const auto& k : param_keys)
+        j["params"][k] = row.params().count(k) ? nlohmann::json(row.params().at(k)) : nullptr;
+      j["results"] = nlohmann::json::object();
+      for (const auto& k : result_keys) {
+        const auto it = results[i].find(k);
+        j["results"][k] = it == results[i].end() || std::isnan(it->second)
+                              ? nlohmann::json(nullptr)
+                              : nlohmann::json(it->second);
+      }
+      rows.push_back(j);
+    }
+    std::cout << rows.dump(2) << "\n";
+    return;
+  }
+  const char* sep = format == TableFormat::Csv ? "," : "  ";
+  std::cout << "job_id" << sep << "outcome";
+  for (const auto& k : param_keys) std::cout << sep << k;
+  for (const auto& k : result_keys) std::cout << sep << k;
+  std::cout << "\n";
+  for (int i = 0; i < resp.rows_size(); ++i) {
+    const auto& row = resp.rows(i);
+    std::cout << row.job_id() << sep << (row.outcome().empty() ? "-" : row.outcome());
+    for (const auto& k : param_keys)
+      std::cout << sep << (row.params().count(k) ? number(row.params().at(k)) : "nan");
+    for (const auto& k : result_keys) {
+      const auto it = results[i].find(k);
+      std::cout << sep << (it == results[i].end() ? "nan" : number(it->second));
+    }
+    std::cout << "\n";
+  }
+  if (format == TableFormat::Text) std::cerr << "foam: " << resp.rows_size() << " succeeded jobs\n";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -433,6 +492,9 @@ int main(int argc, char** argv) {
   list->add_option("--state", states, "queued|running|succeeded|failed|cancelled");
   list->add_option("--tag", tag);
   list->add_option("--sweep", sweep_filter);
+  std::string outcome;
+  const char* kOutcomeHelp = "fusion outcome: fused|arrested|separated|no-contact";
+  list->add_option("--outcome", outcome, kOutcomeHelp);
   list->add_option("--limit", limit, "page size")->check(CLI::Range(1, 1000));
   list->add_flag("--json", json);
 
@@ -443,10 +505,19 @@ int main(int argc, char** argv) {
   auto* cancel = app.add_subcommand("cancel", "cancel a queued or running job");
   cancel->add_option("ID", id)->required();
 
-  auto* results = app.add_subcommand("results", "a job's results and samples");
-  results->add_option("ID", id)->required();
+  auto* results = app.add_subcommand(
+      "results",
+      "a job's results and samples; or, with --sweep/--tag, one row per succeeded job of a "
+      "sweep or tag: its parameters and results (--csv/--json for scripts)");
+  std::vector<std::string> metrics;
+  results->add_option("ID", id);
+  results->add_option("--sweep", sweep_filter, "the jobs of this sweep");
+  results->add_option("--tag", tag, "the jobs with this tag");
+  results->add_option("--outcome", outcome, kOutcomeHelp);
+  results->add_option("--metrics", metrics, "only these results (comma-separated)")->delimiter(',');
   results->add_flag("--json", json, "JSON for scripts");
-  results->add_flag("--csv", csv, "samples as CSV");
+  results->add_flag("--csv", csv,
+                    "samples as CSV (with ID); the table as CSV (with --sweep/--tag)");
 
   auto* plot = app.add_subcommand("plot",
                                   "PNG chart of a sample column over time (gnuplot); "
@@ -573,6 +644,7 @@ int main(int argc, char** argv) {
       }
       req.set_tag(tag);
       req.set_sweep_id(sweep_filter);
+      req.set_outcome(outcome);
       req.set_page_size(limit);
       v1::ListJobsResponse resp;
       auto ctx = conn.ctx();
@@ -582,11 +654,12 @@ int main(int argc, char** argv) {
         std::cout << toJsonText(resp) << "\n";
         return kOk;
       }
-      std::printf("%-16s %-10s %-8s %6s %7s %-24s %s\n", "ID", "STATE", "SCENE", "SEED", "PROG",
-                  "CREATED", "TAG");
+      std::printf("%-16s %-10s %-8s %-10s %6s %7s %-24s %s\n", "ID", "STATE", "SCENE", "OUTCOME",
+                  "SEED", "PROG", "CREATED", "TAG");
       for (const auto& j : resp.jobs())
-        std::printf("%-16s %-10s %-8s %6llu %6.1f%% %-24s %s\n", j.id().c_str(),
+        std::printf("%-16s %-10s %-8s %-10s %6llu %6.1f%% %-24s %s\n", j.id().c_str(),
                     stateName(j.state()).c_str(), j.scene().c_str(),
+                    j.outcome().empty() ? "-" : j.outcome().c_str(),
                     static_cast<unsigned long long>(j.seed()), 100 * j.progress(),
                     j.created_utc().c_str(), j.tag().c_str());
       if (resp.total() > resp.jobs_size())
@@ -616,6 +689,7 @@ int main(int argc, char** argv) {
                 << "engine:    " << j.engine_version() << "\n";
       std::cout << "fidelity:  " << fidelityText(j.spec_json()) << "\n";
       if (!j.executor_ref().empty()) std::cout << "executor:  " << j.executor_ref() << "\n";
+      if (!j.outcome().empty()) std::cout << "outcome:   " << j.outcome() << "\n";
       if (!j.reason().empty()) std::cout << "reason:    " << j.reason() << "\n";
       if (!j.tag().empty()) std::cout << "tag:       " << j.tag() << "\n";
       if (!j.sweep_id().empty()) std::cout << "sweep:     " << j.sweep_id() << "\n";
@@ -630,6 +704,26 @@ int main(int argc, char** argv) {
       const grpc::Status st = conn.stub->CancelJob(ctx.get(), req, &j);
       if (!st.ok()) return rpcError(st, "cancel " + id);
       std::cout << stateName(j.state()) << "\n";
+      return kOk;
+    }
+    if (*results && id.empty()) {
+      if (sweep_filter.empty() && tag.empty()) {
+        std::cerr << "foam: results: give a job ID, or --sweep ID / --tag TAG for a table\n";
+        return kUsage;
+      }
+      v1::QueryResultsRequest req;
+      req.set_sweep_id(sweep_filter);
+      req.set_tag(tag);
+      req.set_outcome(outcome);
+      for (const auto& m : metrics) req.add_names(m);
+      req.set_limit(100000);
+      v1::QueryResultsResponse resp;
+      auto ctx = conn.ctx();
+      const grpc::Status st = conn.stub->QueryResults(ctx.get(), req, &resp);
+      if (!st.ok()) return rpcError(st, "results");
+      printResultsTable(resp, json  ? TableFormat::Json
+                              : csv ? TableFormat::Csv
+                                    : TableFormat::Text);
       return kOk;
     }
     if (*results) {
@@ -660,6 +754,7 @@ int main(int argc, char** argv) {
         j["reason"] = r.job().reason();
         j["scene"] = r.job().scene();
         j["seed"] = r.job().seed();
+        if (!r.job().outcome().empty()) j["outcome"] = r.job().outcome();
         j["spec"] = nlohmann::json::parse(r.job().spec_json());
         j["results"] = nlohmann::json::object();
         for (const auto& x : r.results()) j["results"][x.name()] = x.value();
@@ -672,6 +767,8 @@ int main(int argc, char** argv) {
       }
       std::cout << "job " << r.job().id() << ": " << stateName(r.job().state())
                 << (r.job().reason().empty() ? "" : " (" + r.job().reason() + ")") << "\n";
+      if (!r.job().outcome().empty())
+        std::printf("  %-24s %s\n", "outcome", r.job().outcome().c_str());
       for (const auto& x : r.results()) std::printf("  %-24s %.6g\n", x.name().c_str(), x.value());
       return kOk;
     }

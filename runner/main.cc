@@ -522,6 +522,8 @@ int main(int argc, char** argv) {
   if (!args.quiet) {
     std::cerr << "foam-run: done, t = " << human(summary.t_s) << " s, " << summary.steps
               << " steps in " << formatDuration(ctx.runner_wall_s) << "\n";
+    if (!summary.outcome.empty())
+      std::cerr << "foam-run: outcome " << summary.outcome << ": " << summary.outcome_why << "\n";
     for (const auto& [model, f] : summary.fits) {
       std::cerr << "foam-run: fit " << model << ": ";
       if (!f.ok) {

@@ -99,6 +99,8 @@ bool commonFilter(const std::string& name, const std::string& v, Request& req) {
     req.set_tag(v);
   else if (name == "sweep")
     req.set_sweep_id(v);
+  else if (name == "outcome")
+    req.set_outcome(v);
   else if (name.rfind("param.", 0) == 0)
     addRange(name, v, req.mutable_params());
   else
@@ -197,8 +199,8 @@ std::string HttpEndpoint::handle(const std::string& target, int& code, std::stri
     }
     if (path == "/healthz") return "{\"status\":\"ok\"}";
     if (path == "/jobs") {
-      // The filters of ListJobs: state (comma-separated), tag, sweep, scene, param.KEY=MIN:MAX,
-      // page_size (default 1000), page_token.
+      // The filters of ListJobs: state (comma-separated), tag, sweep, scene, outcome,
+      // param.KEY=MIN:MAX, page_size (default 1000), page_token.
       v1::ListJobsRequest req;
       req.set_page_size(1000);
       for (const auto& [name, v] : query) {
@@ -221,14 +223,15 @@ std::string HttpEndpoint::handle(const std::string& target, int& code, std::stri
           req.set_page_token(v);
         } else {
           throw badQuery(name,
-                         "unknown (known: state, tag, sweep, scene, param.KEY=MIN:MAX, "
-                         "page_size, page_token)");
+                         "unknown (known: state, tag, sweep, scene, outcome, "
+                         "param.KEY=MIN:MAX, page_size, page_token)");
         }
       }
       return toJson(store_.listJobs(req)).dump();
     }
     if (path == "/results") {
-      // QueryResults: scene, tag, sweep, param.KEY=MIN:MAX, names (comma-separated), limit.
+      // QueryResults: scene, tag, sweep, outcome, param.KEY=MIN:MAX, names (comma-separated),
+      // limit.
       v1::QueryResultsRequest req;
       for (const auto& [name, v] : query) {
         if (commonFilter(name, v, req)) continue;
@@ -238,8 +241,8 @@ std::string HttpEndpoint::handle(const std::string& target, int& code, std::stri
           req.set_limit(count(name, v, 100000));
         } else {
           throw badQuery(name,
-                         "unknown (known: scene, tag, sweep, param.KEY=MIN:MAX, names, "
-                         "limit)");
+                         "unknown (known: scene, tag, sweep, outcome, param.KEY=MIN:MAX, "
+                         "names, limit)");
         }
       }
       return toJson(store_.queryResults(req)).dump();

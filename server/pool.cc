@@ -13,6 +13,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include "activefoam/run_output.h"
+
 #include "activefoam/run.h"
 #include "activefoam/spec_io.h"
 #include "activefoam/threads.h"
@@ -245,40 +247,22 @@ void Pool::runJob(const Claimed& claimed, Running& flag) {
     spdlog::info("job {}: re-queued at shutdown (t = {} s)", id, summary.t_s);
     return;
   }
-  std::vector<std::pair<std::string, double>> results = summary.final_values;
-  results.emplace_back("t_s", summary.t_s);
-  results.emplace_back("steps", static_cast<double>(summary.steps));
-  results.emplace_back("wall_s", summary.wall_s);
-  results.emplace_back("cg_iters_mean", summary.cg_iters_mean);
-  results.emplace_back("remesh_ops", static_cast<double>(summary.remesh_ops));
-  results.emplace_back("steps_rejected", static_cast<double>(summary.steps_rejected));
-  results.emplace_back("dt_min_s", summary.dt_min_s);
-  // Fits (fusion): each parameter and its standard error ("<name>_se"), and per model
-  // "<model>_ok" and "<model>_r2"; names by fitResultName, as in foam-run's summary.json.
-  // A failed fit's parameters are left out.
-  for (const auto& [model, f] : summary.fits) {
-    results.emplace_back(model + "_ok", f.ok ? 1 : 0);
-    if (!f.ok) continue;
-    results.emplace_back(model + "_r2", f.r2);
-    for (std::size_t k = 0; k < f.names.size(); ++k) {
-      const std::string name = fitResultName(model, f.names[k]);
-      results.emplace_back(name, f.value[k]);
-      if (k < f.std_error.size()) results.emplace_back(name + "_se", f.std_error[k]);
-    }
-  }
+  const FlatResults flat = flattenSummary(summaryToJson(summary, spec, {}));
+  const auto& results = flat.values;
   if (summary.ok()) {
-    store_.finish(id, v1::JOB_STATE_SUCCEEDED, "", "", results, summary.t_s, summary.steps);
+    store_.finish(id, v1::JOB_STATE_SUCCEEDED, "", "", results, summary.t_s, summary.steps,
+                  flat.outcome);
     ++stats_.jobs_succeeded;
     spdlog::info("job {}: succeeded ({} steps, {:.2f} s wall)", id, summary.steps, summary.wall_s);
   } else if (summary.failure == FailureKind::Cancelled) {
     store_.finish(id, v1::JOB_STATE_CANCELLED, "cancelled",
                   flag.reason.empty() ? "cancelled while running" : flag.reason, results,
-                  summary.t_s, summary.steps);
+                  summary.t_s, summary.steps, flat.outcome);
     ++stats_.jobs_cancelled;
     spdlog::info("job {}: cancelled at t = {} s", id, summary.t_s);
   } else {
     store_.finish(id, v1::JOB_STATE_FAILED, std::string(toString(summary.failure)), summary.reason,
-                  results, summary.t_s, summary.steps);
+                  results, summary.t_s, summary.steps, flat.outcome);
     ++stats_.jobs_failed;
     spdlog::warn("job {}: failed: {}: {}", id, toString(summary.failure), summary.reason);
   }

@@ -21,6 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include "activefoam/run.h"
+#include "activefoam/run_output.h"
 
 extern char** environ;
 
@@ -212,38 +213,6 @@ SlurmState classifySlurmState(const std::string& state) {
   else
     s.kind = SlurmState::Unknown;
   return s;
-}
-
-std::vector<std::pair<std::string, double>> resultsFromSummaryJson(const std::string& text) {
-  const nlohmann::json j = nlohmann::json::parse(text);
-  auto num = [](const nlohmann::json& v) {
-    return v.is_number() ? v.get<double>() : std::nan("");  // null: NaN, as the pool stores it
-  };
-  std::vector<std::pair<std::string, double>> results;
-  const nlohmann::json none = nlohmann::json::object();
-  const nlohmann::json& final_values = j.contains("final_values") ? j["final_values"] : none;
-  for (const auto& [name, v] : final_values.items()) results.emplace_back(name, num(v));
-  results.emplace_back("t_s", num(j.value("t_s", nlohmann::json())));
-  results.emplace_back("steps", num(j.value("steps", nlohmann::json())));
-  results.emplace_back("wall_s", num(j.value("wall_s", nlohmann::json())));
-  results.emplace_back("cg_iters_mean", num(j.value("cg_iters_mean", nlohmann::json())));
-  results.emplace_back("remesh_ops", num(j.value("remesh_ops", nlohmann::json())));
-  results.emplace_back("steps_rejected", num(j.value("steps_rejected", nlohmann::json())));
-  results.emplace_back("dt_min_s", num(j.value("dt_min_s", nlohmann::json())));
-  const nlohmann::json& fits = j.contains("fits") ? j["fits"] : none;
-  for (const auto& [model, f] : fits.items()) {
-    const bool ok = f.value("ok", false);
-    results.emplace_back(model + "_ok", ok ? 1 : 0);
-    if (!ok) continue;
-    results.emplace_back(model + "_r2", num(f.value("r2", nlohmann::json())));
-    const nlohmann::json& params = f.contains("parameters") ? f["parameters"] : none;
-    for (const auto& [param, p] : params.items()) {
-      const std::string name = fitResultName(model, param);
-      results.emplace_back(name, num(p.value("value", nlohmann::json())));
-      results.emplace_back(name + "_se", num(p.value("std_error", nlohmann::json())));
-    }
-  }
-  return results;
 }
 
 SlurmExecutor::SlurmExecutor(Store& store, SlurmOptions options)
@@ -464,12 +433,13 @@ bool SlurmExecutor::taskFinished(const v1::Job& job, const v1::ReportTaskRequest
     spdlog::info("job {}: task {} interrupted; waiting for Slurm's verdict", id, report.attempt());
     return true;
   }
-  std::vector<std::pair<std::string, double>> results;
+  FlatResults flat;
+  const auto& results = flat.values;
   nlohmann::json summary = nlohmann::json::object();  // value() needs an object
   if (!report.summary_json().empty()) {
     try {
       summary = nlohmann::json::parse(report.summary_json());
-      results = resultsFromSummaryJson(report.summary_json());
+      flat = flattenSummary(summary);
     } catch (const std::exception& e) {
       spdlog::warn("job {}: unreadable summary.json from {}: {}", id, report.attempt(), e.what());
     }
@@ -482,13 +452,14 @@ bool SlurmExecutor::taskFinished(const v1::Job& job, const v1::ReportTaskRequest
   const bool engine_failed = summary.contains("failure") && !ok;
   bool ended = false;
   if (rc == 0 && ok) {
-    if ((ended = store_.finish(id, v1::JOB_STATE_SUCCEEDED, "", "", results, t, steps)))
+    if ((ended =
+             store_.finish(id, v1::JOB_STATE_SUCCEEDED, "", "", results, t, steps, flat.outcome)))
       ++stats_.jobs_succeeded;
     spdlog::info("job {}: succeeded on Slurm ({})", id, report.attempt());
   } else if (engine_failed) {
-    if ((ended = store_.finish(id, v1::JOB_STATE_FAILED,
-                               summary.value("failure", std::string("failed")),
-                               summary.value("reason", std::string()), results, t, steps)))
+    if ((ended = store_.finish(
+             id, v1::JOB_STATE_FAILED, summary.value("failure", std::string("failed")),
+             summary.value("reason", std::string()), results, t, steps, flat.outcome)))
       ++stats_.jobs_failed;
     spdlog::warn("job {}: failed on Slurm ({}): {}", id, report.attempt(),
                  summary.value("reason", std::string()));

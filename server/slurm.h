@@ -49,9 +49,6 @@ struct SlurmState {
 };
 SlurmState classifySlurmState(const std::string& state);
 
-// The results a finished run's summary.json gives, named as the pool names them (pool.cc).
-std::vector<std::pair<std::string, double>> resultsFromSummaryJson(const std::string& text);
-
 class SlurmExecutor : public Executor {
  public:
   SlurmExecutor(Store& store, SlurmOptions options);

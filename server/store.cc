@@ -7,6 +7,7 @@
 #include <cstring>
 #include <ctime>
 #include <random>
+#include <set>
 
 #include <spdlog/spdlog.h>
 #include <nlohmann/json.hpp>
@@ -150,12 +151,17 @@ CREATE TABLE sweeps(id TEXT PRIMARY KEY, name TEXT NOT NULL DEFAULT '', idem_key
     R"sql(
 ALTER TABLE jobs ADD COLUMN executor_ref TEXT NOT NULL DEFAULT '';
 )sql",
+    // 2 → 3: how a fusion job ended (fused, arrested, separated, no-contact), to filter on.
+    R"sql(
+ALTER TABLE jobs ADD COLUMN outcome TEXT NOT NULL DEFAULT '';
+CREATE INDEX jobs_outcome ON jobs(outcome);
+)sql",
 };
 
 const char* kJobCols =
     "id, state, reason, failure_kind, scene, seed, priority, tag, sweep_id, spec_json, "
     "engine_version, created_utc, started_utc, finished_utc, progress, t_s, steps, attempts, "
-    "last_seq, executor_ref";
+    "last_seq, executor_ref, outcome";
 
 v1::Job readJob(Stmt& s) {
   v1::Job j;
@@ -179,6 +185,7 @@ v1::Job readJob(Stmt& s) {
   j.set_attempts(static_cast<int>(s.i64(17)));
   j.set_last_seq(s.i64(18));
   j.set_executor_ref(s.text(19));
+  j.set_outcome(s.text(20));
   return j;
 }
 
@@ -239,6 +246,16 @@ struct Where {
     for (const auto& a : args) std::visit([&](const auto& v) { s.bind(i++, v); }, a);
   }
 };
+
+void addOutcomeFilter(Where& w, const std::string& outcome) {
+  if (outcome.empty()) return;
+  static const std::set<std::string> kOutcomes = {"fused", "arrested", "separated", "no-contact"};
+  if (!kOutcomes.count(outcome))
+    throw StoreError(StoreError::Kind::InvalidArgument,
+                     "outcome: '" + outcome.substr(0, 64) +
+                         "' is not one of fused|arrested|separated|no-contact");
+  w.add("outcome = ?", outcome);
+}
 
 void addParamFilters(Where& w, const google::protobuf::RepeatedPtrField<v1::ParamRange>& ranges) {
   for (const v1::ParamRange& r : ranges) {
@@ -731,14 +748,14 @@ v1::Job Store::cancel(const std::string& id, const std::string& reason) {
 bool Store::finish(const std::string& id, v1::JobState state, const std::string& failure_kind,
                    const std::string& reason,
                    const std::vector<std::pair<std::string, double>>& results, double t_s,
-                   std::int64_t steps) {
+                   std::int64_t steps, const std::string& outcome) {
   return write([&](Tx& tx) {
     // Only a running job ends, once: a cancel racing a task's final report (Slurm) must not
     // turn one outcome into another.
     Stmt up(tx.db,
             "UPDATE jobs SET state = ?, failure_kind = ?, reason = ?, finished_utc = ?, t_s = ?, "
-            "steps = ?, progress = CASE WHEN ? THEN 1 ELSE progress END WHERE id = ? AND "
-            "state = ?");
+            "steps = ?, progress = CASE WHEN ? THEN 1 ELSE progress END, outcome = ? WHERE id = ? "
+            "AND state = ?");
     up.bind(1, static_cast<int>(state))
         .bind(2, failure_kind)
         .bind(3, reason)
@@ -746,8 +763,9 @@ bool Store::finish(const std::string& id, v1::JobState state, const std::string&
         .bind(5, t_s)
         .bind(6, steps)
         .bind(7, state == v1::JOB_STATE_SUCCEEDED ? 1 : 0)
-        .bind(8, id)
-        .bind(9, static_cast<int>(v1::JOB_STATE_RUNNING));
+        .bind(8, outcome)
+        .bind(9, id)
+        .bind(10, static_cast<int>(v1::JOB_STATE_RUNNING));
     up.run();
     if (sqlite3_changes(tx.db) == 0) return false;
     Stmt del(tx.db, "DELETE FROM results WHERE job_id = ?");
@@ -870,6 +888,7 @@ v1::ListJobsResponse Store::listJobs(const v1::ListJobsRequest& req) {
   if (!req.tag().empty()) w.add("tag = ?", req.tag());
   if (!req.sweep_id().empty()) w.add("sweep_id = ?", req.sweep_id());
   if (!req.scene().empty()) w.add("scene = ?", req.scene());
+  addOutcomeFilter(w, req.outcome());
   addParamFilters(w, req.params());
   if (req.page_size() < 0)
     throw StoreError(StoreError::Kind::InvalidArgument, "page_size: must be in [0, 1000]");
@@ -907,7 +926,7 @@ v1::ListJobsResponse Store::listJobs(const v1::ListJobsRequest& req) {
       break;
     }
     *out.add_jobs() = readJob(q);
-    last = q.i64(20);  // seqno, after kJobCols
+    last = q.i64(21);  // seqno, after kJobCols
     ++n;
   }
   return out;
@@ -978,9 +997,10 @@ v1::QueryResultsResponse Store::queryResults(const v1::QueryResultsRequest& req)
   if (!req.scene().empty()) w.add("scene = ?", req.scene());
   if (!req.tag().empty()) w.add("tag = ?", req.tag());
   if (!req.sweep_id().empty()) w.add("sweep_id = ?", req.sweep_id());
+  addOutcomeFilter(w, req.outcome());
   addParamFilters(w, req.params());
   const int limit = req.limit() <= 0 ? 1000 : std::min(req.limit(), 100000);
-  std::string cols = "id";
+  std::string cols = "id, outcome";
   for (const auto& [k, c] : paramColumns()) cols += ", " + c;
   std::lock_guard lock(rmu_);
   Stmt q(rdb_, "SELECT " + cols + " FROM jobs" + w.sql + " ORDER BY seqno LIMIT " +
@@ -990,7 +1010,8 @@ v1::QueryResultsResponse Store::queryResults(const v1::QueryResultsRequest& req)
   while (q.step()) {
     auto* row = out.add_rows();
     row->set_job_id(q.text(0));
-    int c = 1;
+    row->set_outcome(q.text(1));
+    int c = 2;
     for (const auto& [k, col] : paramColumns()) (*row->mutable_params())[k] = q.dbl(c++);
   }
   for (auto& row : *out.mutable_rows()) {
@@ -1003,7 +1024,7 @@ v1::QueryResultsResponse Store::queryResults(const v1::QueryResultsRequest& req)
         continue;
       auto* res = row.add_results();
       res->set_name(name);
-      res->set_value(r.dbl(1));
+      res->set_value(r.isNull(1) ? std::nan("") : r.dbl(1));
     }
   }
   return out;

@@ -27,7 +27,7 @@ struct sqlite3;
 
 namespace activefoam::server {
 
-inline constexpr int kSchemaVersion = 2;
+inline constexpr int kSchemaVersion = 3;
 
 // A request that cannot be served as asked (bad filter, unknown id, key reuse): the service
 // maps these to gRPC codes.
@@ -103,7 +103,7 @@ class Store {
   // the job is not running any more: it ended already.
   bool finish(const std::string& id, v1::JobState state, const std::string& failure_kind,
               const std::string& reason, const std::vector<std::pair<std::string, double>>& results,
-              double t_s, std::int64_t steps);
+              double t_s, std::int64_t steps, const std::string& outcome = {});
   // Running → queued (shutdown or restart), with the reason; false when it was not running.
   bool requeue(const std::string& id, const std::string& reason);
   // At startup: every job left running by a previous process → queued. Returns how many.

@@ -123,6 +123,10 @@ nlohmann::json summaryToJson(const RunSummary& summary, const SceneSpec& resolve
   nlohmann::json phases = nlohmann::json::object();
   for (const auto& [name, v] : summary.phase_wall_s) phases[name] = number(v);
   j["phase_wall_s"] = phases;
+  if (!summary.outcome.empty()) {
+    j["outcome"] = summary.outcome;
+    j["outcome_reason"] = summary.outcome_why;
+  }
   if (!summary.fits.empty()) {
     // Each fit in full under "fits", and its parameters at the top level (null when the fit
     // failed; "fits" says why) so that a study can read theta_eq_deg directly.
@@ -161,6 +165,40 @@ nlohmann::json summaryToJson(const RunSummary& summary, const SceneSpec& resolve
   if (!ctx.started_utc.empty()) j["started_utc"] = ctx.started_utc;
   if (!ctx.finished_utc.empty()) j["finished_utc"] = ctx.finished_utc;
   return j;
+}
+
+FlatResults flattenSummary(const nlohmann::json& j) {
+  auto num = [](const nlohmann::json& v) {
+    return v.is_number() ? v.get<double>() : std::nan("");  // null: NaN, as the pool stores it
+  };
+  FlatResults out;
+  auto& results = out.values;
+  const nlohmann::json none = nlohmann::json::object();
+  const nlohmann::json& final_values = j.contains("final_values") ? j["final_values"] : none;
+  for (const auto& [name, v] : final_values.items()) results.emplace_back(name, num(v));
+  results.emplace_back("t_s", num(j.value("t_s", nlohmann::json())));
+  results.emplace_back("steps", num(j.value("steps", nlohmann::json())));
+  results.emplace_back("wall_s", num(j.value("wall_s", nlohmann::json())));
+  results.emplace_back("cg_iters_mean", num(j.value("cg_iters_mean", nlohmann::json())));
+  results.emplace_back("remesh_ops", num(j.value("remesh_ops", nlohmann::json())));
+  results.emplace_back("steps_rejected", num(j.value("steps_rejected", nlohmann::json())));
+  results.emplace_back("dt_min_s", num(j.value("dt_min_s", nlohmann::json())));
+  const nlohmann::json& fits = j.contains("fits") ? j["fits"] : none;
+  for (const auto& [model, f] : fits.items()) {
+    const bool ok = f.value("ok", false);
+    results.emplace_back(model + "_ok", ok ? 1 : 0);
+    if (!ok) continue;
+    results.emplace_back(model + "_r2", num(f.value("r2", nlohmann::json())));
+    const nlohmann::json& params = f.contains("parameters") ? f["parameters"] : none;
+    for (const auto& [param, p] : params.items()) {
+      const std::string name = fitResultName(model, param);
+      results.emplace_back(name, num(p.value("value", nlohmann::json())));
+      results.emplace_back(name + "_se", num(p.value("std_error", nlohmann::json())));
+    }
+  }
+  if (j.contains("outcome") && j["outcome"].is_string())
+    out.outcome = j["outcome"].get<std::string>();
+  return out;
 }
 
 VtkMesh toVtkMesh(const Snapshot& snap) {

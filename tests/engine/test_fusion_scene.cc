@@ -183,6 +183,11 @@ TEST(FusionScene, SamplesFitsAndResumeFromCheckpoint) {
   }
   ASSERT_EQ(a.fits.size(), 3u);
   EXPECT_EQ(a.fits[0].first, "eq1");
+  // Placed touching with adhesion: in contact throughout, so fused or arrested, and fitted.
+  EXPECT_TRUE(a.outcome == "fused" || a.outcome == "arrested")
+      << a.outcome << ": " << a.outcome_why;
+  EXPECT_EQ(cols.back(), "contact_area_ab_um2");
+  for (const Sample& x : full) EXPECT_GT(x.values.back(), 0) << "t=" << x.values[0];
   bool has_mixing = false;
   for (const auto& [name, v] : a.final_values) has_mixing |= name == "mixing_time_s";
   EXPECT_TRUE(has_mixing);
@@ -205,6 +210,8 @@ TEST(FusionScene, SamplesFitsAndResumeFromCheckpoint) {
     EXPECT_EQ(b.fits[k].second.value, a.fits[k].second.value);
   }
   EXPECT_EQ(b.final_values, a.final_values);
+  EXPECT_EQ(b.outcome, a.outcome);
+  EXPECT_EQ(b.outcome_why, a.outcome_why);
 
   // The second run from scratch reuses both prepared spheroids and reproduces the first.
   std::vector<Sample> again;

@@ -215,7 +215,7 @@ TEST(Cli, FusionJobResultsPlotAndExport) {
       " --set scene.prep_max_s=10 --set scene.allow_uncompacted=true"
       " --set numerics.dt_s=0.1 --set duration_s=20"
       " --set sample_every_s=1 --set numerics.triangles_per_cell=80 --set snapshot_every_s=10"
-      " --wait 2>/dev/null";
+      " --tag fus --wait 2>/dev/null";
   Proc r;
   for (int i = 0; i < 50; ++i) {
     r = sh(submit);
@@ -230,6 +230,24 @@ TEST(Cli, FusionJobResultsPlotAndExport) {
                         "prep_compact_a"})
     EXPECT_TRUE(j["results"].contains(k)) << k;
   EXPECT_EQ(std::distance(fs::directory_iterator(dir / "spheroids"), fs::directory_iterator()), 2);
+  // Placed touching: fused or arrested, and the job's outcome is what the filters select on.
+  const std::string outcome = j.value("outcome", std::string());
+  EXPECT_TRUE(outcome == "fused" || outcome == "arrested") << j.dump();
+  const Proc table =
+      sh(d.foam() + " results --tag fus --outcome " + outcome + " --metrics theta_deg --csv");
+  ASSERT_EQ(table.rc, 0) << table.out;
+  EXPECT_EQ(table.out.substr(0, 15), "job_id,outcome,") << table.out;
+  EXPECT_NE(table.out.find(",theta_deg\n" + id + "," + outcome + ","), std::string::npos)
+      << table.out;
+  EXPECT_EQ(sh(d.foam() + " results 2>&1").rc, 2) << "a job ID, --sweep or --tag is needed";
+  const Proc listed = sh(d.foam() + " list --outcome " + outcome + " 2>&1");
+  ASSERT_EQ(listed.rc, 0) << listed.out;
+  EXPECT_NE(listed.out.find(id), std::string::npos) << listed.out;
+  const std::string other = outcome == "fused" ? "arrested" : "fused";
+  EXPECT_EQ(sh(d.foam() + " list --outcome " + other + " 2>&1").out.find(id), std::string::npos);
+  const Proc wrong = sh(d.foam() + " list --outcome merged 2>&1");
+  EXPECT_EQ(wrong.rc, 2) << wrong.out;
+  EXPECT_NE(wrong.out.find("outcome"), std::string::npos) << wrong.out;
 
   const fs::path png = dir / "theta.png";
   const Proc plot = sh(d.foam() + " plot " + id + " --out " + png.string() + " 2>&1");

@@ -593,6 +593,52 @@ TEST(Store, PriorityThenAgeAndRequeueAfterRestart) {
   fs::remove_all(db.parent_path());
 }
 
+// Fusion outcomes are stored with the job's end and filter ListJobs and QueryResults; an
+// unknown outcome is refused naming the field.
+TEST(Store, OutcomeIsStoredAndFiltersJobsAndResults) {
+  const fs::path db = tempDb();
+  Store s(db.string());
+  auto job = [] {
+    NewJob j;
+    j.spec.scene = SceneKind::Cell;
+    j.spec = resolve(j.spec);
+    j.spec_json = "{}";
+    return j;
+  };
+  std::vector<std::string> ids;
+  for (const char* outcome : {"fused", "separated", "fused", ""}) {
+    ids.push_back(s.submit(job()).first);
+    ASSERT_EQ(s.claimNext()->job.id(), ids.back());
+    ASSERT_TRUE(s.finish(ids.back(), v1::JOB_STATE_SUCCEEDED, "", "", {{"theta_deg", 40.0}}, 1, 10,
+                         outcome));
+  }
+  EXPECT_EQ(s.getJob(ids[1])->outcome(), "separated");
+  EXPECT_EQ(s.getJob(ids[3])->outcome(), "");
+  v1::ListJobsRequest lr;
+  lr.set_outcome("fused");
+  const v1::ListJobsResponse listed = s.listJobs(lr);
+  ASSERT_EQ(listed.jobs_size(), 2);
+  EXPECT_EQ(listed.jobs(0).id(), ids[2]);  // newest first
+  EXPECT_EQ(listed.jobs(1).id(), ids[0]);
+  v1::QueryResultsRequest q;
+  q.set_outcome("separated");
+  const v1::QueryResultsResponse rows = s.queryResults(q);
+  ASSERT_EQ(rows.rows_size(), 1);
+  EXPECT_EQ(rows.rows(0).job_id(), ids[1]);
+  EXPECT_EQ(rows.rows(0).outcome(), "separated");
+  EXPECT_EQ(s.queryResults(v1::QueryResultsRequest()).rows_size(), 4);
+  q.set_outcome("merged");
+  try {
+    s.queryResults(q);
+    ADD_FAILURE() << "unknown outcome accepted";
+  } catch (const StoreError& e) {
+    EXPECT_EQ(e.kind, StoreError::Kind::InvalidArgument);
+    EXPECT_NE(std::string(e.what()).find("outcome: 'merged' is not one of"), std::string::npos)
+        << e.what();
+  }
+  fs::remove_all(db.parent_path());
+}
+
 namespace {
 
 // The standard services, called without generated stubs (their messages hand-encoded: the

@@ -6,6 +6,7 @@
 #include <map>
 
 #include "activefoam/run.h"
+#include "activefoam/run_output.h"
 #include "slurm.h"
 
 using namespace activefoam::server;
@@ -24,14 +25,16 @@ TEST(SlurmExecutor, EverySlurmStateHasAMeaning) {
 }
 
 TEST(SlurmExecutor, ResultsFromSummaryJsonAreNamedAsThePoolNamesThem) {
-  const auto results = resultsFromSummaryJson(R"({
+  const activefoam::FlatResults flat = activefoam::flattenSummary(nlohmann::json::parse(R"({
     "ok": true, "t_s": 3600, "steps": 7200, "wall_s": 12.5, "cg_iters_mean": 4.5,
     "remesh_ops": 17, "final_values": {"theta_deg": 50.5, "neck_um": null},
     "fits": {
       "eq1": {"ok": true, "r2": 0.98, "parameters": {
         "theta_eq": {"value": 53.6, "std_error": 0.9}, "tau_f": {"value": 1916, "std_error": null}}},
       "s1": {"ok": false, "why": "too few samples", "parameters": {}}
-    }})");
+    }, "outcome": "arrested"})"));
+  const auto& results = flat.values;
+  EXPECT_EQ(flat.outcome, "arrested");
   std::map<std::string, double> r(results.begin(), results.end());
   EXPECT_EQ(r.size(), results.size()) << "no name twice";
   EXPECT_EQ(r.at("t_s"), 3600);
@@ -46,5 +49,5 @@ TEST(SlurmExecutor, ResultsFromSummaryJsonAreNamedAsThePoolNamesThem) {
   EXPECT_TRUE(std::isnan(r.at(activefoam::fitResultName("eq1", "tau_f") + "_se")));
   EXPECT_EQ(r.at("s1_ok"), 0);
   EXPECT_FALSE(r.count("s1_r2"));  // a failed fit's parameters are left out, as in the pool
-  EXPECT_THROW(resultsFromSummaryJson("{not json"), std::exception);
+  EXPECT_THROW(activefoam::flattenSummary(nlohmann::json::array()), std::exception);
 }

@@ -68,8 +68,12 @@ struct RunSummary {
   std::vector<std::pair<std::string, double>> final_values;
   // Wall time split by phase over the run, seconds: geometry, forces, matrix, solve, remesh.
   std::vector<std::pair<std::string, double>> phase_wall_s;
-  // Fusion: the fits of θ(t) and a(t) over the samples ("eq1", "eq2", "s1"; see fits.h), and
-  // the MSRD curve (lag s, µm²).
+  // Fusion: how it ended (fused | arrested | separated | no-contact, see fusion_outcome.h) and
+  // the numbers that decided it; the fits of θ(t) and a(t) over the samples ("eq1", "eq2",
+  // "s1"; see fits.h: not ok, with the reason, unless fused or arrested); the MSRD curve (lag s,
+  // µm²). Other scenes leave the outcome empty.
+  std::string outcome;
+  std::string outcome_why;
   std::vector<std::pair<std::string, FitResult>> fits;
   std::vector<std::pair<double, double>> msrd;
   bool ok() const { return failure == FailureKind::None; }

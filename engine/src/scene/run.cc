@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "../integrate/bytes.h"
+#include "activefoam/fusion_outcome.h"
 #include "activefoam/observables.h"
 #include "activefoam/simulation.h"
 #include "activefoam/spheroid.h"
@@ -24,6 +25,7 @@ const std::vector<std::string> kCommon = {
 // the contact history and the MSRD samples, and what the preparation reported.
 struct FusionState {
   std::vector<double> t, theta, neck;
+  std::vector<double> area;  // contact area between the spheroids, µm²
   ContactHistory contacts;
   MsrdTracker msrd;
   std::array<double, 6> prep{};  // relaxed_s, compact, Rg µm: spheroid A, then B
@@ -38,6 +40,7 @@ struct FusionState {
     w.str(msrd.save());
     w.pod(prep);
     w.pod(R_um);
+    w.vec(area);
     return w.take();
   }
   void restore(const std::string& data) {
@@ -49,7 +52,10 @@ struct FusionState {
     msrd.restore(r.str());
     prep = r.pod<std::array<double, 6>>();
     R_um = r.pod<double>();
-    if (!r.done() || theta.size() != t.size() || neck.size() != t.size())
+    // Checkpoints written before the outcome existed end here: their contact areas are unknown
+    // (NaN reads as no contact, so such a run's outcome is decided by the samples after it).
+    area = r.done() ? std::vector<double>(t.size(), std::nan("")) : r.vec<double>();
+    if (!r.done() || theta.size() != t.size() || neck.size() != t.size() || area.size() != t.size())
       throw std::invalid_argument("checkpoint: inconsistent fusion history");
   }
 };
@@ -113,6 +119,7 @@ std::vector<std::pair<std::string, double>> sceneObservables(const Simulation& s
       out.emplace_back("surface_contact_angle_deg", sca.ok ? sca.theta_deg : nan);
       out.emplace_back("gsi", sca.ok ? sca.gsi : nan);
       out.emplace_back("contact_pairs", static_cast<double>(sim.contacts().pairs.size()));
+      out.emplace_back("contact_area_ab_um2", spheroidContactArea(sim.cells(), sim.contacts()));
       break;
     }
   }
@@ -190,7 +197,8 @@ std::vector<std::string> sampleColumns(SceneKind scene) {
     case SceneKind::Fusion:
       cols.insert(cols.end(),
                   {"theta_deg", "neck_radius_um", "length_um", "distance_um", "shape_index_mean",
-                   "unique_contacts_norm", "surface_contact_angle_deg", "gsi", "contact_pairs"});
+                   "unique_contacts_norm", "surface_contact_angle_deg", "gsi", "contact_pairs",
+                   "contact_area_ab_um2"});
       break;
   }
   return cols;
@@ -287,6 +295,7 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
       fs.t.push_back(sim.time());
       fs.theta.push_back(values[0].second);
       fs.neck.push_back(values[1].second);
+      fs.area.push_back(values.back().second);
     }
     if (obs.on_sample) {
       if (!fusion) values = sceneObservables(sim, nullptr);
@@ -365,18 +374,11 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
   sum.final_values = sceneObservables(sim, fusion ? &fs : nullptr);
   sum.final_values.emplace_back("volume_error_max", maxVolumeError(sim));
   if (fusion) {
-    // Fits over the sampled θ(t), a(t); samples without a neck (θ undefined: no contact yet)
-    // are left out.
-    std::vector<double> t, theta, neck;
-    for (std::size_t k = 0; k < fs.t.size(); ++k)
-      if (std::isfinite(fs.theta[k]) && fs.theta[k] > 0) {
-        t.push_back(fs.t[k]);
-        theta.push_back(fs.theta[k]);
-        neck.push_back(fs.neck[k]);
-      }
-    sum.fits.emplace_back("eq1", fitEq1(t, theta));
-    sum.fits.emplace_back("eq2", fitEq2(t, theta));
-    sum.fits.emplace_back("s1", fitS1(t, neck, fs.R_um));
+    const FusionTrajectory traj{fs.t, fs.theta, fs.neck, fs.area};
+    const FusionClassification outcome = classifyFusion(traj, spec.cells.radius_mean_um);
+    sum.outcome = std::string(toString(outcome.outcome));
+    sum.outcome_why = outcome.why;
+    sum.fits = fusionFits(traj, outcome, fs.R_um);
     const MsrdTracker::Mixing mix = fs.msrd.mixingTime(spec.cells.radius_mean_um);
     sum.final_values.emplace_back("mixing_time_s", mix.time_s);
     sum.final_values.emplace_back("mixing_reached", mix.reached ? 1 : 0);

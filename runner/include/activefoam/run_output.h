@@ -50,6 +50,18 @@ struct SummaryContext {
 nlohmann::json summaryToJson(const RunSummary& summary, const SceneSpec& resolved,
                              const SummaryContext& context);
 
+// A run's results as foamd stores them, from its summary.json (summaryToJson): the final
+// values, the cost counters (t_s, steps, wall_s, cg_iters_mean, remesh_ops, steps_rejected,
+// dt_min_s), per fit "<model>_ok" and, when ok, "<model>_r2" and each parameter (fitResultName)
+// with "<name>_se"; null reads as NaN. One definition for the pool (its own summary) and the
+// Slurm executor (a task's file), so the two cannot drift apart. Throws nlohmann::json's
+// exceptions on a summary that is not an object.
+struct FlatResults {
+  std::vector<std::pair<std::string, double>> values;
+  std::string outcome;  // fusion: fused | arrested | separated | no-contact; else empty
+};
+FlatResults flattenSummary(const nlohmann::json& summary);
+
 // An engine snapshot as the VTK writer's plain data.
 VtkMesh toVtkMesh(const Snapshot& snap);
 
