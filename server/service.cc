@@ -528,11 +528,17 @@ void FoamServer::start() {
     creds->SetAuthMetadataProcessor(std::make_shared<TokenAuth>(m.config.token));
 
   grpc::ServerBuilder builder;
+  // gRPC sets SO_REUSEPORT by default: a second foamd on a taken port would start and the
+  // kernel would split the clients between the two servers (and their databases).
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   builder.AddListeningPort(m.config.listen, creds, &m.port);
   builder.RegisterService(m.service.get());
   builder.SetMaxReceiveMessageSize(m.config.max_message_bytes);
   m.server = builder.BuildAndStart();
-  if (!m.server || m.port == 0) throw std::runtime_error("cannot listen on " + m.config.listen);
+  if (!m.server || m.port == 0)
+    throw std::runtime_error("cannot listen on " + m.config.listen +
+                             ": the port is taken (another foamd?) or the address is not this "
+                             "machine's");
   if (auto* health = m.server->GetHealthCheckService()) {
     health->SetServingStatus(true);
     health->SetServingStatus("activefoam.v1.Foam", true);

@@ -37,6 +37,22 @@ struct StoreError : std::runtime_error {
   StoreError(Kind k, const std::string& what) : std::runtime_error(what), kind(k) {}
 };
 
+// One server per database: an exclusive flock(2) on "<db>.lock", held for the Store's life and
+// released by the kernel when the process ends (a crash leaves no stale lock). The file names
+// the holder (pid, host, start time) for the error a second server gets. Two foamd on one
+// database would each re-queue and run the other's jobs (issue 18).
+class DbLock {
+ public:
+  // Throws StoreError(FailedPrecondition) naming the holder when another process holds it.
+  explicit DbLock(const std::string& db_path);
+  ~DbLock();
+  DbLock(const DbLock&) = delete;
+  DbLock& operator=(const DbLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
 struct NewJob {
   SceneSpec spec;         // resolved
   std::string spec_json;  // specToJson(spec), what the worker runs
@@ -153,6 +169,7 @@ class Store {
 
   std::string path_;
   StoreOptions options_;
+  DbLock lock_;             // before the connections: taken first, released last
   sqlite3* wdb_ = nullptr;  // writer thread only
   sqlite3* rdb_ = nullptr;  // under rmu_
   std::mutex rmu_;
