@@ -32,6 +32,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "activefoam/token_file.h"
 #include "activefoam/v1/service.grpc.pb.h"
 #include "activefoam/vtk.h"
 #include "report.h"
@@ -84,6 +85,7 @@ int rpcError(const grpc::Status& s, const std::string& what) {
   switch (s.error_code()) {
     case grpc::StatusCode::INVALID_ARGUMENT:
     case grpc::StatusCode::FAILED_PRECONDITION:
+    case grpc::StatusCode::RESOURCE_EXHAUSTED:  // a request beyond the server's size limit
       return kUsage;
     case grpc::StatusCode::UNAUTHENTICATED:
       return kAuth;
@@ -124,7 +126,16 @@ std::string stateName(v1::JobState s) {
   return n;
 }
 
+// A spec beyond this is a mistake (a data file given as the spec), refused before it is sent.
+constexpr std::uintmax_t kMaxSpecBytes = 1 << 20;
+
 std::string readFile(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec))
+    throw std::runtime_error("'" + path + "' is a directory, not a file");
+  if (const auto size = std::filesystem::file_size(path, ec); !ec && size > kMaxSpecBytes)
+    throw std::runtime_error("'" + path + "' has " + std::to_string(size) +
+                             " bytes; a spec or certificate file has at most 1 MiB");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error("cannot read '" + path + "'");
   std::ostringstream s;
@@ -571,9 +582,7 @@ int main(int argc, char** argv) {
   try {
     if (!tls_ca_file.empty()) conn.tls_ca = readFile(tls_ca_file);
     if (!token_file.empty()) {
-      conn.token = readFile(token_file);
-      while (!conn.token.empty() && std::isspace(static_cast<unsigned char>(conn.token.back())))
-        conn.token.pop_back();
+      conn.token = activefoam::readTokenFile(token_file);
     }
   } catch (const std::exception& e) {
     std::cerr << "foam: " << e.what() << "\n";
@@ -703,7 +712,10 @@ int main(int argc, char** argv) {
       auto ctx = conn.ctx();
       const grpc::Status st = conn.stub->CancelJob(ctx.get(), req, &j);
       if (!st.ok()) return rpcError(st, "cancel " + id);
-      std::cout << stateName(j.state()) << "\n";
+      // A running job stops at its next step: the answer is the request, not the state yet.
+      std::cout << (j.state() == v1::JOB_STATE_RUNNING ? std::string("cancelling")
+                                                       : stateName(j.state()))
+                << "\n";
       return kOk;
     }
     if (*results && id.empty()) {

@@ -258,7 +258,7 @@ std::string HttpEndpoint::handle(const std::string& target, int& code, std::stri
       }
       if (what.empty()) {
         auto j = store_.getJob(rest);
-        if (!j) throw StoreError(StoreError::Kind::NotFound, "no job '" + rest + "'");
+        if (!j) throw StoreError(StoreError::Kind::NotFound, "no job " + cappedQuote(rest));
         return toJson(*j).dump();
       }
       if (what == "results") return toJson(store_.results(rest, false)).dump();

@@ -22,6 +22,7 @@
 #include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
 
+#include "activefoam/token_file.h"
 #include "http.h"
 #include "pool.h"
 #include "service.h"
@@ -50,13 +51,6 @@ std::string readFile(const std::string& path, const char* what) {
   std::ostringstream s;
   s << in.rdbuf();
   return s.str();
-}
-
-std::string trim(std::string s) {
-  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
-  std::size_t i = 0;
-  while (i < s.size() && std::isspace(static_cast<unsigned char>(s[i]))) ++i;
-  return s.substr(i);
 }
 
 }  // namespace
@@ -142,9 +136,7 @@ int main(int argc, char** argv) {
     ServerConfig config;
     config.listen = listen;
     if (!token_file.empty()) {
-      config.token = trim(readFile(token_file, "token file"));
-      if (config.token.empty())
-        throw std::runtime_error("token file '" + token_file + "' is empty");
+      config.token = activefoam::readTokenFile(token_file);
     }
     if (!cert.empty()) config.tls_cert = readFile(cert, "TLS certificate");
     if (!key.empty()) config.tls_key = readFile(key, "TLS key");

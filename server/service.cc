@@ -164,7 +164,7 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::JobEvent> {
       if (pending_.empty()) {
         const std::optional<v1::Job> job = store_.getJob(job_);  // state first, then events
         if (!job) {
-          finishLocked(Status(StatusCode::NOT_FOUND, "no job '" + job_ + "'"));
+          finishLocked(Status(StatusCode::NOT_FOUND, "no job " + cappedQuote(job_)));
           return;
         }
         auto evs = store_.events(job_, after_, 256);
@@ -273,7 +273,8 @@ class FoamService final : public v1::Foam::CallbackService {
                              v1::Job* resp) override {
     return done(ctx, guarded([&] {
                   auto j = store_.getJob(req->job_id());
-                  if (!j) return Status(StatusCode::NOT_FOUND, "no job '" + req->job_id() + "'");
+                  if (!j)
+                    return Status(StatusCode::NOT_FOUND, "no job " + cappedQuote(req->job_id()));
                   *resp = *j;
                   return Status::OK;
                 }));
@@ -338,11 +339,15 @@ class FoamService final : public v1::Foam::CallbackService {
     std::optional<std::tuple<v1::SnapshotInfo, std::string, std::string>> snap;
     Status status;
     status = guarded([&] {
+      if (req->index() < -1)
+        return Status(StatusCode::INVALID_ARGUMENT,
+                      "index: " + std::to_string(req->index()) + " is below -1 (-1 = the latest)");
       if (!store_.getJob(req->job_id()))
-        return Status(StatusCode::NOT_FOUND, "no job '" + req->job_id() + "'");
+        return Status(StatusCode::NOT_FOUND, "no job " + cappedQuote(req->job_id()));
       snap = store_.snapshot(req->job_id(), req->index());
       if (!snap)
-        return Status(StatusCode::NOT_FOUND, "job '" + req->job_id() + "' has no snapshot " +
+        return Status(StatusCode::NOT_FOUND, "job " + cappedQuote(req->job_id()) +
+                                                 " has no snapshot " +
                                                  std::to_string(req->index()));
       return Status::OK;
     });
@@ -360,6 +365,11 @@ class FoamService final : public v1::Foam::CallbackService {
  private:
   static ServerUnaryReactor* done(CallbackServerContext* ctx, Status s) {
     auto* r = ctx->DefaultReactor();
+    // The last guard against echoing a huge value: a message beyond gRPC's metadata limit
+    // would turn the answer into an opaque transport error (and hung grpc-js channels).
+    if (s.error_message().size() > 1024)
+      s = Status(s.error_code(), s.error_message().substr(0, 1000) + "... (" +
+                                     std::to_string(s.error_message().size()) + " bytes)");
     r->Finish(std::move(s));
     return r;
   }
@@ -428,7 +438,7 @@ class FoamService final : public v1::Foam::CallbackService {
 
   Status reportTask(const v1::ReportTaskRequest& req, v1::ReportTaskResponse& resp) {
     const std::optional<v1::Job> j = store_.getJob(req.job_id());
-    if (!j) return Status(StatusCode::NOT_FOUND, "no job '" + req.job_id() + "'");
+    if (!j) return Status(StatusCode::NOT_FOUND, "no job " + cappedQuote(req.job_id()));
     if (j->state() == v1::JOB_STATE_RUNNING && j->executor_ref().empty())
       // Claimed and submitted, but the executor has not recorded the task yet (a task can start
       // before sbatch answers): the reporter retries.

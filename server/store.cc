@@ -9,10 +9,12 @@
 #include <cctype>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <ctime>
 #include <random>
 #include <set>
+#include <tuple>
 
 #include <spdlog/spdlog.h>
 #include <nlohmann/json.hpp>
@@ -203,7 +205,7 @@ std::optional<v1::Job> loadJob(sqlite3* db, const std::string& id) {
 
 v1::Job requireJob(sqlite3* db, const std::string& id) {
   auto j = loadJob(db, id);
-  if (!j) throw StoreError(StoreError::Kind::NotFound, "no job '" + id + "'");
+  if (!j) throw StoreError(StoreError::Kind::NotFound, "no job " + cappedQuote(id));
   return *j;
 }
 
@@ -276,6 +278,12 @@ void addParamFilters(Where& w, const google::protobuf::RepeatedPtrField<v1::Para
       throw StoreError(StoreError::Kind::InvalidArgument,
                        "params.key: unknown parameter '" + r.key() + "', one of " + allowed);
     }
+    for (const auto& [has, v, name] :
+         {std::tuple{r.has_min(), r.min(), "min"}, std::tuple{r.has_max(), r.max(), "max"}})
+      if (has && std::isnan(v))
+        throw StoreError(
+            StoreError::Kind::InvalidArgument,
+            "params[" + cappedQuote(r.key(), 64) + "]." + name + ": NaN is not a bound");
     if (r.has_min()) w.add(it->second + " >= ?", r.min());
     if (r.has_max()) w.add(it->second + " <= ?", r.max());
   }
@@ -331,7 +339,7 @@ struct Store::Tx {
   std::int64_t event(const std::string& id, v1::JobEvent ev) {
     Stmt up(db, "UPDATE jobs SET last_seq = last_seq + 1 WHERE id = ? RETURNING last_seq");
     up.bind(1, id);
-    if (!up.step()) throw StoreError(StoreError::Kind::NotFound, "no job '" + id + "'");
+    if (!up.step()) throw StoreError(StoreError::Kind::NotFound, "no job " + cappedQuote(id));
     const std::int64_t seq = up.i64(0);
     up.run();
     ev.set_seq(seq);
@@ -405,6 +413,11 @@ struct Store::Tx {
     event(id, std::move(ev));
   }
 };
+
+std::string cappedQuote(const std::string& value, std::size_t max) {
+  if (value.size() <= max) return "'" + value + "'";
+  return "'" + value.substr(0, max) + "'... (" + std::to_string(value.size()) + " bytes)";
+}
 
 DbLock::DbLock(const std::string& db_path) {
   const std::string lock_path = db_path + ".lock";
@@ -922,6 +935,11 @@ v1::ListJobsResponse Store::listJobs(const v1::ListJobsRequest& req) {
   if (req.states_size() > 0) {
     std::string in;
     for (int s : req.states()) {
+      if (!v1::JobState_IsValid(s) || s == v1::JOB_STATE_UNSPECIFIED)
+        throw StoreError(StoreError::Kind::InvalidArgument,
+                         "states: " + std::to_string(s) +
+                             " is not a job state (1..5: queued, running, succeeded, failed, "
+                             "cancelled)");
       if (!in.empty()) in += ",";
       in += std::to_string(s);
     }
@@ -1041,7 +1059,11 @@ v1::QueryResultsResponse Store::queryResults(const v1::QueryResultsRequest& req)
   if (!req.sweep_id().empty()) w.add("sweep_id = ?", req.sweep_id());
   addOutcomeFilter(w, req.outcome());
   addParamFilters(w, req.params());
-  const int limit = req.limit() <= 0 ? 1000 : std::min(req.limit(), 100000);
+  if (req.limit() < 0 || req.limit() > 100000)
+    throw StoreError(StoreError::Kind::InvalidArgument,
+                     "limit: " + std::to_string(req.limit()) +
+                         " is outside [0, 100000] (0 = the default, 1000)");
+  const int limit = req.limit() == 0 ? 1000 : req.limit();
   std::string cols = "id, outcome";
   for (const auto& [k, c] : paramColumns()) cols += ", " + c;
   std::lock_guard lock(rmu_);

@@ -31,6 +31,10 @@ inline constexpr int kSchemaVersion = 3;
 
 // A request that cannot be served as asked (bad filter, unknown id, key reuse): the service
 // maps these to gRPC codes.
+// A client-supplied value inside an error message: quoted, at most `max` bytes of it (a 64 KB
+// job id echoed back would exceed gRPC's metadata limit).
+std::string cappedQuote(const std::string& value, std::size_t max = 200);
+
 struct StoreError : std::runtime_error {
   enum class Kind { InvalidArgument, NotFound, FailedPrecondition };
   Kind kind;

@@ -96,5 +96,14 @@ TEST(Faults, ASecondFoamdOnTheSamePortIsRefused) {
   for (int i = 0; i < 10; ++i) ids.insert(submitCell(a, 1));
   EXPECT_EQ(ids.size(), 10u);
   for (const std::string& id : ids) EXPECT_FALSE(state(a, id).empty()) << id;
+
+  // foam cancel of a running job answers "cancelling" (it stops at its next step), not the
+  // "running" it used to print; the job then ends cancelled.
+  const std::string id = submitCell(a, 3000, 100);
+  for (int i = 0; i < 400 && state(a, id) != "running"; ++i) std::this_thread::sleep_for(50ms);
+  ASSERT_EQ(state(a, id), "running");
+  EXPECT_EQ(firstLine(sh(a.foam() + " cancel " + id).out), "cancelling");
+  for (int i = 0; i < 200 && state(a, id) == "running"; ++i) std::this_thread::sleep_for(50ms);
+  EXPECT_EQ(state(a, id), "cancelled");
   fs::remove_all(dir);
 }

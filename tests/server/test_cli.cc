@@ -66,6 +66,16 @@ TEST(Cli, SubmitWaitThenResultsJson) {
   EXPECT_TRUE(bad.out.empty());
   // A job that fails to exist: show exits 5.
   EXPECT_EQ(sh(d.foam() + " show j-nope 2>/dev/null").rc, 5);
+  // A directory or a 2 MiB file given as the spec: exit 2 saying so (before: "scene: missing").
+  const Proc folder = sh(d.foam() + " submit " + dir.string() + " 2>&1");
+  EXPECT_EQ(folder.rc, 2);
+  EXPECT_NE(folder.out.find("is a directory, not a file"), std::string::npos) << folder.out;
+  std::ofstream(dir / "huge.toml") << std::string(2 << 20, '#');
+  const Proc huge = sh(d.foam() + " submit " + (dir / "huge.toml").string() + " 2>&1");
+  EXPECT_EQ(huge.rc, 2);
+  EXPECT_NE(huge.out.find("has 2097152 bytes; a spec or certificate file has at most 1 MiB"),
+            std::string::npos)
+      << huge.out;
   d.stop(SIGTERM);
   fs::remove_all(dir);
 }
@@ -276,7 +286,28 @@ TEST(Cli, TlsAndTokenFromFlagsAndEnvironment) {
   const std::string cert = std::string(SERVER_TEST_DATA) + "/test-cert.pem";
   const std::string key = std::string(SERVER_TEST_DATA) + "/test-key.pem";
   const fs::path token = dir / "token";
-  std::ofstream(token) << "t0ken\n";
+  const std::string secret = "t0ken-of-20-bytes-x";
+  std::ofstream(token) << secret << "\n";
+  // Token files are refused, by foamd and by foam, when others may read them or when they are
+  // too short to be a secret (as ssh refuses keys).
+  fs::permissions(token, fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
+  Foamd open_file(dir / "open.db", freePort(), 1, {"--token-file", token.string()});
+  EXPECT_EQ(open_file.exited(10s), 2);
+  const Proc foam_open =
+      sh(std::string(FOAM_EXE) + " --token-file " + token.string() + " list 2>&1");
+  EXPECT_EQ(foam_open.rc, 2);
+  EXPECT_NE(foam_open.out.find("is accessible to other users (mode 0640): chmod 600"),
+            std::string::npos)
+      << foam_open.out;
+  const fs::path short_token = dir / "short";
+  std::ofstream(short_token) << "t0ken\n";
+  fs::permissions(short_token, fs::perms::owner_read | fs::perms::owner_write);
+  Foamd short_file(dir / "short.db", freePort(), 1, {"--token-file", short_token.string()});
+  EXPECT_EQ(short_file.exited(10s), 2);
+  std::ifstream log(dir / "foamd.log");
+  const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("holds 5 bytes; a token needs at least 16"), std::string::npos) << text;
+  fs::permissions(token, fs::perms::owner_read | fs::perms::owner_write);
   const int port = freePort();
   Foamd d(dir / "foamd.db", port, 1,
           {"--tls-cert", cert, "--tls-key", key, "--token-file", token.string()});
@@ -289,7 +320,8 @@ TEST(Cli, TlsAndTokenFromFlagsAndEnvironment) {
   }
   EXPECT_EQ(rc, 0) << "foam list over TLS with the token";
   EXPECT_EQ(sh(foam + tls + " list 2>/dev/null").rc, 4);  // no token: unauthenticated
-  EXPECT_EQ(sh("FOAM_TLS_CA=" + cert + " FOAM_TOKEN=t0ken " + foam + " list 2>/dev/null").rc, 0);
+  EXPECT_EQ(
+      sh("FOAM_TLS_CA=" + cert + " FOAM_TOKEN=" + secret + " " + foam + " list 2>/dev/null").rc, 0);
   EXPECT_EQ(sh(foam + " --token-file " + token.string() + " list 2>/dev/null").rc, 3);  // plain
   d.stop(SIGTERM);
   fs::remove_all(dir);
@@ -438,7 +470,11 @@ TEST(CliSlurm, CancelFailureAndAFoamdRestartMidSweep) {
     std::this_thread::sleep_for(100ms);
   }
   ASSERT_EQ(ref.rfind("slurm:", 0), 0u) << ref;
-  EXPECT_EQ(sh(s->foam() + " cancel " + long_id + " 2>/dev/null").rc, 0);
+  const Proc cancelled = sh(s->foam() + " cancel " + long_id + " 2>/dev/null");
+  EXPECT_EQ(cancelled.rc, 0);
+  // Slurm's executor cancels at once ("cancelled"); the pool's job stops at its next step.
+  EXPECT_TRUE(firstLine(cancelled.out) == "cancelled" || firstLine(cancelled.out) == "cancelling")
+      << cancelled.out;
   EXPECT_EQ(waitForState(*s, long_id, "cancelled", 10), "cancelled");
   EXPECT_EQ(slurm.taskState(ref.substr(6)), "CANCELLED");
 

@@ -494,6 +494,64 @@ TEST_F(ServiceTest, RecordedSnapshotsOfARunCanBeFetched) {
   EXPECT_EQ(info.vertices(), 42);
 }
 
+// Requests that used to be accepted silently or answered opaquely (issue 18): each is
+// INVALID_ARGUMENT naming the field, a huge value is not echoed back whole, and the server
+// keeps serving.
+TEST_F(ServiceTest, BadRequestsAreInvalidArgumentNamingTheField) {
+  startServer();
+  const std::string id = submit(tinyCell());
+  waitFor(id, terminal);
+  auto expectInvalid = [](const grpc::Status& st, const std::string& field) {
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
+    EXPECT_EQ(st.error_message().rfind(field, 0), 0u) << st.error_message();
+  };
+  {
+    v1::ListJobsRequest lr;
+    lr.add_states(static_cast<v1::JobState>(99));
+    v1::ListJobsResponse resp;
+    auto c = ctx();
+    expectInvalid(stub_->ListJobs(c.get(), lr, &resp), "states: 99 is not a job state");
+  }
+  {
+    v1::QueryResultsRequest q;
+    auto* p = q.add_params();
+    p->set_key("gamma");
+    p->set_min(std::nan(""));
+    v1::QueryResultsResponse resp;
+    auto c = ctx();
+    expectInvalid(stub_->QueryResults(c.get(), q, &resp), "params['gamma'].min: NaN");
+    q.clear_params();
+    q.set_limit(-1);
+    auto c2 = ctx();
+    expectInvalid(stub_->QueryResults(c2.get(), q, &resp), "limit: -1 is outside [0, 100000]");
+  }
+  {
+    v1::GetSnapshotRequest gr;
+    gr.set_job_id(id);
+    gr.set_index(-2);
+    grpc::ClientContext c;
+    auto reader = stub_->GetSnapshot(&c, gr);
+    v1::SnapshotChunk chunk;
+    while (reader->Read(&chunk)) {
+    }
+    expectInvalid(reader->Finish(), "index: -2 is below -1");
+  }
+  {
+    v1::GetJobRequest gj;
+    gj.set_job_id(std::string(64 * 1024, 'x'));
+    v1::Job j;
+    auto c = ctx();
+    const grpc::Status st = stub_->GetJob(c.get(), gj, &j);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::NOT_FOUND);
+    EXPECT_LT(st.error_message().size(), 300u) << "the 64 KB id is not echoed whole";
+    EXPECT_NE(st.error_message().find("(65536 bytes)"), std::string::npos) << st.error_message();
+  }
+  v1::ListJobsResponse resp;
+  auto c = ctx();
+  ASSERT_TRUE(stub_->ListJobs(c.get(), v1::ListJobsRequest(), &resp).ok());
+  EXPECT_EQ(resp.jobs_size(), 1);
+}
+
 TEST_F(ServiceTest, SweepCreatesGridTimesSeedsJobs) {
   startServer(false);
   v1::SubmitSweepRequest sr;

@@ -1,0 +1,46 @@
+// Bearer-token files, read the way ssh reads private keys: refused when other users could read
+// them or when they are too short to be a secret (issue 18).
+#pragma once
+
+#include <sys/stat.h>
+
+#include <cctype>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+namespace activefoam {
+
+inline constexpr std::size_t kMinTokenBytes = 16;
+
+// The token (surrounding whitespace removed). Throws std::runtime_error naming the file and
+// what to do.
+inline std::string readTokenFile(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode))
+    throw std::runtime_error("token file '" + path + "': not a readable file");
+  if ((st.st_mode & 077) != 0) {
+    char mode[8];
+    std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777));
+    throw std::runtime_error("token file '" + path + "' is accessible to other users (mode " +
+                             mode + "): chmod 600 '" + path + "'");
+  }
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  if (!in) throw std::runtime_error("token file '" + path + "': cannot read it");
+  std::string token = s.str();
+  while (!token.empty() && std::isspace(static_cast<unsigned char>(token.back()))) token.pop_back();
+  std::size_t i = 0;
+  while (i < token.size() && std::isspace(static_cast<unsigned char>(token[i]))) ++i;
+  token.erase(0, i);
+  if (token.size() < kMinTokenBytes)
+    throw std::runtime_error("token file '" + path + "' holds " + std::to_string(token.size()) +
+                             " bytes; a token needs at least " + std::to_string(kMinTokenBytes) +
+                             " (e.g. head -c 24 /dev/urandom | base64 > '" + path + "')");
+  return token;
+}
+
+}  // namespace activefoam
