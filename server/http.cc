@@ -191,13 +191,23 @@ std::string HttpEndpoint::handle(const std::string& target, int& code, std::stri
         << "foamd_jobs_finished_total{state=\"succeeded\"} " << st.jobs_succeeded.load() << "\n"
         << "foamd_jobs_finished_total{state=\"failed\"} " << st.jobs_failed.load() << "\n"
         << "foamd_jobs_finished_total{state=\"cancelled\"} " << st.jobs_cancelled.load() << "\n"
+        << "# HELP foamd_store_errors_total Failed tries to write the store (disk full, I/O).\n"
+        << "# TYPE foamd_store_errors_total counter\nfoamd_store_errors_total "
+        << store_.storeErrors() << "\n"
+        << "# HELP foamd_store_degraded 1 while store writes fail.\n"
+        << "# TYPE foamd_store_degraded gauge\nfoamd_store_degraded " << (store_.degraded() ? 1 : 0)
+        << "\n"
         << "# HELP foamd_jobs Jobs in the store by state.\n# TYPE foamd_jobs gauge\n";
       for (auto s : {v1::JOB_STATE_QUEUED, v1::JOB_STATE_RUNNING, v1::JOB_STATE_SUCCEEDED,
                      v1::JOB_STATE_FAILED, v1::JOB_STATE_CANCELLED})
         o << "foamd_jobs{state=\"" << v1::JobState_Name(s) << "\"} " << count(s) << "\n";
       return o.str();
     }
-    if (path == "/healthz") return "{\"status\":\"ok\"}";
+    if (path == "/healthz") {
+      if (!store_.degraded()) return "{\"status\":\"ok\"}";
+      code = 503;  // writes failing: a probe must see it
+      return nlohmann::json{{"status", "degraded"}, {"store_error", store_.lastError()}}.dump();
+    }
     if (path == "/jobs") {
       // The filters of ListJobs: state (comma-separated), tag, sweep, scene, outcome,
       // param.KEY=MIN:MAX, page_size (default 1000), page_token.
@@ -310,6 +320,7 @@ void HttpEndpoint::loop() {
                        : code == 404 ? "Not Found"
                        : code == 405 ? "Method Not Allowed"
                        : code == 500 ? "Internal Server Error"
+                       : code == 503 ? "Service Unavailable"
                                      : "Bad Request";
     std::string resp = "HTTP/1.0 " + std::to_string(code) + " " + text +
                        "\r\nContent-Type: " + type +

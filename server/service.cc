@@ -241,6 +241,7 @@ class FoamService final : public v1::Foam::CallbackService {
                                 v1::SubmitJobResponse* resp) override {
     return done(
         ctx, guarded([&] {
+          if (Status st = writable(); !st.ok()) return st;
           if (req->idempotency_key().size() > 256)
             return Status(StatusCode::INVALID_ARGUMENT, "idempotency_key: at most 256 bytes");
           if (req->tag().size() > 256)
@@ -331,7 +332,10 @@ class FoamService final : public v1::Foam::CallbackService {
 
   ServerUnaryReactor* SubmitSweep(CallbackServerContext* ctx, const v1::SubmitSweepRequest* req,
                                   v1::SubmitSweepResponse* resp) override {
-    return done(ctx, guarded([&] { return sweep(*req, resp); }));
+    return done(ctx, guarded([&] {
+                  if (Status st = writable(); !st.ok()) return st;
+                  return sweep(*req, resp);
+                }));
   }
 
   grpc::ServerWriteReactor<v1::SnapshotChunk>* GetSnapshot(
@@ -363,6 +367,14 @@ class FoamService final : public v1::Foam::CallbackService {
   }
 
  private:
+  // New work is refused while the store cannot write: its reply would wait for the disk.
+  Status writable() const {
+    if (!store_.degraded()) return Status::OK;
+    return Status(StatusCode::UNAVAILABLE,
+                  "the store cannot write (" + store_.lastError().substr(0, 200) +
+                      "); nothing was accepted: retry when it recovers (health: NOT_SERVING)");
+  }
+
   static ServerUnaryReactor* done(CallbackServerContext* ctx, Status s) {
     auto* r = ctx->DefaultReactor();
     // The last guard against echoing a huge value: a message beyond gRPC's metadata limit
@@ -550,8 +562,13 @@ void FoamServer::start() {
                              ": the port is taken (another foamd?) or the address is not this "
                              "machine's");
   if (auto* health = m.server->GetHealthCheckService()) {
-    health->SetServingStatus(true);
-    health->SetServingStatus("activefoam.v1.Foam", true);
+    health->SetServingStatus(!m.store.degraded());
+    health->SetServingStatus("activefoam.v1.Foam", !m.store.degraded());
+    // NOT_SERVING while the store's writes fail (reads still answer).
+    m.store.setHealthListener([health](bool writable) {
+      health->SetServingStatus(writable);
+      health->SetServingStatus("activefoam.v1.Foam", writable);
+    });
   }
   spdlog::info("foamd: gRPC on {} (port {}){}{}", m.config.listen, m.port, tls ? ", TLS" : "",
                m.config.token.empty() ? "" : ", token required");
@@ -562,6 +579,7 @@ int FoamServer::port() const {
 }
 
 void FoamServer::shutdown() {
+  impl_->store.setHealthListener(nullptr);
   if (impl_->server) {
     if (auto* health = impl_->server->GetHealthCheckService()) health->Shutdown();
     impl_->server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));

@@ -26,17 +26,51 @@ namespace {
 
 // ---- small SQLite helpers ----------------------------------------------------------------
 
+// An SQLite failure with its primary result code, so that the writer can tell the storage
+// failing (disk full, I/O error: retried) from a bad statement (a bug: reported).
+struct SqliteError : std::runtime_error {
+  int code;
+  SqliteError(int c, const std::string& what) : std::runtime_error(what), code(c & 0xff) {}
+};
+
+// Failures of the storage, not of the statement: the same write may succeed later.
+bool storageFailure(int code) {
+  switch (code) {
+    case SQLITE_FULL:
+    case SQLITE_IOERR:
+    case SQLITE_READONLY:
+    case SQLITE_CANTOPEN:
+    case SQLITE_NOMEM:
+    case SQLITE_BUSY:
+    case SQLITE_LOCKED:
+    case SQLITE_PROTOCOL:
+      return true;
+    default:
+      return false;
+  }
+}
+
+bool storageFailure(const std::exception_ptr& e) {
+  try {
+    std::rethrow_exception(e);
+  } catch (const SqliteError& s) {
+    return storageFailure(s.code);
+  } catch (...) {
+    return false;
+  }
+}
+
 void check(int rc, sqlite3* db, const char* what) {
   if (rc != SQLITE_OK && rc != SQLITE_DONE && rc != SQLITE_ROW)
-    throw std::runtime_error(std::string(what) + ": " + sqlite3_errmsg(db));
+    throw SqliteError(rc, std::string(what) + ": " + sqlite3_errmsg(db));
 }
 
 void exec(sqlite3* db, const std::string& sql) {
   char* err = nullptr;
-  if (sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err) != SQLITE_OK) {
+  if (const int rc = sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err); rc != SQLITE_OK) {
     std::string msg = err ? err : "?";
     sqlite3_free(err);
-    throw std::runtime_error("sqlite: " + msg + " in: " + sql.substr(0, 80));
+    throw SqliteError(rc, "sqlite: " + msg + " in: " + sql.substr(0, 80));
   }
 }
 
@@ -528,25 +562,68 @@ void Store::writerLoop() {
     Tx tx{wdb_, {}};
     std::vector<std::exception_ptr> errors(batch.size());
     std::exception_ptr commit_error;
-    try {
-      exec(wdb_, "BEGIN IMMEDIATE");
-      for (std::size_t i = 0; i < batch.size(); ++i) {
-        const std::size_t mark = tx.touched.size();
-        exec(wdb_, "SAVEPOINT w");
-        try {
-          batch[i]->fn(tx);
-          exec(wdb_, "RELEASE w");
-        } catch (...) {
-          errors[i] = std::current_exception();
-          tx.touched.resize(mark);
-          exec(wdb_, "ROLLBACK TO w; RELEASE w");
-        }
-      }
-      exec(wdb_, "COMMIT");
-    } catch (...) {
-      commit_error = std::current_exception();
-      sqlite3_exec(wdb_, "ROLLBACK", nullptr, nullptr, nullptr);
+    // A batch that fails on the storage (disk full, I/O error) is rolled back and run again,
+    // whole and in order, with backoff, until it commits: nothing queued is dropped. Meanwhile
+    // the store is degraded (health NOT_SERVING, new submits refused) and reads go on.
+    for (int attempt = 0;; ++attempt) {
+      commit_error = nullptr;
+      std::fill(errors.begin(), errors.end(), nullptr);
       tx.touched.clear();
+      try {
+        exec(wdb_, "BEGIN IMMEDIATE");
+        for (std::size_t i = 0; i < batch.size(); ++i) {
+          const std::size_t mark = tx.touched.size();
+          exec(wdb_, "SAVEPOINT w");
+          try {
+            batch[i]->fn(tx);
+            exec(wdb_, "RELEASE w");
+          } catch (...) {
+            // A statement that failed on the storage fails the whole batch (retried below);
+            // any other error is this task's alone.
+            if (storageFailure(std::current_exception())) throw;
+            errors[i] = std::current_exception();
+            tx.touched.resize(mark);
+            exec(wdb_, "ROLLBACK TO w; RELEASE w");
+          }
+        }
+        exec(wdb_, "COMMIT");
+      } catch (...) {
+        commit_error = std::current_exception();
+        sqlite3_exec(wdb_, "ROLLBACK", nullptr, nullptr, nullptr);
+        tx.touched.clear();
+      }
+      if (!commit_error || !storageFailure(commit_error)) break;
+      std::string what;
+      try {
+        std::rethrow_exception(commit_error);
+      } catch (const std::exception& e) {
+        what = e.what();
+      }
+      store_errors_.fetch_add(1);
+      {
+        std::lock_guard lock(emu_);
+        last_error_ = what;
+      }
+      if (!degraded_.exchange(true)) {
+        spdlog::error(
+            "store: a write to {} failed: {}; {} queued write(s) are kept and retried "
+            "with backoff, new submits are refused until it succeeds",
+            path_, what, batch.size());
+        notifyHealth(false);
+      } else if (attempt % 20 == 0) {
+        spdlog::error("store: writes still failing after {} tries: {}", attempt + 1, what);
+      }
+      std::unique_lock lock(qmu_);
+      if (stop_) {
+        spdlog::error("store: closing while writes fail: {} write(s) not committed", batch.size());
+        break;
+      }
+      const auto backoff = std::chrono::milliseconds(std::min(5000, 50 << std::min(attempt, 7)));
+      qcv_.wait_for(lock, backoff, [&] { return stop_; });
+    }
+    if (!commit_error && degraded_.exchange(false)) {
+      spdlog::info("store: writes succeed again ({} failure(s) so far)", store_errors_.load());
+      notifyHealth(true);
     }
     for (std::size_t i = 0; i < batch.size(); ++i) {
       if (commit_error)
@@ -596,6 +673,10 @@ void Store::post(std::function<void(Tx&)> fn) {
   task->fn = [fn = std::move(fn)](Tx& tx) {
     try {
       fn(tx);
+    } catch (const SqliteError& e) {
+      if (!storageFailure(e.code))  // storage failures are retried and logged by the writer
+        spdlog::error("store: background write failed: {}", e.what());
+      throw;
     } catch (const std::exception& e) {
       spdlog::error("store: background write failed: {}", e.what());
       throw;
@@ -777,6 +858,25 @@ Store::Held Store::ingestReport(
     if (progress) tx.setProgress(id, *progress);
     return held;
   });
+}
+
+std::string Store::lastError() const {
+  std::lock_guard lock(emu_);
+  return last_error_;
+}
+
+void Store::setHealthListener(std::function<void(bool)> listener) {
+  std::lock_guard lock(emu_);
+  health_listener_ = std::move(listener);
+}
+
+void Store::notifyHealth(bool writable) {
+  std::function<void(bool)> h;
+  {
+    std::lock_guard lock(emu_);
+    h = health_listener_;
+  }
+  if (h) h(writable);
 }
 
 v1::Job Store::cancel(const std::string& id, const std::string& reason) {

@@ -5,6 +5,7 @@
 // own connection and see committed data only.
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -142,6 +143,14 @@ class Store {
   // Waits until every queued write is committed.
   void flush();
 
+  // ---- the storage's health: true while writes fail (disk full, I/O error). Failed writes are
+  // kept and retried with backoff until they commit; `storeErrors` counts failed tries.
+  bool degraded() const { return degraded_.load(); }
+  std::int64_t storeErrors() const { return store_errors_.load(); }
+  std::string lastError() const;
+  // Called from the writer thread when writes start failing (false) and succeed again (true).
+  void setHealthListener(std::function<void(bool writable)> listener);
+
   // ---- reads
   std::optional<v1::Job> getJob(const std::string& id);
   std::vector<v1::Job> runningJobs();
@@ -170,6 +179,7 @@ class Store {
   void post(std::function<void(Tx&)> fn);  // fire and forget (errors logged)
   void writerLoop();
   void migrate();
+  void notifyHealth(bool writable);
 
   std::string path_;
   StoreOptions options_;
@@ -184,6 +194,11 @@ class Store {
   bool busy_ = false;
   bool stop_ = false;
   std::function<void(const std::string&)> listener_;
+  std::atomic<bool> degraded_{false};
+  std::atomic<std::int64_t> store_errors_{0};
+  mutable std::mutex emu_;  // last_error_, health_listener_
+  std::string last_error_;
+  std::function<void(bool)> health_listener_;
   std::thread writer_;
 };
 

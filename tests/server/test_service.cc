@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "activefoam/v1/service.grpc.pb.h"
+#include "faulty_vfs.h"
 #include "http.h"
 #include "pool.h"
 #include "service.h"
@@ -717,6 +718,56 @@ grpc::Status healthCheck(grpc::GenericStub& stub, const std::string& service, st
 }
 
 }  // namespace
+
+// Disk full mid-run (issue 18): every write fails with SQLITE_FULL for a while. The server
+// does not abort; it logs, counts the failures, reports NOT_SERVING and refuses new submits
+// while still answering reads; the running job's queued outputs are kept and committed when
+// space returns, and it ends with the samples of an uninterrupted run.
+TEST_F(ServiceTest, StoreWriteFailuresAreRetriedAndTheJobEndsIntact) {
+  faulty_vfs::install();
+  startServer();
+  v1::SubmitJobRequest spec = tinyCell(20000);  // ~3.5 s of wall time
+  spec.mutable_spec()->set_sample_every_s(250);
+  const std::string ref = submit(spec);
+  ASSERT_EQ(waitFor(ref, terminal).state(), v1::JOB_STATE_SUCCEEDED);
+
+  const std::string id = submit(spec);
+  waitFor(id, [](const v1::Job& j) { return j.state() == v1::JOB_STATE_RUNNING && j.t_s() > 0; });
+  faulty_vfs::fail_writes = true;
+  for (int i = 0; i < 200 && !store_->degraded(); ++i) std::this_thread::sleep_for(10ms);
+  ASSERT_TRUE(store_->degraded()) << "a running job's writes reach the store within 2 s";
+  std::this_thread::sleep_for(300ms);
+  EXPECT_GT(store_->storeErrors(), 0);
+  EXPECT_NE(store_->lastError().find("full"), std::string::npos) << store_->lastError();
+  grpc::GenericStub generic(channel_);
+  std::string reply;
+  ASSERT_TRUE(healthCheck(generic, "activefoam.v1.Foam", &reply).ok());
+  EXPECT_EQ(reply, std::string("\x08\x02", 2)) << "NOT_SERVING";
+  v1::SubmitJobResponse resp;
+  auto c = ctx();
+  const grpc::Status refused = stub_->SubmitJob(c.get(), tinyCell(), &resp);
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::UNAVAILABLE);
+  EXPECT_NE(refused.error_message().find("the store cannot write"), std::string::npos)
+      << refused.error_message();
+  EXPECT_EQ(get(id).id(), id) << "reads are served";
+
+  faulty_vfs::fail_writes = false;
+  const v1::Job done = waitFor(id, terminal);
+  EXPECT_EQ(done.state(), v1::JOB_STATE_SUCCEEDED) << done.reason();
+  EXPECT_FALSE(store_->degraded());
+  ASSERT_TRUE(healthCheck(generic, "activefoam.v1.Foam", &reply).ok());
+  EXPECT_EQ(reply, std::string("\x08\x01", 2)) << "SERVING again";
+  const v1::JobResults a = store_->results(ref, true), b = store_->results(id, true);
+  ASSERT_EQ(a.samples_size(), 81);
+  ASSERT_EQ(b.samples_size(), a.samples_size());
+  for (int k = 0; k < a.samples_size(); ++k) {
+    ASSERT_EQ(b.samples(k).values_size(), a.samples(k).values_size());
+    for (int v = 0; v < a.samples(k).values_size(); ++v) {
+      if (a.columns(v) == "wall_s") continue;
+      EXPECT_EQ(b.samples(k).values(v), a.samples(k).values(v)) << k << " " << a.columns(v);
+    }
+  }
+}
 
 TEST_F(ServiceTest, HealthAndReflectionAnswer) {
   startServer(false);
