@@ -292,6 +292,7 @@ class FoamService final : public v1::Foam::CallbackService {
   ServerUnaryReactor* CancelJob(CallbackServerContext* ctx, const v1::CancelJobRequest* req,
                                 v1::Job* resp) override {
     return done(ctx, guarded([&] {
+                  if (Status st = writable(); !st.ok()) return st;
                   const std::string reason =
                       req->reason().empty() ? "cancelled by request" : req->reason();
                   v1::Job j = store_.cancel(req->job_id(), reason);
