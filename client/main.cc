@@ -14,6 +14,7 @@
 
 #include <zlib.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -444,6 +445,120 @@ void printResultsTable(const v1::QueryResultsResponse& resp, TableFormat format)
   if (format == TableFormat::Text) std::cerr << "foam: " << resp.rows_size() << " succeeded jobs\n";
 }
 
+// ---- foam results --by: a sweep's results over seeds ----------------------------------------
+
+// Quantile q of sorted values, linear between order statistics (numpy's and R's default).
+double quantile(const std::vector<double>& sorted, double q) {
+  if (sorted.empty()) return std::nan("");
+  const double pos = q * static_cast<double>(sorted.size() - 1);
+  const auto lo = static_cast<std::size_t>(std::floor(pos));
+  const std::size_t hi = std::min(lo + 1, sorted.size() - 1);
+  return sorted[lo] + (pos - static_cast<double>(lo)) * (sorted[hi] - sorted[lo]);
+}
+
+struct Group {
+  int jobs = 0, succeeded = 0, failed = 0;            // failed: failed or cancelled
+  std::map<std::string, std::vector<double>> values;  // finite values of each result, sorted
+};
+
+// Groups the jobs by the values of the spec keys in `by` (dotted, read from each job's resolved
+// spec); `rows` (QueryResults) gives the succeeded jobs' results. Sets `err` for a key that a
+// job's spec does not have as a number.
+std::map<std::vector<double>, Group> aggregateBy(const std::vector<v1::Job>& jobs,
+                                                 const v1::QueryResultsResponse& rows,
+                                                 const std::vector<std::string>& by,
+                                                 std::string& err) {
+  std::map<std::string, const v1::QueryResultsRow*> row_of;
+  for (const auto& r : rows.rows()) row_of[r.job_id()] = &r;
+  std::map<std::vector<double>, Group> groups;
+  for (const v1::Job& j : jobs) {
+    const nlohmann::json spec = nlohmann::json::parse(j.spec_json(), nullptr, false);
+    std::vector<double> key;
+    for (const std::string& k : by) {
+      const nlohmann::json* v = &spec;
+      std::size_t a = 0;
+      while (v) {
+        const std::size_t b = std::min(k.find('.', a), k.size());
+        const std::string part = k.substr(a, b - a);
+        v = v->is_object() && v->contains(part) ? &(*v)[part] : nullptr;
+        if (b == k.size()) break;
+        a = b + 1;
+      }
+      if (!v || !v->is_number()) {
+        err = "'" + k + "' is not a numeric key of job " + j.id() +
+              "'s spec (dotted, as foam-run --keys lists them, e.g. cells.alpha)";
+        return {};
+      }
+      key.push_back(v->get<double>());
+    }
+    Group& g = groups[key];
+    ++g.jobs;
+    if (j.state() == v1::JOB_STATE_FAILED || j.state() == v1::JOB_STATE_CANCELLED) ++g.failed;
+    if (j.state() != v1::JOB_STATE_SUCCEEDED) continue;
+    ++g.succeeded;
+    if (const auto it = row_of.find(j.id()); it != row_of.end())
+      for (const auto& r : it->second->results())
+        if (std::isfinite(r.value())) g.values[r.name()].push_back(r.value());
+  }
+  for (auto& [key, g] : groups)
+    for (auto& [name, v] : g.values) std::sort(v.begin(), v.end());
+  return groups;
+}
+
+void printAggregate(const std::map<std::vector<double>, Group>& groups,
+                    const std::vector<std::string>& by, TableFormat format) {
+  std::set<std::string> names;
+  for (const auto& [key, g] : groups)
+    for (const auto& [name, v] : g.values) names.insert(name);
+  const std::vector<double> none;
+  auto valuesOf = [&](const Group& g, const std::string& n) -> const std::vector<double>& {
+    const auto it = g.values.find(n);
+    return it == g.values.end() ? none : it->second;
+  };
+  auto num = [](double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.17g", v);
+    return std::string(std::isnan(v) ? "nan" : b);
+  };
+  if (format == TableFormat::Json) {
+    nlohmann::json out = nlohmann::json::array();
+    for (const auto& [key, g] : groups) {
+      nlohmann::json row;
+      for (std::size_t k = 0; k < by.size(); ++k) row[by[k]] = key[k];
+      row["jobs"] = g.jobs;
+      row["succeeded"] = g.succeeded;
+      row["failed"] = g.failed;
+      for (const std::string& n : names) {
+        const std::vector<double>& v = valuesOf(g, n);
+        auto q = [&](double p) {
+          return v.empty() ? nlohmann::json(nullptr) : nlohmann::json(quantile(v, p));
+        };
+        row[n] = {{"n", v.size()}, {"median", q(0.5)}, {"q25", q(0.25)}, {"q75", q(0.75)}};
+      }
+      out.push_back(row);
+    }
+    std::cout << out.dump(2) << "\n";
+    return;
+  }
+  const char* sep = format == TableFormat::Csv ? "," : "  ";
+  for (std::size_t k = 0; k < by.size(); ++k) std::cout << (k ? sep : "") << by[k];
+  std::cout << sep << "jobs" << sep << "succeeded" << sep << "failed";
+  for (const std::string& n : names)
+    std::cout << sep << n << "_n" << sep << n << "_median" << sep << n << "_q25" << sep << n
+              << "_q75";
+  std::cout << "\n";
+  for (const auto& [key, g] : groups) {
+    for (std::size_t k = 0; k < key.size(); ++k) std::cout << (k ? sep : "") << num(key[k]);
+    std::cout << sep << g.jobs << sep << g.succeeded << sep << g.failed;
+    for (const std::string& n : names) {
+      const std::vector<double>& v = valuesOf(g, n);
+      std::cout << sep << v.size() << sep << num(quantile(v, 0.5)) << sep << num(quantile(v, 0.25))
+                << sep << num(quantile(v, 0.75));
+    }
+    std::cout << "\n";
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -526,6 +641,12 @@ int main(int argc, char** argv) {
   results->add_option("--tag", tag, "the jobs with this tag");
   results->add_option("--outcome", outcome, kOutcomeHelp);
   results->add_option("--metrics", metrics, "only these results (comma-separated)")->delimiter(',');
+  std::vector<std::string> by;
+  results
+      ->add_option("--by", by,
+                   "with --sweep/--tag: one row per value of these spec keys (e.g. cells.alpha), "
+                   "over seeds: jobs, succeeded, failed, and per result n, median, q25, q75")
+      ->delimiter(',');
   results->add_flag("--json", json, "JSON for scripts");
   results->add_flag("--csv", csv,
                     "samples as CSV (with ID); the table as CSV (with --sweep/--tag)");
@@ -733,9 +854,36 @@ int main(int argc, char** argv) {
       auto ctx = conn.ctx();
       const grpc::Status st = conn.stub->QueryResults(ctx.get(), req, &resp);
       if (!st.ok()) return rpcError(st, "results");
-      printResultsTable(resp, json  ? TableFormat::Json
-                              : csv ? TableFormat::Csv
-                                    : TableFormat::Text);
+      const TableFormat format = json  ? TableFormat::Json
+                                 : csv ? TableFormat::Csv
+                                       : TableFormat::Text;
+      if (by.empty()) {
+        printResultsTable(resp, format);
+        return kOk;
+      }
+      // Every job of the sweep/tag (failed and unfinished ones count too), by pages.
+      std::vector<v1::Job> jobs;
+      v1::ListJobsRequest lr;
+      lr.set_sweep_id(sweep_filter);
+      lr.set_tag(tag);
+      lr.set_outcome(outcome);
+      lr.set_page_size(1000);
+      for (;;) {
+        v1::ListJobsResponse page;
+        auto lctx = conn.ctx();
+        const grpc::Status ls = conn.stub->ListJobs(lctx.get(), lr, &page);
+        if (!ls.ok()) return rpcError(ls, "results");
+        jobs.insert(jobs.end(), page.jobs().begin(), page.jobs().end());
+        if (page.next_page_token().empty()) break;
+        lr.set_page_token(page.next_page_token());
+      }
+      std::string err;
+      const auto groups = aggregateBy(jobs, resp, by, err);
+      if (!err.empty()) {
+        std::cerr << "foam: results --by: " << err << "\n";
+        return kUsage;
+      }
+      printAggregate(groups, by, format);
       return kOk;
     }
     if (*results) {

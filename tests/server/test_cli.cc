@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -278,6 +279,66 @@ TEST(Cli, SigtermRequeuesRunningJobs) {
   const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("resuming from checkpoint at t = "), std::string::npos) << text;
   EXPECT_EQ(text.find("cannot resume"), std::string::npos) << text;
+  fs::remove_all(dir);
+}
+
+// foam results --sweep --by: per parameter value over seeds, the counts and the median and
+// quartiles of each result, equal to those computed here from the per-job table.
+TEST(Cli, SweepResultsAggregateOverSeeds) {
+  const fs::path dir = tempDir();
+  Foamd d(dir / "foamd.db", freePort(), 2);
+  Proc r;
+  for (int i = 0; i < 50; ++i) {
+    r = sh(d.foam() +
+           " sweep --scene cell --set duration_s=5 --set sample_every_s=1"
+           " --set numerics.triangles_per_cell=80 --set snapshot_every_s=0"
+           " --grid cells.gamma=0.4,0.6 --seeds 1,2,3 --wait 2>/dev/null");
+    if (r.rc != 3) break;
+    std::this_thread::sleep_for(100ms);
+  }
+  ASSERT_EQ(r.rc, 0) << r.out;
+  const std::string sweep = firstLine(r.out);
+  const Proc per_job =
+      sh(d.foam() + " results --sweep " + sweep + " --metrics aspect_ratio,wall_s --json");
+  ASSERT_EQ(per_job.rc, 0) << per_job.out;
+  std::map<double, std::map<std::string, std::vector<double>>> expected;
+  for (const auto& row : nlohmann::json::parse(per_job.out))
+    for (const char* m : {"aspect_ratio", "wall_s"})
+      expected[row["params"]["gamma"].get<double>()][m].push_back(row["results"][m]);
+  ASSERT_EQ(expected.size(), 2u);
+  auto quantile = [](std::vector<double> v, double q) {
+    std::sort(v.begin(), v.end());
+    const double pos = q * static_cast<double>(v.size() - 1);
+    const auto lo = static_cast<std::size_t>(pos);
+    const std::size_t hi = std::min(lo + 1, v.size() - 1);
+    return v[lo] + (pos - static_cast<double>(lo)) * (v[hi] - v[lo]);
+  };
+  const Proc agg = sh(d.foam() + " results --sweep " + sweep +
+                      " --by cells.gamma --metrics aspect_ratio,wall_s --json");
+  ASSERT_EQ(agg.rc, 0) << agg.out;
+  const nlohmann::json groups = nlohmann::json::parse(agg.out);
+  ASSERT_EQ(groups.size(), 2u) << agg.out;
+  for (const auto& g : groups) {
+    const double gamma = g["cells.gamma"];
+    EXPECT_EQ(g["jobs"], 3);
+    EXPECT_EQ(g["succeeded"], 3);
+    EXPECT_EQ(g["failed"], 0);
+    for (const char* m : {"aspect_ratio", "wall_s"}) {
+      const std::vector<double>& v = expected.at(gamma).at(m);
+      ASSERT_EQ(v.size(), 3u);
+      EXPECT_EQ(g[m]["n"], 3);
+      EXPECT_DOUBLE_EQ(g[m]["median"].get<double>(), quantile(v, 0.5)) << m;
+      EXPECT_DOUBLE_EQ(g[m]["q25"].get<double>(), quantile(v, 0.25)) << m;
+      EXPECT_DOUBLE_EQ(g[m]["q75"].get<double>(), quantile(v, 0.75)) << m;
+    }
+  }
+  const Proc csv = sh(d.foam() + " results --sweep " + sweep + " --by cells.gamma --csv");
+  ASSERT_EQ(csv.rc, 0);
+  EXPECT_EQ(csv.out.rfind("cells.gamma,jobs,succeeded,failed,", 0), 0u) << csv.out;
+  const Proc bad = sh(d.foam() + " results --sweep " + sweep + " --by cells.nope 2>&1");
+  EXPECT_EQ(bad.rc, 2);
+  EXPECT_NE(bad.out.find("'cells.nope' is not a numeric key"), std::string::npos) << bad.out;
+  d.stop(SIGTERM);
   fs::remove_all(dir);
 }
 
