@@ -7,6 +7,7 @@ pkgs=(build-essential cmake ninja-build pkg-config git
       libtomlplusplus-dev libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox python3
       libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler grpc-proto
       zlib1g-dev bsdextrautils
+      python3-grpcio python3-protobuf python3-pandas python3-pytest  # the Python client's tests
       clang libomp-dev)  # the tsan preset: clang + LLVM's libomp, whose Archer tool TSan understands
 missing=()
 for p in "${pkgs[@]}"; do

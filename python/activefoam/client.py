@@ -1,0 +1,419 @@
+"""The foamd client: jobs and sweeps in, pandas DataFrames out (see python/README.md)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import time
+import zlib
+from pathlib import Path
+from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Union
+
+import grpc
+import pandas as pd
+
+from activefoam import vtk
+from activefoam.v1 import job_pb2, service_pb2, service_pb2_grpc
+
+Spec = Union[Mapping[str, Any], str, os.PathLike]
+
+_TERMINAL = {"succeeded", "failed", "cancelled"}
+_STATES = {"queued", "running", "succeeded", "failed", "cancelled"}
+
+
+def _state_name(value: int) -> str:
+    return job_pb2.JobState.Name(value)[len("JOB_STATE_"):].lower()
+
+
+def _state_value(name: str) -> int:
+    if name not in _STATES:
+        raise ValueError(f"state: {name!r} is not one of {', '.join(sorted(_STATES))}")
+    return job_pb2.JobState.Value("JOB_STATE_" + name.upper())
+
+
+def _error(err: grpc.RpcError, what: str) -> Exception:
+    """The Python exception for a failed call, carrying the server's message."""
+    code, details = err.code(), err.details() or ""
+    text = f"{what}: {details}" if details else f"{what}: {code.name}"
+    if code in (grpc.StatusCode.INVALID_ARGUMENT, grpc.StatusCode.FAILED_PRECONDITION,
+                grpc.StatusCode.RESOURCE_EXHAUSTED, grpc.StatusCode.OUT_OF_RANGE):
+        return ValueError(text)
+    if code in (grpc.StatusCode.UNAUTHENTICATED, grpc.StatusCode.PERMISSION_DENIED):
+        return PermissionError(text)
+    if code == grpc.StatusCode.NOT_FOUND:
+        return LookupError(text)
+    if code in (grpc.StatusCode.UNAVAILABLE, grpc.StatusCode.DEADLINE_EXCEEDED):
+        return ConnectionError(text)
+    return RuntimeError(text)
+
+
+def _flatten(spec: Mapping[str, Any], prefix: str = "") -> Dict[str, Any]:
+    """Nested tables → dotted keys ({"cells": {"alpha": 0.5}} → {"cells.alpha": 0.5})."""
+    out: Dict[str, Any] = {}
+    for key, value in spec.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            out.update(_flatten(value, name + "."))
+        else:
+            out[name] = value
+    return out
+
+
+def _setting(key: str, value: Any) -> str:
+    if isinstance(value, bool):
+        text = "true" if value else "false"
+    elif isinstance(value, float):
+        text = repr(value)
+    else:
+        text = str(value)
+    return f"{key}={text}"
+
+
+def _spec_fields(spec: Spec) -> Dict[str, Any]:
+    """SubmitJob/SubmitSweep fields for a spec given as a dict or as a TOML/JSON file path."""
+    if isinstance(spec, Mapping):
+        flat = _flatten(spec)
+        # The scene first: its table's defaults apply before the other keys.
+        keys = sorted(flat, key=lambda k: (k != "scene", 0))
+        return {"settings": [_setting(k, flat[k]) for k in keys]}
+    path = Path(spec)
+    if path.is_dir():
+        raise ValueError(f"spec: {str(path)!r} is a directory, not a spec file")
+    if not path.exists():
+        raise ValueError(f"spec: no such file {str(path)!r}")
+    if path.stat().st_size > 1 << 20:
+        raise ValueError(f"spec: {str(path)!r} is larger than the 1 MiB a spec may have")
+    return {"spec_text": path.read_text()}
+
+
+def _one_tag(tags: Optional[Sequence[str]]) -> str:
+    if tags is None:
+        return ""
+    if isinstance(tags, str):
+        return tags
+    tags = list(tags)
+    if len(tags) > 1:
+        raise ValueError(f"tags: a job keeps one tag on the server, got {tags!r}")
+    return tags[0] if tags else ""
+
+
+def _progress_line(job: Any) -> str:
+    bar = int(20 * job.progress)
+    return (f"\r{job.id} {_state_name(job.state):<9} [{'#' * bar}{'.' * (20 - bar)}] "
+            f"{100 * job.progress:5.1f}%  t = {job.t_s:.6g} s")
+
+
+class Client:
+    """A connection to foamd. Defaults from FOAM_SERVER, FOAM_TOKEN, FOAM_TLS_CA.
+
+    token: the bearer token (the server's --token-file); tls_ca: PEM file of the server's
+    certificate or CA (its --tls-cert). A token without TLS is sent over local TCP credentials,
+    which gRPC allows to loopback addresses only (as foam does).
+    """
+
+    def __init__(self, server: Optional[str] = None, token: Optional[str] = None,
+                 tls_ca: Optional[str] = None, timeout_s: float = 60.0):
+        self.server = server or os.environ.get("FOAM_SERVER") or "127.0.0.1:50051"
+        token = token if token is not None else os.environ.get("FOAM_TOKEN") or None
+        tls_ca = tls_ca if tls_ca is not None else os.environ.get("FOAM_TLS_CA") or None
+        self.timeout_s = timeout_s
+        options = [("grpc.max_receive_message_length", 64 << 20)]
+        if tls_ca:
+            creds = grpc.ssl_channel_credentials(root_certificates=Path(tls_ca).read_bytes())
+            if token:
+                creds = grpc.composite_channel_credentials(
+                    creds, grpc.access_token_call_credentials(token))
+            self._channel = grpc.secure_channel(self.server, creds, options)
+        elif token:
+            creds = grpc.composite_channel_credentials(
+                grpc.local_channel_credentials(grpc.LocalConnectionType.LOCAL_TCP),
+                grpc.access_token_call_credentials(token))
+            self._channel = grpc.secure_channel(self.server, creds, options)
+        else:
+            self._channel = grpc.insecure_channel(self.server, options)
+        self._stub = service_pb2_grpc.FoamStub(self._channel)
+
+    def close(self) -> None:
+        self._channel.close()
+
+    def __enter__(self) -> "Client":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def _call(self, method: str, request: Any, what: str) -> Any:
+        try:
+            return getattr(self._stub, method)(request, timeout=self.timeout_s)
+        except grpc.RpcError as e:
+            raise _error(e, what) from None
+
+    # ---- jobs --------------------------------------------------------------------------------
+
+    def submit(self, spec: Spec, preset: Optional[str] = None, tags: Optional[Sequence[str]] = None,
+               priority: int = 0, idempotency_key: str = "") -> "Job":
+        """Submits one job: `spec` is a dict of spec keys (dotted or nested tables, as
+        `foam-run --keys` lists them) or the path of a TOML/JSON spec file."""
+        fields = _spec_fields(spec)
+        if preset:
+            fields.setdefault("settings", []).insert(0, f"numerics.preset={preset}")
+        req = service_pb2.SubmitJobRequest(priority=priority, tag=_one_tag(tags),
+                                           idempotency_key=idempotency_key, **fields)
+        resp = self._call("SubmitJob", req, "submit")
+        return Job(self, resp.job_id)
+
+    def job(self, job_id: str) -> "Job":
+        return Job(self, job_id)
+
+    def cancel(self, job_id: str, reason: str = "") -> str:
+        """Cancels a queued or running job; returns its state (a running job stops at its next
+        step: "running" until then)."""
+        j = self._call("CancelJob", service_pb2.CancelJobRequest(job_id=job_id, reason=reason),
+                       f"cancel {job_id}")
+        return _state_name(j.state)
+
+    def _list(self, **filters: Any) -> List[Any]:
+        req = service_pb2.ListJobsRequest(page_size=1000, **filters)
+        jobs: List[Any] = []
+        while True:
+            resp = self._call("ListJobs", req, "list jobs")
+            jobs.extend(resp.jobs)
+            if not resp.next_page_token:
+                return jobs
+            req.page_token = resp.next_page_token
+
+    def jobs(self, state: Union[str, Iterable[str], None] = None, tag: str = "",
+             sweep: str = "", scene: str = "", outcome: str = "") -> pd.DataFrame:
+        """The jobs matching the filters, newest first, one row each."""
+        states = [state] if isinstance(state, str) else list(state or [])
+        rows = [_job_row(j) for j in self._list(
+            states=[_state_value(s) for s in states], tag=tag, sweep_id=sweep, scene=scene,
+            outcome=outcome)]
+        return pd.DataFrame(rows, columns=_JOB_COLUMNS)
+
+    # ---- sweeps ------------------------------------------------------------------------------
+
+    def sweep(self, spec: Spec, grid: Optional[Mapping[str, Sequence[Any]]] = None,
+              seeds: Optional[Sequence[int]] = None, preset: Optional[str] = None,
+              tags: Optional[Sequence[str]] = None, name: str = "", priority: int = 0,
+              idempotency_key: str = "") -> "Sweep":
+        """Submits base spec × the cartesian product of `grid` × `seeds`, one job each."""
+        fields = _spec_fields(spec)
+        if preset:
+            fields.setdefault("settings", []).insert(0, f"numerics.preset={preset}")
+        axes = [service_pb2.GridAxis(key=k, values=[_setting(k, v).split("=", 1)[1] for v in vs])
+                for k, vs in (grid or {}).items()]
+        req = service_pb2.SubmitSweepRequest(grid=axes, seeds=list(seeds or []),
+                                             tag=_one_tag(tags), name=name, priority=priority,
+                                             idempotency_key=idempotency_key, **fields)
+        resp = self._call("SubmitSweep", req, "sweep")
+        return Sweep(self, resp.sweep_id, list(resp.job_ids), list((grid or {}).keys()))
+
+    def sweep_of(self, sweep_id: str, keys: Sequence[str] = ()) -> "Sweep":
+        """An existing sweep; `keys`: its swept spec keys (columns of results())."""
+        ids = [j.id for j in reversed(self._list(sweep_id=sweep_id))]
+        return Sweep(self, sweep_id, ids, list(keys))
+
+
+_JOB_COLUMNS = ["job_id", "state", "scene", "outcome", "seed", "progress", "t_s", "tag",
+                "sweep_id", "reason", "created_utc", "finished_utc"]
+
+
+def _job_row(j: Any) -> Dict[str, Any]:
+    return {"job_id": j.id, "state": _state_name(j.state), "scene": j.scene,
+            "outcome": j.outcome or None, "seed": j.seed, "progress": j.progress, "t_s": j.t_s,
+            "tag": j.tag, "sweep_id": j.sweep_id, "reason": j.reason,
+            "created_utc": j.created_utc, "finished_utc": j.finished_utc or None}
+
+
+def _spec_value(spec_json: str, key: str) -> Any:
+    value: Any = json.loads(spec_json)
+    for part in key.split("."):
+        if not isinstance(value, dict) or part not in value:
+            return None
+        value = value[part]
+    return value
+
+
+class Job:
+    def __init__(self, client: Client, job_id: str):
+        self._c = client
+        self.id = job_id
+
+    def __repr__(self) -> str:
+        return f"Job({self.id!r})"
+
+    def info(self) -> Any:
+        """The job message (state, progress, spec_json, outcome, ...)."""
+        return self._c._call("GetJob", service_pb2.GetJobRequest(job_id=self.id),
+                             f"job {self.id}")
+
+    def state(self) -> str:
+        return _state_name(self.info().state)
+
+    def wait(self, progress: bool = False, poll_s: float = 0.5,
+             timeout_s: Optional[float] = None) -> str:
+        """Waits until the job ends; returns its final state (succeeded, failed, cancelled).
+        progress=True draws a progress line on stderr."""
+        start = time.monotonic()
+        while True:
+            j = self.info()
+            if progress:
+                print(_progress_line(j), end="", file=sys.stderr, flush=True)
+            state = _state_name(j.state)
+            if state in _TERMINAL:
+                if progress:
+                    print(f"  {state}" + (f": {j.reason}" if j.reason else ""), file=sys.stderr)
+                return state
+            if timeout_s is not None and time.monotonic() - start > timeout_s:
+                raise TimeoutError(f"job {self.id} is still {state} after {timeout_s} s")
+            time.sleep(poll_s)
+
+    def _results(self, with_samples: bool) -> Any:
+        return self._c._call("GetResults",
+                             service_pb2.GetResultsRequest(job_id=self.id,
+                                                           with_samples=with_samples),
+                             f"results {self.id}")
+
+    def samples(self) -> pd.DataFrame:
+        """The samples (the columns of samples.csv), one row per sample."""
+        r = self._results(True)
+        return pd.DataFrame([list(s.values) for s in r.samples], columns=list(r.columns))
+
+    def results(self) -> Dict[str, float]:
+        """Result name → value (fits with their *_se standard errors; NaN where undefined)."""
+        return {x.name: x.value for x in self._results(False).results}
+
+    def export(self, directory: Union[str, os.PathLike]) -> List[Path]:
+        """Writes the snapshots as VTK PolyData (snap_NNNNNN.vtp) and series.pvd, as
+        `foam export` does; returns the files written."""
+        r = self._results(False)
+        if not r.snapshots:
+            raise LookupError(f"job {self.id} has no snapshots (snapshot_every_s = 0, or none "
+                              "recorded yet)")
+        out = Path(directory)
+        out.mkdir(parents=True, exist_ok=True)
+        series, written = [], []
+        for info in r.snapshots:
+            data = self._snapshot_bytes(info.index)
+            snap = job_pb2.SnapshotData()
+            snap.ParseFromString(data)
+            name = f"snap_{info.index:06d}.vtp"
+            (out / name).write_text(vtk.polydata(snap))
+            series.append((snap.t_s, name))
+            written.append(out / name)
+        (out / "series.pvd").write_text(vtk.collection(series))
+        return written + [out / "series.pvd"]
+
+    def _snapshot_bytes(self, index: int) -> bytes:
+        chunks, compression = [], ""
+        try:
+            for k, chunk in enumerate(self._c._stub.GetSnapshot(
+                    service_pb2.GetSnapshotRequest(job_id=self.id, index=index),
+                    timeout=self._c.timeout_s)):
+                if k == 0:
+                    compression = chunk.compression
+                chunks.append(chunk.data)
+        except grpc.RpcError as e:
+            raise _error(e, f"snapshot {index} of {self.id}") from None
+        data = b"".join(chunks)
+        if compression == "zlib":
+            return zlib.decompress(data)
+        if compression:
+            raise RuntimeError(f"snapshot {index}: unknown compression {compression!r}")
+        return data
+
+
+class Sweep:
+    def __init__(self, client: Client, sweep_id: str, job_ids: List[str], keys: List[str]):
+        self._c = client
+        self.id = sweep_id
+        self.keys = keys
+        self.jobs = [Job(client, i) for i in job_ids]
+
+    def __repr__(self) -> str:
+        return f"Sweep({self.id!r}, {len(self.jobs)} jobs)"
+
+    def wait(self, progress: bool = False, poll_s: float = 1.0,
+             timeout_s: Optional[float] = None) -> Dict[str, int]:
+        """Waits until every job has ended; returns the count per final state."""
+        start = time.monotonic()
+        while True:
+            jobs = self._c._list(sweep_id=self.id)
+            counts: Dict[str, int] = {}
+            for j in jobs:
+                counts[_state_name(j.state)] = counts.get(_state_name(j.state), 0) + 1
+            done = sum(counts.get(s, 0) for s in _TERMINAL)
+            if progress:
+                parts = ", ".join(f"{n} {s}" for s, n in sorted(counts.items()))
+                print(f"\rsweep {self.id}: {done}/{len(jobs)} done ({parts})", end="",
+                      file=sys.stderr, flush=True)
+            if done == len(jobs):
+                if progress:
+                    print(file=sys.stderr)
+                return counts
+            if timeout_s is not None and time.monotonic() - start > timeout_s:
+                raise TimeoutError(f"sweep {self.id}: {done} of {len(jobs)} jobs ended after "
+                                   f"{timeout_s} s")
+            time.sleep(poll_s)
+
+    def results(self, metrics: Optional[Sequence[str]] = None) -> pd.DataFrame:
+        """One row per job: job_id, state, outcome, seed, the swept keys (dotted), then its
+        results (NaN for jobs that did not succeed)."""
+        jobs = list(reversed(self._c._list(sweep_id=self.id)))  # in submission order
+        q = self._c._call("QueryResults",
+                          service_pb2.QueryResultsRequest(sweep_id=self.id, limit=100000,
+                                                          names=list(metrics or [])),
+                          f"results of sweep {self.id}")
+        values = {row.job_id: {r.name: r.value for r in row.results} for row in q.rows}
+        names = sorted({n for v in values.values() for n in v})
+        rows = []
+        for j in jobs:
+            row: Dict[str, Any] = {"job_id": j.id, "state": _state_name(j.state),
+                                   "outcome": j.outcome or None, "seed": j.seed}
+            for k in self.keys:
+                row[k] = _spec_value(j.spec_json, k)
+            got = values.get(j.id, {})
+            for n in names:
+                row[n] = got.get(n, math.nan)
+            rows.append(row)
+        return pd.DataFrame(rows, columns=["job_id", "state", "outcome", "seed", *self.keys,
+                                           *names])
+
+    def summary(self, by: Sequence[str], metrics: Optional[Sequence[str]] = None) -> pd.DataFrame:
+        """Per value of the `by` keys, over seeds: jobs, failed (failed or cancelled), and per
+        metric n (finite values of succeeded jobs), median, q25, q75 — columns
+        METRIC_n, METRIC_median, METRIC_q25, METRIC_q75 (the layout of foam results --by)."""
+        by = list(by)
+        df = self.results(metrics)
+        missing = [k for k in by if k not in df.columns]
+        if missing:
+            # Keys not swept: read them from each job's spec.
+            jobs = {j.id: j for j in self._c._list(sweep_id=self.id)}
+            for k in missing:
+                df[k] = [_spec_value(jobs[i].spec_json, k) for i in df["job_id"]]
+                if df[k].isna().all():
+                    raise ValueError(f"by: {k!r} is not a key of this sweep's specs (dotted, as "
+                                     "foam-run --keys lists them, e.g. cells.alpha)")
+        names = list(metrics) if metrics else [
+            c for c in df.columns if c not in {"job_id", "state", "outcome", "seed", *self.keys,
+                                               *by}]
+        out = []
+        for key, g in df.groupby(by if len(by) > 1 else by[0], sort=True):
+            key = key if isinstance(key, tuple) else (key,)
+            row: Dict[str, Any] = dict(zip(by, key))
+            row["jobs"] = len(g)
+            row["succeeded"] = int((g["state"] == "succeeded").sum())
+            row["failed"] = int(g["state"].isin(["failed", "cancelled"]).sum())
+            ok = g[g["state"] == "succeeded"]
+            for n in names:
+                v = ok[n].astype(float) if n in ok else pd.Series(dtype=float)
+                v = v[v.apply(math.isfinite)]
+                row[f"{n}_n"] = len(v)
+                row[f"{n}_median"] = v.quantile(0.5) if len(v) else math.nan
+                row[f"{n}_q25"] = v.quantile(0.25) if len(v) else math.nan
+                row[f"{n}_q75"] = v.quantile(0.75) if len(v) else math.nan
+            out.append(row)
+        return pd.DataFrame(out)

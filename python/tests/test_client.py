@@ -1,0 +1,115 @@
+"""The Python client against a real foamd: jobs, samples, results, export, sweeps and their
+summary over seeds, and errors mapped to Python exceptions."""
+
+import math
+import os
+
+import pandas as pd
+import pytest
+
+from activefoam import Client
+from conftest import Foamd, _free_port
+
+TINY = {"scene": "cell", "duration_s": 5, "sample_every_s": 1, "snapshot_every_s": 5,
+        "numerics": {"triangles_per_cell": 80}}
+
+
+def test_submit_wait_samples_results_export(client, tmp_path):
+    job = client.submit(TINY, tags=["py"])
+    assert job.wait(timeout_s=120) == "succeeded"
+    assert job.state() == "succeeded"
+    samples = job.samples()
+    assert isinstance(samples, pd.DataFrame)
+    assert list(samples.columns[:2]) == ["t_s", "steps"]
+    assert "aspect_ratio" in samples.columns
+    assert samples["t_s"].tolist() == [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]
+    results = job.results()
+    assert results["t_s"] == 5.0
+    assert math.isclose(results["aspect_ratio"], samples["aspect_ratio"].iloc[-1], rel_tol=1e-12)
+    files = job.export(tmp_path / "vtk")
+    names = sorted(f.name for f in files)
+    assert names == ["series.pvd", "snap_000000.vtp", "snap_000001.vtp"]
+    text = (tmp_path / "vtk" / "snap_000001.vtp").read_text()
+    assert 'NumberOfPolys="80"' in text and 'Name="pressure"' in text
+    assert 'file="snap_000001.vtp"' in (tmp_path / "vtk" / "series.pvd").read_text()
+    jobs = client.jobs(tag="py")
+    assert jobs["job_id"].tolist() == [job.id]
+    assert jobs["state"].tolist() == ["succeeded"]
+
+
+def test_nested_tables_dotted_keys_and_spec_files_are_the_same_spec(client, tmp_path):
+    spec_file = tmp_path / "cell.toml"
+    spec_file.write_text('scene = "cell"\nduration_s = 2\nsample_every_s = 1\n'
+                         'snapshot_every_s = 0\n[numerics]\ntriangles_per_cell = 80\n'
+                         '[cells]\ngamma = 0.6\n')
+    dotted = dict(TINY, duration_s=2, snapshot_every_s=0, **{"cells.gamma": 0.6})
+    nested = dict(TINY, duration_s=2, snapshot_every_s=0, cells={"gamma": 0.6})
+    jobs = [client.submit(s) for s in (spec_file, dotted, nested)]
+    for j in jobs:
+        assert j.wait(timeout_s=120) == "succeeded"
+    specs = [j.info().spec_json for j in jobs]
+    assert specs[0] == specs[1] == specs[2]
+    frames = [j.samples().drop(columns=["wall_s"]) for j in jobs]
+    pd.testing.assert_frame_equal(frames[0], frames[1])
+    pd.testing.assert_frame_equal(frames[0], frames[2])
+
+
+def test_sweep_results_and_summary_over_seeds(client):
+    base = dict(TINY, snapshot_every_s=0)
+    sw = client.sweep(base, grid={"cells.gamma": [0.4, 0.6]}, seeds=[1, 2], tags=["sw"])
+    assert len(sw.jobs) == 4
+    assert sw.wait(timeout_s=300) == {"succeeded": 4}
+    table = sw.results(metrics=["aspect_ratio", "wall_s"])
+    assert list(table.columns) == ["job_id", "state", "outcome", "seed", "cells.gamma",
+                                   "aspect_ratio", "wall_s"]
+    assert sorted(table["cells.gamma"].tolist()) == [0.4, 0.4, 0.6, 0.6]
+    assert sorted(table["seed"].tolist()) == [1, 1, 2, 2]
+    summary = sw.summary(by=["cells.gamma"], metrics=["wall_s"])
+    assert summary["cells.gamma"].tolist() == [0.4, 0.6]
+    assert summary["jobs"].tolist() == [2, 2]
+    assert summary["failed"].tolist() == [0, 0]
+    for gamma, row in zip([0.4, 0.6], summary.itertuples(index=False)):
+        values = sorted(table.loc[table["cells.gamma"] == gamma, "wall_s"])
+        assert row.wall_s_n == 2
+        assert row.wall_s_median == pytest.approx((values[0] + values[1]) / 2, rel=1e-12)
+        assert row.wall_s_q25 == pytest.approx(values[0] + 0.25 * (values[1] - values[0]))
+        assert row.wall_s_q75 == pytest.approx(values[0] + 0.75 * (values[1] - values[0]))
+    with pytest.raises(ValueError, match="'cells.nope' is not a key"):
+        sw.summary(by=["cells.nope"])
+
+
+def test_errors_are_python_exceptions_with_the_servers_message(client, tmp_path):
+    with pytest.raises(ValueError, match="cells.gamma"):
+        client.submit(dict(TINY, **{"cells.gamma": -1}))
+    with pytest.raises(ValueError, match="is a directory"):
+        client.submit(tmp_path)
+    with pytest.raises(ValueError, match="one tag"):
+        client.submit(TINY, tags=["a", "b"])
+    with pytest.raises(LookupError, match="no job"):
+        client.job("j-nope").state()
+    with pytest.raises(ValueError, match="state"):
+        client.jobs(state="sleeping")
+    with Client(f"127.0.0.1:{_free_port()}", timeout_s=2) as nobody:
+        with pytest.raises(ConnectionError):
+            nobody.jobs()
+
+
+def test_token_auth(tmp_path):
+    secret = "py-test-token-0123456789"
+    d = Foamd(tmp_path, token=secret)
+    try:
+        with Client(d.address, timeout_s=5) as anonymous:
+            with pytest.raises(PermissionError):
+                anonymous.jobs()
+        with Client(d.address, token="wrong-token-0123456789", timeout_s=5) as wrong:
+            with pytest.raises(PermissionError):
+                wrong.jobs()
+        os.environ["FOAM_TOKEN"] = secret
+        try:
+            with Client(d.address) as c:  # the token from FOAM_TOKEN
+                job = c.submit(dict(TINY, snapshot_every_s=0))
+                assert job.wait(timeout_s=120) == "succeeded"
+        finally:
+            del os.environ["FOAM_TOKEN"]
+    finally:
+        d.stop()
