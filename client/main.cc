@@ -391,58 +391,72 @@ enum class TableFormat { Text, Csv, Json };
 
 // QueryResults as a table: one row per job, its parameters then its results (columns: the
 // union over rows, sorted; a job without a value shows nan / null).
-void printResultsTable(const v1::QueryResultsResponse& resp, TableFormat format) {
+// A sweep's or tag's jobs as a table, one row per job in submission order: id, state, fusion
+// outcome, seed, the normalised parameter columns and the results (from QueryResults, so of
+// succeeded jobs; nan / null elsewhere). Columns: the union over rows, sorted.
+void printResultsTable(const std::vector<v1::Job>& jobs, const v1::QueryResultsResponse& resp,
+                       TableFormat format) {
   std::set<std::string> param_keys, result_keys;
-  std::vector<std::map<std::string, double>> results(resp.rows_size());
-  for (int i = 0; i < resp.rows_size(); ++i) {
-    for (const auto& [k, v] : resp.rows(i).params()) param_keys.insert(k);
-    for (const auto& r : resp.rows(i).results()) {
+  std::map<std::string, const v1::QueryResultsRow*> row_of;
+  std::map<std::string, std::map<std::string, double>> results;
+  for (const auto& row : resp.rows()) {
+    row_of[row.job_id()] = &row;
+    for (const auto& [k, v] : row.params()) param_keys.insert(k);
+    for (const auto& r : row.results()) {
       result_keys.insert(r.name());
-      results[i][r.name()] = r.value();
+      results[row.job_id()][r.name()] = r.value();
     }
   }
+  auto param = [&](const std::string& id, const std::string& k) {
+    const auto it = row_of.find(id);
+    return it != row_of.end() && it->second->params().count(k) ? it->second->params().at(k)
+                                                               : std::nan("");
+  };
+  auto result = [&](const std::string& id, const std::string& k) {
+    const auto it = results.find(id);
+    if (it == results.end()) return std::nan("");
+    const auto r = it->second.find(k);
+    return r == it->second.end() ? std::nan("") : r->second;
+  };
   auto number = [](double v) {
     char b[32];
     std::snprintf(b, sizeof b, "%.17g", v);
     return std::string(std::isnan(v) ? "nan" : b);
   };
+  auto jsonNumber = [](double v) {
+    return std::isnan(v) ? nlohmann::json(nullptr) : nlohmann::json(v);
+  };
   if (format == TableFormat::Json) {
     nlohmann::json rows = nlohmann::json::array();
-    for (int i = 0; i < resp.rows_size(); ++i) {
-      const auto& row = resp.rows(i);
-      nlohmann::json j{{"job_id", row.job_id()}, {"outcome", row.outcome()}};
+    for (auto it = jobs.rbegin(); it != jobs.rend(); ++it) {
+      const v1::Job& job = *it;
+      nlohmann::json j{{"job_id", job.id()},
+                       {"state", stateName(job.state())},
+                       {"outcome", job.outcome()},
+                       {"seed", job.seed()}};
       j["params"] = nlohmann::json::object();
-      for (const auto& k : param_keys)
-        j["params"][k] = row.params().count(k) ? nlohmann::json(row.params().at(k)) : nullptr;
+      for (const auto& k : param_keys) j["params"][k] = jsonNumber(param(job.id(), k));
       j["results"] = nlohmann::json::object();
-      for (const auto& k : result_keys) {
-        const auto it = results[i].find(k);
-        j["results"][k] = it == results[i].end() || std::isnan(it->second)
-                              ? nlohmann::json(nullptr)
-                              : nlohmann::json(it->second);
-      }
+      for (const auto& k : result_keys) j["results"][k] = jsonNumber(result(job.id(), k));
       rows.push_back(j);
     }
     std::cout << rows.dump(2) << "\n";
     return;
   }
   const char* sep = format == TableFormat::Csv ? "," : "  ";
-  std::cout << "job_id" << sep << "outcome";
+  std::cout << "job_id" << sep << "state" << sep << "outcome" << sep << "seed";
   for (const auto& k : param_keys) std::cout << sep << k;
   for (const auto& k : result_keys) std::cout << sep << k;
   std::cout << "\n";
-  for (int i = 0; i < resp.rows_size(); ++i) {
-    const auto& row = resp.rows(i);
-    std::cout << row.job_id() << sep << (row.outcome().empty() ? "-" : row.outcome());
-    for (const auto& k : param_keys)
-      std::cout << sep << (row.params().count(k) ? number(row.params().at(k)) : "nan");
-    for (const auto& k : result_keys) {
-      const auto it = results[i].find(k);
-      std::cout << sep << (it == results[i].end() ? "nan" : number(it->second));
-    }
+  for (auto it = jobs.rbegin(); it != jobs.rend(); ++it) {
+    const v1::Job& job = *it;
+    std::cout << job.id() << sep << stateName(job.state()) << sep
+              << (job.outcome().empty() ? "-" : job.outcome()) << sep << job.seed();
+    for (const auto& k : param_keys) std::cout << sep << number(param(job.id(), k));
+    for (const auto& k : result_keys) std::cout << sep << number(result(job.id(), k));
     std::cout << "\n";
   }
-  if (format == TableFormat::Text) std::cerr << "foam: " << resp.rows_size() << " succeeded jobs\n";
+  if (format == TableFormat::Text) std::cerr << "foam: " << jobs.size() << " jobs\n";
 }
 
 // ---- foam results --by: a sweep's results over seeds ----------------------------------------
@@ -857,11 +871,7 @@ int main(int argc, char** argv) {
       const TableFormat format = json  ? TableFormat::Json
                                  : csv ? TableFormat::Csv
                                        : TableFormat::Text;
-      if (by.empty()) {
-        printResultsTable(resp, format);
-        return kOk;
-      }
-      // Every job of the sweep/tag (failed and unfinished ones count too), by pages.
+      // Every job of the sweep/tag (failed and unfinished ones too), by pages.
       std::vector<v1::Job> jobs;
       v1::ListJobsRequest lr;
       lr.set_sweep_id(sweep_filter);
@@ -876,6 +886,10 @@ int main(int argc, char** argv) {
         jobs.insert(jobs.end(), page.jobs().begin(), page.jobs().end());
         if (page.next_page_token().empty()) break;
         lr.set_page_token(page.next_page_token());
+      }
+      if (by.empty()) {
+        printResultsTable(jobs, resp, format);
+        return kOk;
       }
       std::string err;
       const auto groups = aggregateBy(jobs, resp, by, err);

@@ -159,8 +159,8 @@ TEST(Cli, FusionJobResultsPlotAndExport) {
   const Proc table =
       sh(d.foam() + " results --tag fus --outcome " + outcome + " --metrics theta_deg --csv");
   ASSERT_EQ(table.rc, 0) << table.out;
-  EXPECT_EQ(table.out.substr(0, 15), "job_id,outcome,") << table.out;
-  EXPECT_NE(table.out.find(",theta_deg\n" + id + "," + outcome + ","), std::string::npos)
+  EXPECT_EQ(table.out.rfind("job_id,state,outcome,seed,", 0), 0u) << table.out;
+  EXPECT_NE(table.out.find(",theta_deg\n" + id + ",succeeded," + outcome + ","), std::string::npos)
       << table.out;
   EXPECT_EQ(sh(d.foam() + " results 2>&1").rc, 2) << "a job ID, --sweep or --tag is needed";
   const Proc listed = sh(d.foam() + " list --outcome " + outcome + " 2>&1");
