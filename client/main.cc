@@ -389,6 +389,17 @@ std::string plotSamples(const v1::JobResults& r, const std::string& column,
 
 enum class TableFormat { Text, Csv, Json };
 
+// The shortest decimal that reads back as the same double ("0.4", not "0.40000000000000002").
+std::string shortestNumber(double v) {
+  if (std::isnan(v)) return "nan";
+  char b[32];
+  for (int digits = 15; digits <= 17; ++digits) {
+    std::snprintf(b, sizeof b, "%.*g", digits, v);
+    if (std::strtod(b, nullptr) == v) break;
+  }
+  return b;
+}
+
 // QueryResults as a table: one row per job, its parameters then its results (columns: the
 // union over rows, sorted; a job without a value shows nan / null).
 // A sweep's or tag's jobs as a table, one row per job in submission order: id, state, fusion
@@ -418,11 +429,7 @@ void printResultsTable(const std::vector<v1::Job>& jobs, const v1::QueryResultsR
     const auto r = it->second.find(k);
     return r == it->second.end() ? std::nan("") : r->second;
   };
-  auto number = [](double v) {
-    char b[32];
-    std::snprintf(b, sizeof b, "%.17g", v);
-    return std::string(std::isnan(v) ? "nan" : b);
-  };
+  auto number = shortestNumber;
   auto jsonNumber = [](double v) {
     return std::isnan(v) ? nlohmann::json(nullptr) : nlohmann::json(v);
   };
@@ -529,11 +536,7 @@ void printAggregate(const std::map<std::vector<double>, Group>& groups,
     const auto it = g.values.find(n);
     return it == g.values.end() ? none : it->second;
   };
-  auto num = [](double v) {
-    char b[32];
-    std::snprintf(b, sizeof b, "%.17g", v);
-    return std::string(std::isnan(v) ? "nan" : b);
-  };
+  auto num = shortestNumber;
   if (format == TableFormat::Json) {
     nlohmann::json out = nlohmann::json::array();
     for (const auto& [key, g] : groups) {
@@ -571,6 +574,173 @@ void printAggregate(const std::map<std::vector<double>, Group>& groups,
     }
     std::cout << "\n";
   }
+}
+
+// Every job of a sweep or tag (ListJobs, by pages) and the results of its succeeded jobs
+// (QueryResults, only `names` when given). Returns 0, or the exit status of a failed call.
+int fetchTable(Conn& conn, const std::string& sweep, const std::string& tag,
+               const std::string& outcome, const std::vector<std::string>& names,
+               std::vector<v1::Job>& jobs, v1::QueryResultsResponse& resp) {
+  v1::QueryResultsRequest req;
+  req.set_sweep_id(sweep);
+  req.set_tag(tag);
+  req.set_outcome(outcome);
+  for (const auto& m : names) req.add_names(m);
+  req.set_limit(100000);
+  auto ctx = conn.ctx();
+  if (const grpc::Status st = conn.stub->QueryResults(ctx.get(), req, &resp); !st.ok())
+    return rpcError(st, "results");
+  v1::ListJobsRequest lr;
+  lr.set_sweep_id(sweep);
+  lr.set_tag(tag);
+  lr.set_outcome(outcome);
+  lr.set_page_size(1000);
+  for (;;) {
+    v1::ListJobsResponse page;
+    auto lctx = conn.ctx();
+    if (const grpc::Status ls = conn.stub->ListJobs(lctx.get(), lr, &page); !ls.ok())
+      return rpcError(ls, "results");
+    jobs.insert(jobs.end(), page.jobs().begin(), page.jobs().end());
+    if (page.next_page_token().empty()) break;
+    lr.set_page_token(page.next_page_token());
+  }
+  if (jobs.empty()) {
+    std::cerr << "foam: no jobs" << (sweep.empty() ? "" : " in sweep " + sweep)
+              << (tag.empty() ? "" : " with tag " + tag) << "\n";
+    return kNotFound;
+  }
+  return 0;
+}
+
+// gnuplot's enhanced text reads '_' as a subscript: a spec key or result name keeps its '_'.
+std::string escapeEnhanced(const std::string& key) {
+  std::string out;
+  for (char c : key) out += c == '_' ? std::string("\\_") : std::string(1, c);
+  return out;
+}
+
+// Axis labels with units; the reduced names (DESIGN.md §3) where the key is one.
+std::string axisLabel(const std::string& key) {
+  static const std::map<std::string, std::string> labels = {
+      {"cells.alpha", "α (relative cell–cell tension)"},
+      {"cells.gamma", "γ (nN/µm)"},
+      {"cells.p_a", "p_a (kPa)"},
+      {"cells.pa_reduced", "p_a r/2γ"},
+      {"cells.tau_p_s", "τ_p (s)"},
+      {"cells.xi", "ξ (kPa·s/µm)"},
+      {"cells.eta", "η (nN·s/µm)"},
+      {"cells.radius_mean_um", "r (µm)"},
+      {"scene.n_cells", "N (cells per spheroid)"},
+      {"numerics.dt_s", "Δt (s)"},
+      {"theta_eq_deg", "θ_{eq} (°, Eq. 1)"},
+      {"tau_f_s", "τ_f (s, Eq. 1)"},
+      {"theta_deg", "θ at the end (°)"},
+      {"mixing_time_s", "mixing time (s)"},
+      {"shape_index_mean", "shape index"},
+      {"unique_contacts_norm", "normalised unique contacts"},
+      {"contact_angle_deg", "θ_c (°)"},
+      {"gsi", "GSI"},
+      {"wall_s", "wall time (s)"}};
+  const std::string raw = escapeEnhanced(key);
+  const auto it = labels.find(key);
+  return it == labels.end() ? raw : it->second + "  [" + raw + "]";
+}
+
+std::string runGnuplot(const std::string& script) {
+  FILE* g = popen("gnuplot 2>&1", "w");
+  if (!g) return "cannot start gnuplot";
+  std::fwrite(script.data(), 1, script.size(), g);
+  const int rc = pclose(g);
+  if (rc != 0)
+    return "gnuplot failed (exit " + std::to_string(WEXITSTATUS(rc)) +
+           "; is it installed? apt-get install gnuplot-nox)";
+  return "";
+}
+
+// The result must exist on some succeeded job; else an error naming it and the known ones.
+std::string checkResult(const std::map<std::vector<double>, Group>& groups, const std::string& y) {
+  std::set<std::string> known;
+  for (const auto& [key, g] : groups)
+    for (const auto& [name, v] : g.values) known.insert(name);
+  if (known.count(y)) return "";
+  std::string list;
+  for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
+  return "--y: '" + y + "' is not a result of this sweep's succeeded jobs" +
+         (list.empty() ? std::string(" (none has results)") : " (known: " + list + ")");
+}
+
+// --y against --x: median line and IQR band over seeds, one per value of --by.
+std::string plotSweep(const std::vector<v1::Job>& jobs, const v1::QueryResultsResponse& resp,
+                      const std::string& x, const std::string& by, const std::string& y,
+                      const std::string& out) {
+  if (x.empty() || y.empty()) return "--sweep needs --x KEY and --y RESULT (or --heatmap)";
+  std::vector<std::string> keys{x};
+  if (!by.empty()) keys.push_back(by);
+  std::string err;
+  const auto groups = aggregateBy(jobs, resp, keys, err);
+  if (!err.empty()) return err;
+  if (err = checkResult(groups, y); !err.empty()) return err;
+  // One gnuplot data block per --by value: x median q25 q75.
+  std::map<double, std::ostringstream> series;
+  for (const auto& [key, g] : groups) {
+    const auto it = g.values.find(y);
+    if (it == g.values.end() || it->second.empty()) continue;
+    series[by.empty() ? 0.0 : key[1]] << key[0] << ' ' << quantile(it->second, 0.5) << ' '
+                                      << quantile(it->second, 0.25) << ' '
+                                      << quantile(it->second, 0.75) << '\n';
+  }
+  std::ostringstream gp;
+  gp << "set terminal pngcairo size 900,600 enhanced font 'DejaVu Sans,11'\n"
+     << "set output '" << out << "'\nset grid\nset key outside right\n"
+     << "set xlabel '" << axisLabel(x) << "'\nset ylabel '" << axisLabel(y) << "'\n"
+     << "set title 'median and interquartile range over seeds'\n";
+  int k = 0;
+  for (const auto& [v, data] : series) gp << "$d" << k++ << " << EOD\n" << data.str() << "EOD\n";
+  gp << "plot ";
+  k = 0;
+  for (const auto& [v, data] : series) {
+    const std::string name = by.empty() ? std::string("median") : escapeEnhanced(by) + " = " + [&] {
+      std::ostringstream s;
+      s << v;
+      return s.str();
+    }();
+    gp << (k ? ", " : "") << "$d" << k << " u 1:3:4 w filledcurves fs transparent solid 0.25 lc "
+       << k + 1 << " notitle, $d" << k << " u 1:2 w lp pt 7 lw 2 lc " << k + 1 << " title '" << name
+       << "'";
+    ++k;
+  }
+  gp << "\n";
+  return runGnuplot(gp.str());
+}
+
+// The mean of --y per (KEY1, KEY2) cell of the grid, as coloured squares (Fig. 15).
+std::string plotHeatmap(const std::vector<v1::Job>& jobs, const v1::QueryResultsResponse& resp,
+                        const std::vector<std::string>& keys, const std::string& y,
+                        const std::string& out) {
+  if (keys.size() != 2) return "--heatmap wants two keys: KEY1,KEY2";
+  if (y.empty()) return "--heatmap needs --y RESULT";
+  std::string err;
+  const auto groups = aggregateBy(jobs, resp, keys, err);
+  if (!err.empty()) return err;
+  if (err = checkResult(groups, y); !err.empty()) return err;
+  std::ostringstream data;
+  for (const auto& [key, g] : groups) {
+    const auto it = g.values.find(y);
+    if (it == g.values.end() || it->second.empty()) continue;
+    double mean = 0;
+    for (double v : it->second) mean += v / static_cast<double>(it->second.size());
+    data << key[0] << ' ' << key[1] << ' ' << mean << '\n';
+  }
+  std::ostringstream gp;
+  gp << "set terminal pngcairo size 900,700 enhanced font 'DejaVu Sans,11'\n"
+     << "set output '" << out << "'\nset view map\nset grid front\nunset key\n"
+     << "set xlabel '" << axisLabel(keys[0]) << "'\nset ylabel '" << axisLabel(keys[1])
+     << "'\nset cblabel '" << axisLabel(y)
+     << " (mean over seeds)'\nset offsets graph 0.08, graph 0.08, graph 0.08, graph 0.08\n"
+     << "set palette rgb 33,13,10\n$d << EOD\n"
+     << data.str() << "EOD\n"
+     << "plot $d u 1:2:3 w points pt 5 ps 7 palette, $d u 1:2:(sprintf('%.3g', $3)) w labels\n";
+  return runGnuplot(gp.str());
 }
 
 }  // namespace
@@ -669,9 +839,20 @@ int main(int argc, char** argv) {
                                   "PNG chart of a sample column over time (gnuplot); "
                                   "θ(t) of a fusion job with its Eq. 1 / Eq. 2 fits");
   std::string plot_out, plot_column = "theta_deg";
-  plot->add_option("ID", id)->required();
+  plot->add_option("ID", id);
   plot->add_option("--out,-o", plot_out, "PNG file (default: job-ID-COLUMN.png)");
   plot->add_option("--column", plot_column, "sample column")->capture_default_str();
+  std::string plot_x, plot_y, plot_by;
+  std::vector<std::string> heatmap;
+  plot->add_option("--sweep", sweep_filter,
+                   "a sweep's chart instead of a job's: --y RESULT against --x KEY, median and "
+                   "IQR band over seeds, one line per value of --by (the supplement's Fig. 8)");
+  plot->add_option("--x", plot_x, "with --sweep: spec key on the x axis, e.g. cells.alpha");
+  plot->add_option("--y", plot_y, "with --sweep: result, e.g. theta_eq_deg");
+  plot->add_option("--by", plot_by, "with --sweep: spec key, one line per value");
+  plot->add_option("--heatmap", heatmap,
+                   "with --sweep: KEY1,KEY2 — the mean of --y per grid cell (Fig. 15)")
+      ->delimiter(',');
 
   auto* exportc = app.add_subcommand(
       "export", "write a job's snapshots as VTK PolyData (.vtp) + series.pvd for ParaView");
@@ -858,35 +1039,13 @@ int main(int argc, char** argv) {
         std::cerr << "foam: results: give a job ID, or --sweep ID / --tag TAG for a table\n";
         return kUsage;
       }
-      v1::QueryResultsRequest req;
-      req.set_sweep_id(sweep_filter);
-      req.set_tag(tag);
-      req.set_outcome(outcome);
-      for (const auto& m : metrics) req.add_names(m);
-      req.set_limit(100000);
+      std::vector<v1::Job> jobs;
       v1::QueryResultsResponse resp;
-      auto ctx = conn.ctx();
-      const grpc::Status st = conn.stub->QueryResults(ctx.get(), req, &resp);
-      if (!st.ok()) return rpcError(st, "results");
+      if (const int rc = fetchTable(conn, sweep_filter, tag, outcome, metrics, jobs, resp))
+        return rc;
       const TableFormat format = json  ? TableFormat::Json
                                  : csv ? TableFormat::Csv
                                        : TableFormat::Text;
-      // Every job of the sweep/tag (failed and unfinished ones too), by pages.
-      std::vector<v1::Job> jobs;
-      v1::ListJobsRequest lr;
-      lr.set_sweep_id(sweep_filter);
-      lr.set_tag(tag);
-      lr.set_outcome(outcome);
-      lr.set_page_size(1000);
-      for (;;) {
-        v1::ListJobsResponse page;
-        auto lctx = conn.ctx();
-        const grpc::Status ls = conn.stub->ListJobs(lctx.get(), lr, &page);
-        if (!ls.ok()) return rpcError(ls, "results");
-        jobs.insert(jobs.end(), page.jobs().begin(), page.jobs().end());
-        if (page.next_page_token().empty()) break;
-        lr.set_page_token(page.next_page_token());
-      }
       if (by.empty()) {
         printResultsTable(jobs, resp, format);
         return kOk;
@@ -963,7 +1122,26 @@ int main(int argc, char** argv) {
       std::cout << (fs::path(export_dir) / "series.pvd").string() << "\n";
       return kOk;
     }
+    if (*plot && !sweep_filter.empty()) {
+      std::vector<v1::Job> jobs;
+      v1::QueryResultsResponse resp;
+      if (const int rc = fetchTable(conn, sweep_filter, "", "", {plot_y}, jobs, resp)) return rc;
+      if (plot_out.empty()) plot_out = "sweep-" + sweep_filter + "-" + plot_y + ".png";
+      const std::string err = heatmap.empty()
+                                  ? plotSweep(jobs, resp, plot_x, plot_by, plot_y, plot_out)
+                                  : plotHeatmap(jobs, resp, heatmap, plot_y, plot_out);
+      if (!err.empty()) {
+        std::cerr << "foam: plot --sweep " << sweep_filter << ": " << err << "\n";
+        return kUsage;
+      }
+      std::cout << plot_out << "\n";
+      return kOk;
+    }
     if (*plot) {
+      if (id.empty()) {
+        std::cerr << "foam: plot: give a job ID, or --sweep ID with --x and --y\n";
+        return kUsage;
+      }
       v1::GetResultsRequest req;
       req.set_job_id(id);
       req.set_with_samples(true);

@@ -338,6 +338,31 @@ TEST(Cli, SweepResultsAggregateOverSeeds) {
   const Proc bad = sh(d.foam() + " results --sweep " + sweep + " --by cells.nope 2>&1");
   EXPECT_EQ(bad.rc, 2);
   EXPECT_NE(bad.out.find("'cells.nope' is not a numeric key"), std::string::npos) << bad.out;
+
+  // foam plot --sweep: median and IQR against a key (per value of --by), and a heat map; PNGs.
+  auto isPng = [](const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    char magic[4] = {};
+    in.read(magic, 4);
+    return std::string(magic + 1, 3) == "PNG";
+  };
+  const std::string plot = d.foam() + " plot --sweep " + sweep;
+  for (const std::string& args :
+       {std::string(" --x cells.gamma --y wall_s --out ") + (dir / "a.png").string(),
+        std::string(" --x cells.gamma --by seed --y aspect_ratio --out ") +
+            (dir / "b.png").string(),
+        std::string(" --heatmap cells.gamma,seed --y wall_s --out ") + (dir / "c.png").string()}) {
+    const Proc p = sh(plot + args + " 2>&1");
+    EXPECT_EQ(p.rc, 0) << args << "\n" << p.out;
+    const std::string file = args.substr(args.rfind(' ') + 1);
+    EXPECT_TRUE(isPng(file)) << file;
+  }
+  const Proc no_result = sh(plot + " --x cells.gamma --y nope 2>&1");
+  EXPECT_EQ(no_result.rc, 2);
+  EXPECT_NE(no_result.out.find("--y: 'nope' is not a result"), std::string::npos) << no_result.out;
+  const Proc no_key = sh(plot + " --x cells.nope --y wall_s 2>&1");
+  EXPECT_EQ(no_key.rc, 2);
+  EXPECT_NE(no_key.out.find("'cells.nope' is not a numeric key"), std::string::npos) << no_key.out;
   d.stop(SIGTERM);
   fs::remove_all(dir);
 }
