@@ -12,8 +12,10 @@
 #include "activefoam/run.h"
 #include "activefoam/simulation.h"
 #include "activefoam/spheroid.h"
+#include "test_support.h"
 
 using namespace activefoam;
+using activefoam::testing::smallFusionSpec;
 
 namespace {
 
@@ -31,23 +33,6 @@ FusionTrajectory relaxing(double theta_eq, double tau, double t_end, double wobb
     tr.contact_area_um2.push_back(100 + 10 * th);
   }
   return tr;
-}
-
-SceneSpec smallFusion() {
-  SceneSpec s;
-  s.scene = SceneKind::Fusion;
-  s.seed = 5;
-  s.scene_params.n_cells_a = 3;
-  s.scene_params.n_cells_b = 4;
-  s.scene_params.prep_max_s = 10;
-  s.scene_params.allow_uncompacted = true;
-  s.numerics.triangles_per_cell = 80;
-  s.numerics.dt_s = 0.5;
-  s.duration_s = 10;
-  s.sample_every_s = 1;
-  s.snapshot_every_s = 0;
-  EXPECT_TRUE(validate(s).empty());
-  return resolve(s);
 }
 
 // One sample of the series runScene records.
@@ -144,7 +129,7 @@ TEST(FusionOutcome, OnlyFusedAndArrestedTrajectoriesAreFitted) {
 // Two real spheroids placed touching, sampled for 6 s, then spheroid B moved 4 µm away (a
 // forced separation) and sampled for 4 s more: separated, and no fit.
 TEST(FusionOutcome, SpheroidsPulledApartAreSeparatedAndNotFitted) {
-  const SceneSpec s = smallFusion();
+  const SceneSpec s = smallFusionSpec();
   CellSet cells = buildFusionCells(s, nullptr);
   FusionTrajectory tr;
   Simulation sim(s, cells);
@@ -173,7 +158,7 @@ TEST(FusionOutcome, SpheroidsPulledApartAreSeparatedAndNotFitted) {
 // Placed 3 µm apart (beyond any adhesion range): the whole run is no-contact, the summary
 // says so and carries no fit; placed touching, the same spheroids are fitted.
 TEST(FusionOutcome, RunSceneReportsNoContactWithoutFits) {
-  SceneSpec s = smallFusion();
+  SceneSpec s = smallFusionSpec();
   s.duration_s = 4;
   const SceneSpec touching = s;
   s.scene_params.gap_um = 3.0;

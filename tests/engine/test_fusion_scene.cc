@@ -14,26 +14,10 @@
 
 using namespace activefoam;
 using activefoam::testing::physicsColumns;
+using activefoam::testing::smallFusionSpec;
 namespace fs = std::filesystem;
 
 namespace {
-
-SceneSpec smallFusion() {
-  SceneSpec s;
-  s.scene = SceneKind::Fusion;
-  s.seed = 5;
-  s.scene_params.n_cells_a = 3;
-  s.scene_params.n_cells_b = 4;
-  s.scene_params.prep_max_s = 10;  // not compact: a few steps of relaxation suffice here
-  s.scene_params.allow_uncompacted = true;
-  s.numerics.triangles_per_cell = 80;
-  s.numerics.dt_s = 0.5;
-  s.duration_s = 10;
-  s.sample_every_s = 1;
-  s.snapshot_every_s = 0;
-  EXPECT_TRUE(validate(s).empty());
-  return resolve(s);
-}
 
 struct TempDir {
   fs::path path;
@@ -50,7 +34,7 @@ struct TempDir {
 }  // namespace
 
 TEST(FusionScene, TwoLabelledSpheroidsPlacedTouchingAlongX) {
-  const SceneSpec s = smallFusion();
+  const SceneSpec s = smallFusionSpec();
   std::vector<PreparedSpheroid> info;
   const CellSet cells = buildFusionCells(s, nullptr, {}, &info);
   ASSERT_EQ(cells.numCells(), 7);
@@ -81,7 +65,7 @@ TEST(FusionScene, TwoLabelledSpheroidsPlacedTouchingAlongX) {
 TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
   TempDir dir;
   const SpheroidCache cache(dir.path.string());
-  const SceneSpec s = smallFusion();
+  const SceneSpec s = smallFusionSpec();
   const SceneSpec prep = spheroidPrepSpec(s, 3, 11);
   const PreparedSpheroid first = prepareSpheroid(prep, &cache);
   EXPECT_FALSE(first.from_cache);
@@ -130,7 +114,7 @@ TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
 // the uncompacted spheroid comes from the cache.
 TEST(FusionScene, AnUncompactedSpheroidFailsThePreparationNamingItsRate) {
   TempDir dir;
-  SceneSpec s = smallFusion();
+  SceneSpec s = smallFusionSpec();
   s.scene_params.allow_uncompacted = false;
   s.scene_params.prep_max_s = 70;  // one 60 s window measured; compact needs ≥ 120 s
   RunObserver obs;
@@ -155,7 +139,7 @@ TEST(FusionScene, AnUncompactedSpheroidFailsThePreparationNamingItsRate) {
 
 TEST(FusionScene, SamplesFitsAndResumeFromCheckpoint) {
   TempDir dir;
-  const SceneSpec s = smallFusion();
+  const SceneSpec s = smallFusionSpec();
   const auto cols = sampleColumns(SceneKind::Fusion);
   ASSERT_EQ(cols[5], "dt_min_s");
   ASSERT_EQ(cols[6], "steps_rejected");

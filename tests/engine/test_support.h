@@ -1,6 +1,8 @@
 // Shared helpers for engine tests.
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include "activefoam/rng.h"
 #include "activefoam/simulation.h"
 
@@ -18,6 +20,25 @@ inline SceneSpec cellSpec(double axes_ratio = 1.0, int triangles = 320) {
   s.cells.tau_k_s = 2 * tauShell(s.cells);
   s.numerics.remesh_every_s = 5 * tauShell(s.cells);
   return s;
+}
+
+// A resolved fusion of two tiny spheroids (3 + 4 cells of 80 triangles, 10 s at Δt 0.5 s,
+// sampled every second), relaxed for 10 s only: fast enough for the sanitizer passes.
+inline SceneSpec smallFusionSpec() {
+  SceneSpec s;
+  s.scene = SceneKind::Fusion;
+  s.seed = 5;
+  s.scene_params.n_cells_a = 3;
+  s.scene_params.n_cells_b = 4;
+  s.scene_params.prep_max_s = 10;  // not compact: a few steps of relaxation suffice here
+  s.scene_params.allow_uncompacted = true;
+  s.numerics.triangles_per_cell = 80;
+  s.numerics.dt_s = 0.5;
+  s.duration_s = 10;
+  s.sample_every_s = 1;
+  s.snapshot_every_s = 0;
+  EXPECT_TRUE(validate(s).empty());
+  return resolve(s);
 }
 
 // Moves every vertex by a random vector of the given size (seeded): a generic, non-symmetric
