@@ -16,7 +16,9 @@ struct ServerConfig {
   std::string token;     // empty: no authentication
   std::string tls_cert;  // PEM file contents (both or neither)
   std::string tls_key;
-  int max_message_bytes = 4 * 1024 * 1024;
+  // The transport's limit on a request; above the 1 MiB a spec may have, so that an oversized
+  // spec gets an answer naming the field and the limit rather than gRPC's own refusal.
+  int max_message_bytes = 16 * 1024 * 1024;
 };
 
 class FoamServer {

@@ -538,6 +538,15 @@ TEST_F(ServiceTest, BadRequestsAreInvalidArgumentNamingTheField) {
     expectInvalid(reader->Finish(), "index: -2 is below -1");
   }
   {
+    // 2 MiB of spec: under the transport's limit, so the answer names the field and the limit.
+    v1::SubmitJobRequest big = tinyCell();
+    big.set_spec_text(std::string(2 << 20, '#'));
+    v1::SubmitJobResponse resp;
+    auto c = ctx();
+    expectInvalid(stub_->SubmitJob(c.get(), big, &resp),
+                  "spec_text: 2097152 bytes; a spec has at most 1 MiB");
+  }
+  {
     v1::GetJobRequest gj;
     gj.set_job_id(std::string(64 * 1024, 'x'));
     v1::Job j;
