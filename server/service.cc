@@ -242,7 +242,6 @@ class FoamService final : public v1::Foam::CallbackService {
     return done(
         ctx, guarded([&] {
           if (Status st = writable(); !st.ok()) return st;
-          if (Status st = specSize(req->spec_text(), req->settings()); !st.ok()) return st;
           if (req->idempotency_key().size() > 256)
             return Status(StatusCode::INVALID_ARGUMENT, "idempotency_key: at most 256 bytes");
           if (req->tag().size() > 256)
@@ -336,7 +335,6 @@ class FoamService final : public v1::Foam::CallbackService {
                                   v1::SubmitSweepResponse* resp) override {
     return done(ctx, guarded([&] {
                   if (Status st = writable(); !st.ok()) return st;
-                  if (Status st = specSize(req->spec_text(), req->settings()); !st.ok()) return st;
                   return sweep(*req, resp);
                 }));
   }
@@ -370,23 +368,6 @@ class FoamService final : public v1::Foam::CallbackService {
   }
 
  private:
-  // A spec is small: a megabyte is a mistake (a data file sent as the spec), refused by name.
-  static Status specSize(const std::string& text,
-                         const google::protobuf::RepeatedPtrField<std::string>& settings) {
-    constexpr std::size_t kMax = 1 << 20;
-    if (text.size() > kMax)
-      return Status(StatusCode::INVALID_ARGUMENT,
-                    "spec_text: " + std::to_string(text.size()) +
-                        " bytes; a spec has at most 1 MiB (1048576 bytes)");
-    std::size_t total = 0;
-    for (const std::string& s : settings) total += s.size();
-    if (total > kMax)
-      return Status(
-          StatusCode::INVALID_ARGUMENT,
-          "settings: " + std::to_string(total) + " bytes in all; at most 1 MiB (1048576 bytes)");
-    return Status::OK;
-  }
-
   // New work is refused while the store cannot write: its reply would wait for the disk.
   Status writable() const {
     if (!store_.degraded()) return Status::OK;

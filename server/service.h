@@ -16,8 +16,9 @@ struct ServerConfig {
   std::string token;     // empty: no authentication
   std::string tls_cert;  // PEM file contents (both or neither)
   std::string tls_key;
-  // The transport's limit on a request; above the 1 MiB a spec may have, so that an oversized
-  // spec gets an answer naming the field and the limit rather than gRPC's own refusal.
+  // The transport's limit on a request; well above the 256 KiB a spec may have
+  // (kMaxSpecTextBytes), so that an oversized spec gets an answer naming the field and the
+  // limit rather than gRPC's own refusal.
   int max_message_bytes = 16 * 1024 * 1024;
 };
 

@@ -538,13 +538,14 @@ TEST_F(ServiceTest, BadRequestsAreInvalidArgumentNamingTheField) {
     expectInvalid(reader->Finish(), "index: -2 is below -1");
   }
   {
-    // 2 MiB of spec: under the transport's limit, so the answer names the field and the limit.
+    // 2 MiB of spec: under the transport's limit (16 MiB), so the answer names the field and
+    // the spec's own limit (before: gRPC's RESOURCE_EXHAUSTED once past 4 MiB).
     v1::SubmitJobRequest big = tinyCell();
     big.set_spec_text(std::string(2 << 20, '#'));
     v1::SubmitJobResponse resp;
     auto c = ctx();
     expectInvalid(stub_->SubmitJob(c.get(), big, &resp),
-                  "spec_text: 2097152 bytes; a spec has at most 1 MiB");
+                  "invalid spec: spec_text: too large: 2097152 bytes, at most 262144");
   }
   {
     v1::GetJobRequest gj;
