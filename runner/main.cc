@@ -326,6 +326,9 @@ int main(int argc, char** argv) {
     SpecParseResult ready = validateAndResolve(*set.spec);
     errors = ready.errors;
     if (ready.spec) spec = *ready.spec;
+    std::vector<std::string> keys = parsed.keys;
+    keys.insert(keys.end(), set.keys.begin(), set.keys.end());
+    if (errors.empty()) errors = checkSceneKeys(spec, keys);
     // A valid spec this engine version cannot build yet is refused the same way, before any
     // output is written.
     if (errors.empty() && !sceneAvailable(spec.scene)) {

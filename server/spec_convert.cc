@@ -130,6 +130,7 @@ ConvertResult convertSpec(const v1::SceneSpec& typed, std::string_view spec_text
   }
   SceneSpec spec;
   bool scene_given = false;
+  std::vector<std::string> keys;  // given in spec_text and settings (typed fields are per scene)
   out.errors = applyTyped(typed, spec, scene_given);
   if (!out.errors.empty()) return out;
 
@@ -146,6 +147,7 @@ ConvertResult convertSpec(const v1::SceneSpec& typed, std::string_view spec_text
     }
     spec = *parsed.spec;
     scene_given = scene_given || parsed.scene_given;
+    keys = parsed.keys;
   }
   if (!settings.empty()) {
     SpecParseResult set = applySettings(spec, settings);
@@ -155,6 +157,7 @@ ConvertResult convertSpec(const v1::SceneSpec& typed, std::string_view spec_text
     }
     spec = *set.spec;
     scene_given = scene_given || set.scene_given;
+    keys.insert(keys.end(), set.keys.begin(), set.keys.end());
   }
   if (!scene_given) {
     out.errors.push_back(
@@ -164,6 +167,10 @@ ConvertResult convertSpec(const v1::SceneSpec& typed, std::string_view spec_text
   SpecParseResult ready = validateAndResolve(spec);
   if (!ready.ok()) {
     out.errors = ready.errors;
+    return out;
+  }
+  if (auto unused = checkSceneKeys(*ready.spec, keys); !unused.empty()) {
+    out.errors = unused;
     return out;
   }
   // A job the stability study says fails would cost its user a queue slot and a failed run:

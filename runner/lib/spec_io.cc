@@ -84,7 +84,10 @@ class Walker {
       }
       result_.scene_given = true;
     }
-    if (auto e = setField(spec_, key, value)) result_.errors.push_back(*e);
+    if (auto e = setField(spec_, key, value))
+      result_.errors.push_back(*e);
+    else
+      result_.keys.push_back(key);
   }
 
   void null(const std::string& key) {
@@ -95,6 +98,8 @@ class Walker {
       error(key, "expected " + expected(*f) + ", got null");
     } else if (auto e = clearField(spec_, key)) {
       result_.errors.push_back(*e);
+    } else {
+      result_.keys.push_back(key);
     }
   }
 
@@ -406,10 +411,48 @@ SpecParseResult applySettings(const SceneSpec& base, const std::vector<std::stri
       result.errors.push_back(*e);
       continue;
     }
-    if (isSceneKey(trim(std::string_view(s).substr(0, s.find('='))))) result.scene_given = true;
+    const std::string_view key = trim(std::string_view(s).substr(0, s.find('=')));
+    if (isSceneKey(key)) result.scene_given = true;
+    result.keys.emplace_back(key);
   }
   if (result.errors.empty()) result.spec = std::move(spec);
   return result;
+}
+
+std::vector<SpecError> checkSceneKeys(const SceneSpec& spec, const std::vector<std::string>& keys) {
+  const SceneKind scene = spec.scene;
+  // A resolved spec (spec.json, what foamd hands a Slurm task) lists every key with the value
+  // resolve gives it; only a value other than that is a key someone set for this run.
+  SceneSpec plain;
+  plain.scene = scene;
+  plain.cells = spec.cells;
+  const SceneSpec defaults = resolve(plain);
+  // Which scenes read each [scene] key (engine/src/scene: scenes.cc, spheroid.cc).
+  static const std::vector<std::pair<std::string_view, std::vector<SceneKind>>> kUsers = {
+      {"scene.axes_ratio", {SceneKind::Cell}},
+      {"scene.gap_um", {SceneKind::Doublet, SceneKind::Fusion}},
+      {"scene.n_cells", {SceneKind::Spheroid, SceneKind::Fusion}},
+      {"scene.n_cells_a", {SceneKind::Fusion}},
+      {"scene.n_cells_b", {SceneKind::Fusion}},
+      {"scene.prep_dt_s", {SceneKind::Fusion}},
+      {"scene.prep_max_s", {SceneKind::Fusion}},
+      {"scene.compact_rate_per_s", {SceneKind::Fusion}},
+      {"scene.allow_uncompacted", {SceneKind::Fusion}}};
+  std::vector<SpecError> errors;
+  std::vector<std::string_view> seen;
+  for (const std::string& key : keys)
+    for (const auto& [name, users] : kUsers) {
+      if (key != name || std::find(seen.begin(), seen.end(), name) != seen.end()) continue;
+      seen.push_back(name);
+      if (std::find(users.begin(), users.end(), scene) != users.end()) continue;
+      if (getField(spec, name) == getField(defaults, name)) continue;
+      std::string list;
+      for (SceneKind k : users) list += (list.empty() ? "" : ", ") + std::string(toString(k));
+      errors.push_back({key, "not used by the " + std::string(toString(scene)) +
+                                 " scene (only by: " + list +
+                                 "); remove it, or run the scene it belongs to"});
+    }
+  return errors;
 }
 
 SpecParseResult validateAndResolve(const SceneSpec& spec) {

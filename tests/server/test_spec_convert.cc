@@ -7,6 +7,7 @@
 #include <set>
 
 #include "activefoam/spec.h"
+#include "activefoam/spec_io.h"
 #include "spec_convert.h"
 
 using namespace activefoam;
@@ -88,6 +89,40 @@ TEST(SpecConvert, TextAndSettingsApplyOnTopOfTyped) {
   EXPECT_DOUBLE_EQ(r.spec->cells.gamma, 0.9);
   EXPECT_DOUBLE_EQ(r.spec->duration_s, 4);
   EXPECT_EQ(r.spec->seed, 11u);
+}
+
+// A [scene] key that the scene does not read is refused naming the key, the scene and the
+// scenes that read it — from settings and from spec text alike; the same key on its scene runs.
+TEST(SpecConvert, SceneKeysTheSceneDoesNotUseAreRefused) {
+  ConvertResult r = convertSpec(v1::SceneSpec{}, "", {"scene=cell", "scene.n_cells=20"});
+  ASSERT_FALSE(r.ok());
+  ASSERT_EQ(r.errors.size(), 1u);
+  EXPECT_EQ(r.errors[0].field, "scene.n_cells");
+  EXPECT_EQ(r.errors[0].message,
+            "not used by the cell scene (only by: spheroid, fusion); remove it, or run the "
+            "scene it belongs to");
+  r = convertSpec(v1::SceneSpec{}, "scene = \"doublet\"\n[scene]\nprep_max_s = 10\n", {});
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.errors[0].field, "scene.prep_max_s");
+  r = convertSpec(v1::SceneSpec{}, "", {"scene=spheroid", "scene.n_cells=20"});
+  EXPECT_TRUE(r.ok()) << errorText(r.errors);
+  SceneSpec fusion;
+  fusion.scene_params.n_cells = 20;
+  fusion.scene_params.gap_um = 0.01;
+  EXPECT_TRUE(activefoam::checkSceneKeys(
+                  resolve(fusion), {"scene.n_cells", "scene.gap_um", "cells.alpha", "scene.kind"})
+                  .empty());
+  // A resolved spec lists every key; those at their defaults are not "set".
+  SceneSpec cell;
+  cell.scene = SceneKind::Cell;
+  const SceneSpec resolved = resolve(cell);
+  const std::vector<std::string> all = {"scene.n_cells", "scene.gap_um", "scene.prep_max_s",
+                                        "scene.allow_uncompacted", "scene.axes_ratio"};
+  EXPECT_TRUE(activefoam::checkSceneKeys(resolved, all).empty());
+  SceneSpec odd = resolved;
+  odd.scene_params.prep_max_s = 5;
+  ASSERT_EQ(activefoam::checkSceneKeys(odd, all).size(), 1u);
+  EXPECT_EQ(activefoam::checkSceneKeys(odd, all)[0].field, "scene.prep_max_s");
 }
 
 TEST(SpecConvert, MissingSceneAndUnavailableSceneNameTheSceneKey) {

@@ -37,8 +37,16 @@ struct SpecParseResult {
   std::optional<SceneSpec> spec;  // set exactly when errors is empty
   std::vector<SpecError> errors;  // every problem found, in document order
   bool scene_given = false;       // the document set `scene` (or [scene] kind)
+  std::vector<std::string> keys;  // the keys it set, in order (for checkSceneKeys)
   bool ok() const { return errors.empty(); }
 };
+
+// The [scene] keys among `keys` (those a document or settings set) that spec.scene does not use
+// (scene.n_cells on a cell, gap_um on a spheroid, ...) and that hold a value other than the
+// default: one error each, naming the key, the scene and the scenes that use it. A key that the
+// scene ignores is a mistake about what runs, not a harmless extra; a resolved spec, which
+// lists every key at its default, passes.
+std::vector<SpecError> checkSceneKeys(const SceneSpec& spec, const std::vector<std::string>& keys);
 
 // First non-blank character '{' → JSON, else TOML.
 SpecFormat sniffSpecFormat(std::string_view text);
