@@ -292,6 +292,7 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
       fs.contacts.add(sim.cells(), sim.contacts());
       fs.msrd.addSample(sim.time(), sim.cells(), sim.geometry(), sim.contacts());
       values = sceneObservables(sim, &fs);
+      // sampleColumns' order: θ first, the neck radius second, the contact area A–B last.
       fs.t.push_back(sim.time());
       fs.theta.push_back(values[0].second);
       fs.neck.push_back(values[1].second);
