@@ -402,27 +402,49 @@ std::string shortestNumber(double v) {
 
 // QueryResults as a table: one row per job, its parameters then its results (columns: the
 // union over rows, sorted; a job without a value shows nan / null).
+// Each job's resolved spec as dotted key → value (scalars only).
+std::map<std::string, nlohmann::json> flatSpec(const std::string& spec_json) {
+  std::map<std::string, nlohmann::json> out;
+  const nlohmann::json spec = nlohmann::json::parse(spec_json, nullptr, false);
+  if (!spec.is_object()) return out;
+  const nlohmann::json flat = spec.flatten();  // kept: items() does not own what it walks
+  for (const auto& [pointer, value] : flat.items()) {
+    std::string key = pointer.substr(1);  // "/cells/gamma" → "cells.gamma"
+    std::replace(key.begin(), key.end(), '/', '.');
+    out[key] = value;
+  }
+  return out;
+}
+
 // A sweep's or tag's jobs as a table, one row per job in submission order: id, state, fusion
-// outcome, seed, the normalised parameter columns and the results (from QueryResults, so of
-// succeeded jobs; nan / null elsewhere). Columns: the union over rows, sorted.
+// outcome, seed, the swept keys (dotted; for a tag, the keys whose values differ between the
+// jobs), and the results (QueryResults: succeeded jobs; nan / null elsewhere; their union).
 void printResultsTable(const std::vector<v1::Job>& jobs, const v1::QueryResultsResponse& resp,
                        TableFormat format) {
-  std::set<std::string> param_keys, result_keys;
-  std::map<std::string, const v1::QueryResultsRow*> row_of;
+  std::set<std::string> result_keys;
   std::map<std::string, std::map<std::string, double>> results;
-  for (const auto& row : resp.rows()) {
-    row_of[row.job_id()] = &row;
-    for (const auto& [k, v] : row.params()) param_keys.insert(k);
+  for (const auto& row : resp.rows())
     for (const auto& r : row.results()) {
       result_keys.insert(r.name());
       results[row.job_id()][r.name()] = r.value();
     }
+  std::vector<std::map<std::string, nlohmann::json>> specs;
+  for (auto it = jobs.rbegin(); it != jobs.rend(); ++it) specs.push_back(flatSpec(it->spec_json()));
+  // The sweep's own keys (what its grid varies); for a tag, the keys whose values differ
+  // between the jobs (derived ones included: they differ too).
+  std::vector<std::string> swept(resp.swept_keys().begin(), resp.swept_keys().end());
+  if (swept.empty()) {
+    std::set<std::string> differ;
+    for (const auto& spec : specs)
+      for (const auto& [k, v] : spec)
+        if (k != "seed" && !differ.count(k))
+          for (const auto& other : specs)
+            if (!other.count(k) || other.at(k) != v) {
+              differ.insert(k);
+              break;
+            }
+    swept.assign(differ.begin(), differ.end());
   }
-  auto param = [&](const std::string& id, const std::string& k) {
-    const auto it = row_of.find(id);
-    return it != row_of.end() && it->second->params().count(k) ? it->second->params().at(k)
-                                                               : std::nan("");
-  };
   auto result = [&](const std::string& id, const std::string& k) {
     const auto it = results.find(id);
     if (it == results.end()) return std::nan("");
@@ -433,16 +455,25 @@ void printResultsTable(const std::vector<v1::Job>& jobs, const v1::QueryResultsR
   auto jsonNumber = [](double v) {
     return std::isnan(v) ? nlohmann::json(nullptr) : nlohmann::json(v);
   };
+  auto text = [&](const std::map<std::string, nlohmann::json>& spec, const std::string& k) {
+    const auto it = spec.find(k);
+    if (it == spec.end() || it->second.is_null()) return std::string("nan");
+    if (it->second.is_number()) return number(it->second.get<double>());
+    if (it->second.is_string()) return it->second.get<std::string>();
+    return it->second.dump();
+  };
+  std::size_t row = 0;
   if (format == TableFormat::Json) {
     nlohmann::json rows = nlohmann::json::array();
-    for (auto it = jobs.rbegin(); it != jobs.rend(); ++it) {
+    for (auto it = jobs.rbegin(); it != jobs.rend(); ++it, ++row) {
       const v1::Job& job = *it;
       nlohmann::json j{{"job_id", job.id()},
                        {"state", stateName(job.state())},
                        {"outcome", job.outcome()},
                        {"seed", job.seed()}};
       j["params"] = nlohmann::json::object();
-      for (const auto& k : param_keys) j["params"][k] = jsonNumber(param(job.id(), k));
+      for (const auto& k : swept)
+        j["params"][k] = specs[row].count(k) ? specs[row].at(k) : nlohmann::json(nullptr);
       j["results"] = nlohmann::json::object();
       for (const auto& k : result_keys) j["results"][k] = jsonNumber(result(job.id(), k));
       rows.push_back(j);
@@ -452,14 +483,14 @@ void printResultsTable(const std::vector<v1::Job>& jobs, const v1::QueryResultsR
   }
   const char* sep = format == TableFormat::Csv ? "," : "  ";
   std::cout << "job_id" << sep << "state" << sep << "outcome" << sep << "seed";
-  for (const auto& k : param_keys) std::cout << sep << k;
+  for (const auto& k : swept) std::cout << sep << k;
   for (const auto& k : result_keys) std::cout << sep << k;
   std::cout << "\n";
-  for (auto it = jobs.rbegin(); it != jobs.rend(); ++it) {
+  for (auto it = jobs.rbegin(); it != jobs.rend(); ++it, ++row) {
     const v1::Job& job = *it;
     std::cout << job.id() << sep << stateName(job.state()) << sep
               << (job.outcome().empty() ? "-" : job.outcome()) << sep << job.seed();
-    for (const auto& k : param_keys) std::cout << sep << number(param(job.id(), k));
+    for (const auto& k : swept) std::cout << sep << text(specs[row], k);
     for (const auto& k : result_keys) std::cout << sep << number(result(job.id(), k));
     std::cout << "\n";
   }

@@ -433,7 +433,17 @@ class FoamService final : public v1::Foam::CallbackService {
         jobs.push_back(std::move(j));
       }
     }
-    auto [sid, ids, created] = store_.submitSweep(req.name(), req.idempotency_key(), jobs);
+    // The keys the sweep varies, in the order given: its grid's, or its parameter sets'.
+    std::vector<std::string> keys;
+    auto addKey = [&](const std::string& setting) {
+      const std::string key = setting.substr(0, setting.find('='));
+      if (std::find(keys.begin(), keys.end(), key) == keys.end()) keys.push_back(key);
+    };
+    for (const auto& axis : req.grid()) addKey(axis.key());
+    if (req.grid_size() == 0)
+      for (const auto& ps : req.sets())
+        for (const auto& setting : ps.settings()) addKey(setting);
+    auto [sid, ids, created] = store_.submitSweep(req.name(), req.idempotency_key(), jobs, keys);
     resp->set_sweep_id(sid);
     for (const auto& id : ids) resp->add_job_ids(id);
     resp->set_created(created);

@@ -197,6 +197,10 @@ ALTER TABLE jobs ADD COLUMN executor_ref TEXT NOT NULL DEFAULT '';
 ALTER TABLE jobs ADD COLUMN outcome TEXT NOT NULL DEFAULT '';
 CREATE INDEX jobs_outcome ON jobs(outcome);
 )sql",
+    // 3 → 4: the spec keys a sweep varies (its grid's, or its parameter sets'), for its tables.
+    R"sql(
+ALTER TABLE sweeps ADD COLUMN keys_json TEXT NOT NULL DEFAULT '[]';
+)sql",
 };
 
 const char* kJobCols =
@@ -758,7 +762,8 @@ std::pair<std::string, bool> Store::submit(const NewJob& job) {
 }
 
 std::tuple<std::string, std::vector<std::string>, bool> Store::submitSweep(
-    const std::string& name, const std::string& idem, const std::vector<NewJob>& jobs) {
+    const std::string& name, const std::string& idem, const std::vector<NewJob>& jobs,
+    const std::vector<std::string>& keys) {
   return write([&](Tx& tx) -> std::tuple<std::string, std::vector<std::string>, bool> {
     if (!idem.empty()) {
       Stmt q(tx.db, "SELECT id FROM sweeps WHERE idem_key = ?");
@@ -774,8 +779,9 @@ std::tuple<std::string, std::vector<std::string>, bool> Store::submitSweep(
     }
     const std::string sid = newId("s-");
     Stmt ins(tx.db,
-             "INSERT INTO sweeps(id, name, idem_key, created_utc, n_jobs) VALUES (?,?,?,?,?)");
-    ins.bind(1, sid).bind(2, name);
+             "INSERT INTO sweeps(id, name, idem_key, created_utc, n_jobs, keys_json) VALUES "
+             "(?,?,?,?,?,?)");
+    ins.bind(1, sid).bind(2, name).bind(6, nlohmann::json(keys).dump());
     if (idem.empty())
       ins.null(3);
     else
@@ -1171,6 +1177,12 @@ v1::QueryResultsResponse Store::queryResults(const v1::QueryResultsRequest& req)
                    std::to_string(limit));
   w.bindAll(q);
   v1::QueryResultsResponse out;
+  if (!req.sweep_id().empty()) {
+    Stmt k(rdb_, "SELECT keys_json FROM sweeps WHERE id = ?");
+    k.bind(1, req.sweep_id());
+    if (k.step())
+      for (const auto& key : nlohmann::json::parse(k.text(0))) out.add_swept_keys(key);
+  }
   while (q.step()) {
     auto* row = out.add_rows();
     row->set_job_id(q.text(0));

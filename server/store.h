@@ -28,7 +28,7 @@ struct sqlite3;
 
 namespace activefoam::server {
 
-inline constexpr int kSchemaVersion = 3;
+inline constexpr int kSchemaVersion = 4;
 
 // A request that cannot be served as asked (bad filter, unknown id, key reuse): the service
 // maps these to gRPC codes.
@@ -97,7 +97,8 @@ class Store {
   std::pair<std::string, bool> submit(const NewJob& job);
   // All jobs or none. Returns (sweep id, job ids, created).
   std::tuple<std::string, std::vector<std::string>, bool> submitSweep(
-      const std::string& name, const std::string& idempotency_key, const std::vector<NewJob>& jobs);
+      const std::string& name, const std::string& idempotency_key, const std::vector<NewJob>& jobs,
+      const std::vector<std::string>& keys = {});
   // The next queued job by priority then age, marked running (attempts + 1).
   std::optional<Claimed> claimNext();
   // Up to `max` queued jobs by priority then age, all marked running (an executor that submits

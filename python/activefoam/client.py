@@ -212,7 +212,8 @@ class Client:
         return Sweep(self, resp.sweep_id, list(resp.job_ids), list((grid or {}).keys()))
 
     def sweep_of(self, sweep_id: str, keys: Sequence[str] = ()) -> "Sweep":
-        """An existing sweep; `keys`: its swept spec keys (columns of results())."""
+        """An existing sweep; `keys`: the spec keys for the columns of results() (default: the
+        keys its grid varies, as the server recorded them)."""
         ids = [j.id for j in reversed(self._list(sweep_id=sweep_id))]
         return Sweep(self, sweep_id, ids, list(keys))
 
@@ -367,6 +368,8 @@ class Sweep:
                           service_pb2.QueryResultsRequest(sweep_id=self.id, limit=100000,
                                                           names=list(metrics or [])),
                           f"results of sweep {self.id}")
+        if not self.keys:  # an existing sweep: the server knows what it varies
+            self.keys = list(q.swept_keys)
         values = {row.job_id: {r.name: r.value for r in row.results} for row in q.rows}
         names = sorted({n for v in values.values() for n in v})
         rows = []

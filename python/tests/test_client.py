@@ -76,6 +76,9 @@ def test_sweep_results_and_summary_over_seeds(client):
         assert row.wall_s_q75 == pytest.approx(values[0] + 0.75 * (values[1] - values[0]))
     with pytest.raises(ValueError, match="'cells.nope' is not a key"):
         sw.summary(by=["cells.nope"])
+    again = client.sweep_of(sw.id)  # the swept keys from the server
+    pd.testing.assert_frame_equal(again.results(metrics=["aspect_ratio"]),
+                                  sw.results(metrics=["aspect_ratio"]))
 
 
 def test_errors_are_python_exceptions_with_the_servers_message(client, tmp_path):

@@ -304,8 +304,12 @@ TEST(Cli, SweepResultsAggregateOverSeeds) {
   std::map<double, std::map<std::string, std::vector<double>>> expected;
   for (const auto& row : nlohmann::json::parse(per_job.out))
     for (const char* m : {"aspect_ratio", "wall_s"})
-      expected[row["params"]["gamma"].get<double>()][m].push_back(row["results"][m]);
+      expected[row["params"]["cells.gamma"].get<double>()][m].push_back(row["results"][m]);
   ASSERT_EQ(expected.size(), 2u);
+  // The swept key is the only parameter column: nothing else differs between the jobs.
+  const nlohmann::json first = nlohmann::json::parse(per_job.out)[0];
+  EXPECT_EQ(first["params"].size(), 1u) << first.dump();
+  EXPECT_EQ(first["state"], "succeeded");
   auto quantile = [](std::vector<double> v, double q) {
     std::sort(v.begin(), v.end());
     const double pos = q * static_cast<double>(v.size() - 1);
