@@ -320,6 +320,18 @@ std::string exportSnapshots(v1::Foam::Stub& stub,
   return "";
 }
 
+// Runs a gnuplot script; an error text, empty on success.
+std::string runGnuplot(const std::string& script) {
+  FILE* g = popen("gnuplot 2>&1", "w");
+  if (!g) return "cannot start gnuplot";
+  std::fwrite(script.data(), 1, script.size(), g);
+  const int rc = pclose(g);
+  if (rc != 0)
+    return "gnuplot failed (exit " + std::to_string(WEXITSTATUS(rc)) +
+           "; is it installed? apt-get install gnuplot-nox)";
+  return "";
+}
+
 // A PNG of one sample column against time with gnuplot; for θ(t) of a fusion job also the fitted
 // Eq. 1 and Eq. 2 curves from the job's results. Returns an error text, empty on success.
 std::string plotSamples(const v1::JobResults& r, const std::string& column,
@@ -376,15 +388,7 @@ std::string plotSamples(const v1::JobResults& r, const std::string& column,
        << tg << ", " << tpe << ")";
   }
   gp << "\n";
-  FILE* g = popen("gnuplot 2>&1", "w");
-  if (!g) return "cannot start gnuplot";
-  const std::string text = gp.str();
-  std::fwrite(text.data(), 1, text.size(), g);
-  const int rc = pclose(g);
-  if (rc != 0)
-    return "gnuplot failed (exit " + std::to_string(WEXITSTATUS(rc)) +
-           "; is it installed? apt-get install gnuplot-nox)";
-  return "";
+  return runGnuplot(gp.str());
 }
 
 enum class TableFormat { Text, Csv, Json };
@@ -524,18 +528,11 @@ std::map<std::vector<double>, Group> aggregateBy(const std::vector<v1::Job>& job
   for (const auto& r : rows.rows()) row_of[r.job_id()] = &r;
   std::map<std::vector<double>, Group> groups;
   for (const v1::Job& j : jobs) {
-    const nlohmann::json spec = nlohmann::json::parse(j.spec_json(), nullptr, false);
+    const std::map<std::string, nlohmann::json> spec = flatSpec(j.spec_json());
     std::vector<double> key;
     for (const std::string& k : by) {
-      const nlohmann::json* v = &spec;
-      std::size_t a = 0;
-      while (v) {
-        const std::size_t b = std::min(k.find('.', a), k.size());
-        const std::string part = k.substr(a, b - a);
-        v = v->is_object() && v->contains(part) ? &(*v)[part] : nullptr;
-        if (b == k.size()) break;
-        a = b + 1;
-      }
+      const auto it = spec.find(k);
+      const nlohmann::json* v = it == spec.end() ? nullptr : &it->second;
       if (!v || !v->is_number()) {
         err = "'" + k + "' is not a numeric key of job " + j.id() +
               "'s spec (dotted, as foam-run --keys lists them, e.g. cells.alpha)";
@@ -675,17 +672,6 @@ std::string axisLabel(const std::string& key) {
   const std::string raw = escapeEnhanced(key);
   const auto it = labels.find(key);
   return it == labels.end() ? raw : it->second + "  [" + raw + "]";
-}
-
-std::string runGnuplot(const std::string& script) {
-  FILE* g = popen("gnuplot 2>&1", "w");
-  if (!g) return "cannot start gnuplot";
-  std::fwrite(script.data(), 1, script.size(), g);
-  const int rc = pclose(g);
-  if (rc != 0)
-    return "gnuplot failed (exit " + std::to_string(WEXITSTATUS(rc)) +
-           "; is it installed? apt-get install gnuplot-nox)";
-  return "";
 }
 
 // The result must exist on some succeeded job; else an error naming it and the known ones.
