@@ -12,8 +12,6 @@
 
 #include <sys/wait.h>
 
-#include <zlib.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -33,6 +31,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "activefoam/snapshot_vtk.h"
 #include "activefoam/token_file.h"
 #include "activefoam/v1/service.grpc.pb.h"
 #include "activefoam/vtk.h"
@@ -277,32 +276,10 @@ std::string exportSnapshots(v1::Foam::Stub& stub,
     }
     if (const grpc::Status st = reader->Finish(); !st.ok())
       return "snapshot " + std::to_string(info.index()) + ": " + st.error_message();
-    if (compression == "zlib") {
-      std::string raw(static_cast<std::size_t>(info.bytes()), '\0');
-      uLongf n = static_cast<uLongf>(raw.size());
-      if (uncompress(reinterpret_cast<Bytef*>(raw.data()), &n,
-                     reinterpret_cast<const Bytef*>(data.data()),
-                     static_cast<uLong>(data.size())) != Z_OK ||
-          n != raw.size())
-        return "snapshot " + std::to_string(info.index()) + ": damaged (zlib)";
-      data = std::move(raw);
-    } else if (!compression.empty()) {
-      return "snapshot " + std::to_string(info.index()) + ": unknown compression " + compression;
-    }
-    v1::SnapshotData sd;
-    if (!sd.ParseFromString(data))
-      return "snapshot " + std::to_string(info.index()) + ": not a SnapshotData message";
     activefoam::VtkMesh snap;
-    snap.t_s = sd.t_s();
-    snap.step = sd.step();
-    if (sd.x_size() % 3 != 0 || sd.tri_size() % 3 != 0)
-      return "snapshot " + std::to_string(info.index()) + ": malformed coordinates";
-    snap.points.assign(sd.x().begin(), sd.x().end());
-    for (int k = 0; k + 2 < sd.tri_size(); k += 3)
-      snap.tri.push_back({sd.tri(k), sd.tri(k + 1), sd.tri(k + 2)});
-    snap.vertex_cell.assign(sd.vertex_cell().begin(), sd.vertex_cell().end());
-    snap.cell_pressure.assign(sd.cell_pressure().begin(), sd.cell_pressure().end());
-    snap.cell_label.assign(sd.cell_label().begin(), sd.cell_label().end());
+    if (std::string err = activefoam::decodeSnapshot(info, compression, std::move(data), snap);
+        !err.empty())
+      return err;
     char name[32];
     std::snprintf(name, sizeof name, "snap_%06d.vtp", info.index());
     std::ofstream out(dir / name);

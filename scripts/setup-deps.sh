@@ -6,20 +6,31 @@ pkgs=(build-essential cmake ninja-build pkg-config git
       libeigen3-dev libspdlog-dev libsqlite3-dev libcli11-dev nlohmann-json3-dev
       libtomlplusplus-dev libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox python3
       libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler grpc-proto
-      zlib1g-dev bsdextrautils
+      zlib1g-dev bsdextrautils libcpp-httplib-dev libjs-chart.js
       python3-grpcio python3-protobuf python3-pandas python3-pytest  # the Python client's tests
       clang libomp-dev)  # the tsan preset: clang + LLVM's libomp, whose Archer tool TSan understands
-missing=()
-for p in "${pkgs[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -eq 0 ]; then
-  echo "setup-deps: all ${#pkgs[@]} packages present"
+# Only some tests use these (the dashboard in a real browser, a real Prometheus scraping foamd);
+# where they cannot be installed, those tests report skipped.
+optional=(chromium fonts-dejavu-core prometheus)
+missing=() missing_optional=()
+installed() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
+for p in "${pkgs[@]}"; do installed "$p" || missing+=("$p"); done
+for p in "${optional[@]}"; do installed "$p" || missing_optional+=("$p"); done
+if [ ${#missing[@]} -eq 0 ] && [ ${#missing_optional[@]} -eq 0 ]; then
+  echo "setup-deps: all $((${#pkgs[@]} + ${#optional[@]})) packages present"
   exit 0
 fi
-echo "setup-deps: installing ${missing[*]}"
 SUDO=""
 [ "$(id -u)" -ne 0 ] && SUDO="sudo"
 export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
-$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup-deps: installing ${missing[*]}"
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+if [ ${#missing_optional[@]} -gt 0 ]; then
+  echo "setup-deps: installing (optional) ${missing_optional[*]}"
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing_optional[@]}" ||
+    echo "setup-deps: could not install ${missing_optional[*]}: the dashboard and Prometheus" \
+      "tests will report skipped"
+fi

@@ -1,12 +1,5 @@
-// Read-only HTTP endpoint (see http.h).
+// foamd's HTTP side (see http.h).
 #include "http.h"
-
-#include <arpa/inet.h>
-#include <netdb.h>
-#include <netinet/in.h>
-#include <poll.h>
-#include <sys/socket.h>
-#include <unistd.h>
 
 #include <cctype>
 #include <cmath>
@@ -18,6 +11,15 @@
 #include <google/protobuf/util/json_util.h>
 #include <spdlog/spdlog.h>
 #include <nlohmann/json.hpp>
+
+#include "activefoam/run_output.h"
+#include "activefoam/snapshot_vtk.h"
+#include "activefoam/vtk.h"
+#include "dashboard_assets.h"
+#include "listen.h"
+
+// Last: it pulls in <resolv.h>, whose `_res` macro breaks Eigen parameter names.
+#include <httplib.h>
 
 namespace activefoam::server {
 namespace {
@@ -125,50 +127,155 @@ std::string splitQuery(const std::string& target,
 
 }  // namespace
 
-HttpEndpoint::HttpEndpoint(Store& store, Executor& pool, const std::string& listen)
-    : store_(store), pool_(pool) {
-  const auto colon = listen.rfind(':');
-  if (colon == std::string::npos) throw std::runtime_error("--http: expected HOST:PORT");
-  std::string host = listen.substr(0, colon);
-  const std::string port = listen.substr(colon + 1);
-  if (host.size() > 1 && host.front() == '[') host = host.substr(1, host.size() - 2);
-  addrinfo hints{};
-  hints.ai_family = AF_UNSPEC;
-  hints.ai_socktype = SOCK_STREAM;
-  hints.ai_flags = AI_PASSIVE;
-  addrinfo* res = nullptr;
-  if (getaddrinfo(host.c_str(), port.c_str(), &hints, &res) != 0 || !res)
-    throw std::runtime_error("--http: cannot resolve " + listen);
-  fd_ = socket(res->ai_family, SOCK_STREAM, 0);
-  int one = 1;
-  setsockopt(fd_, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
-  if (fd_ < 0 || bind(fd_, res->ai_addr, res->ai_addrlen) != 0 || ::listen(fd_, 16) != 0) {
-    freeaddrinfo(res);
-    if (fd_ >= 0) close(fd_);
-    throw std::runtime_error("--http: cannot listen on " + listen + ": " + std::strerror(errno));
+void checkHttpOptions(const HttpOptions& o) {
+  const auto colon = o.listen.rfind(':');
+  if (colon == std::string::npos || colon + 1 == o.listen.size())
+    throw std::invalid_argument("--http '" + o.listen + "': expected HOST:PORT");
+  if (o.tls_cert_path.empty() != o.tls_key_path.empty())
+    throw std::invalid_argument("--http with TLS needs both --tls-cert and --tls-key");
+  if (!isLoopback(o.listen) && (o.token.empty() || o.tls_cert_path.empty()))
+    throw std::invalid_argument(
+        "--http " + o.listen +
+        " is not a loopback address: it needs --token-file and --tls-cert/--tls-key (jobs, "
+        "specs and results would otherwise be readable by anyone who reaches it; for a local "
+        "dashboard use 127.0.0.1)");
+  if (o.threads < 4 || o.threads > 1024)
+    throw std::invalid_argument("--http-threads " + std::to_string(o.threads) +
+                                ": allowed range [4, 1024]");
+}
+
+namespace {
+
+// What a browser or a probe may fetch without the token: the page (no data in it), health.
+bool isPublic(const std::string& path, bool metrics_public) {
+  if (path == "/healthz") return true;
+  if (path == "/metrics") return metrics_public;
+  return findDashboardAsset(path) != nullptr;
+}
+
+// Compares in time independent of where the first difference is.
+bool sameSecret(const std::string& a, const std::string& b) {
+  unsigned diff = a.size() == b.size() ? 0u : 1u;
+  for (std::size_t k = 0; k < a.size(); ++k)
+    diff |= static_cast<unsigned char>(a[k]) ^ static_cast<unsigned char>(k < b.size() ? b[k] : 0);
+  return diff == 0;
+}
+
+void jsonError(httplib::Response& res, int code, const std::string& what) {
+  res.status = code;
+  res.set_content(nlohmann::json{{"error", what}}.dump(), "application/json");
+}
+
+}  // namespace
+
+HttpEndpoint::HttpEndpoint(Store& store, Executor& pool, HttpOptions options)
+    : store_(store), pool_(pool), options_(std::move(options)) {
+  checkHttpOptions(options_);
+  const bool tls = !options_.tls_cert_path.empty();
+  if (tls) {
+    auto ssl = std::make_unique<httplib::SSLServer>(options_.tls_cert_path.c_str(),
+                                                    options_.tls_key_path.c_str());
+    if (!ssl->is_valid())
+      throw std::runtime_error("--http: cannot use the TLS certificate '" + options_.tls_cert_path +
+                               "' with the key '" + options_.tls_key_path + "'");
+    http_ = std::move(ssl);
+  } else {
+    http_ = std::make_unique<httplib::Server>();
   }
-  freeaddrinfo(res);
-  sockaddr_storage ss{};
-  socklen_t len = sizeof ss;
-  getsockname(fd_, reinterpret_cast<sockaddr*>(&ss), &len);
-  port_ = ntohs(ss.ss_family == AF_INET6 ? reinterpret_cast<sockaddr_in6*>(&ss)->sin6_port
-                                         : reinterpret_cast<sockaddr_in*>(&ss)->sin_port);
-  thread_ = std::thread([this] { loop(); });
-  spdlog::info("foamd: HTTP (read-only JSON, /metrics) on {} (port {})", listen, port_);
+  httplib::Server& srv = *http_;
+  const int threads = options_.threads;
+  srv.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<size_t>(threads)); };
+  srv.set_read_timeout(options_.read_timeout_s, 0);
+  srv.set_write_timeout(options_.read_timeout_s, 0);
+  srv.set_keep_alive_timeout(options_.keep_alive_timeout_s);
+  srv.set_payload_max_length(64 * 1024);  // GET only: a body is never needed
+
+  srv.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+    if (req.target.size() > options_.max_target_bytes) {
+      jsonError(res, 414,
+                "request target of " + std::to_string(req.target.size()) + " bytes; the limit is " +
+                    std::to_string(options_.max_target_bytes));
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    if (!options_.token.empty() && !isPublic(req.path, options_.metrics_public) &&
+        !sameSecret(req.get_header_value("Authorization"), "Bearer " + options_.token)) {
+      res.set_header("WWW-Authenticate", "Bearer realm=\"foamd\"");
+      jsonError(res, 401,
+                req.has_header("Authorization") ? "wrong token"
+                                                : "missing 'Authorization: Bearer <token>'");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    return httplib::Server::HandlerResponse::Unhandled;
+  });
+  srv.Get(".*", [this](const httplib::Request& req, httplib::Response& res) {
+    int code = 200;
+    std::string type;
+    std::string body = handle(req.target, code, type);
+    res.status = code;
+    res.set_content(std::move(body), type);
+  });
+  auto refuse = [](const httplib::Request&, httplib::Response& res) {
+    res.set_header("Allow", "GET, HEAD");
+    jsonError(res, 405, "read-only endpoint: GET only (submit and cancel through gRPC: foam)");
+  };
+  srv.Post(".*", refuse);
+  srv.Put(".*", refuse);
+  srv.Patch(".*", refuse);
+  srv.Delete(".*", refuse);
+  srv.set_error_handler([](const httplib::Request&, httplib::Response& res) {
+    // The library's own refusals (a malformed request, a body too large) come without a body.
+    if (!res.body.empty()) return;
+    const int c = res.status;
+    const char* what = c == 400   ? "malformed request"
+                       : c == 404 ? "not found"
+                       : c == 413 ? "request body too large (GET only)"
+                       : c == 414 ? "request target too long"
+                       : c == 431 ? "request headers too large"
+                                  : "error";
+    res.set_content(nlohmann::json{{"error", what}}.dump(), "application/json");
+  });
+
+  const auto colon = options_.listen.rfind(':');
+  std::string host = options_.listen.substr(0, colon);
+  if (host.size() > 1 && host.front() == '[') host = host.substr(1, host.size() - 2);
+  int port = 0;
+  try {
+    port = std::stoi(options_.listen.substr(colon + 1));
+  } catch (const std::exception&) {
+    port = -1;
+  }
+  if (port < 0 || port > 65535)
+    throw std::invalid_argument("--http '" + options_.listen + "': port out of [0, 65535]");
+  // cpp-httplib sets SO_REUSEADDR only: a taken port fails here (no SO_REUSEPORT).
+  if (port == 0) {
+    port_ = srv.bind_to_any_port(host);
+  } else if (srv.bind_to_port(host, port)) {
+    port_ = port;
+  }
+  if (port_ <= 0)
+    throw std::runtime_error("--http: cannot listen on " + options_.listen +
+                             ": the port is taken or the address is not this machine's");
+  thread_ = std::thread([this] { http_->listen_after_bind(); });
+  spdlog::info("foamd: HTTP (dashboard at /, JSON, /metrics) on {} (port {}){}{}{}",
+               options_.listen, port_, tls ? ", TLS" : "",
+               options_.token.empty() ? "" : ", token required",
+               options_.token.empty() || !options_.metrics_public ? "" : " (not for /metrics)");
 }
 
 HttpEndpoint::~HttpEndpoint() {
-  stop_ = true;
+  if (http_) http_->stop();
   if (thread_.joinable()) thread_.join();
-  if (fd_ >= 0) close(fd_);
 }
-
 std::string HttpEndpoint::handle(const std::string& target, int& code, std::string& type) {
   code = 200;
   type = "application/json";
   try {
     std::vector<std::pair<std::string, std::string>> query;
     const std::string path = splitQuery(target, query);
+    if (const DashboardAsset* asset = findDashboardAsset(path)) {
+      type = asset->content_type;
+      return std::string(asset->body);
+    }
     if (path == "/metrics") {
       type = "text/plain; version=0.0.4";
       const auto counts = store_.countByState();
@@ -272,6 +379,44 @@ std::string HttpEndpoint::handle(const std::string& target, int& code, std::stri
         return toJson(*j).dump();
       }
       if (what == "results") return toJson(store_.results(rest, false)).dump();
+      if (what == "samples.csv") {
+        const v1::JobResults r = store_.results(rest, true);
+        type = "text/csv";
+        std::string csv = csvLine(std::vector<std::string>(r.columns().begin(), r.columns().end()));
+        csv += '\n';
+        for (const auto& smp : r.samples())
+          csv += csvLine(std::vector<double>(smp.values().begin(), smp.values().end())) + '\n';
+        return csv;
+      }
+      if (what.rfind("snapshots/", 0) == 0 && what.size() > 14 &&
+          what.compare(what.size() - 4, 4, ".vtp") == 0) {
+        // snapshots/N.vtp (N = an index of the job's results) or snapshots/latest.vtp
+        const std::string which = what.substr(10, what.size() - 14);
+        int index = -1;
+        if (which != "latest") {
+          if (which.empty() || which.size() > 9 ||
+              which.find_first_not_of("0123456789") != std::string::npos)
+            throw badQuery("snapshot",
+                           cappedQuote(which) + " is neither 'latest' nor a snapshot index");
+          index = std::stoi(which);
+        }
+        if (!store_.getJob(rest))
+          throw StoreError(StoreError::Kind::NotFound, "no job " + cappedQuote(rest));
+        auto snap = store_.snapshot(rest, index);
+        if (!snap)
+          throw StoreError(StoreError::Kind::NotFound,
+                           index < 0 ? "the job has no snapshots"
+                                     : "the job has no snapshot " + std::to_string(index));
+        auto& [info, compression, data] = *snap;
+        VtkMesh mesh;
+        if (std::string err = decodeSnapshot(info, compression, std::move(data), mesh);
+            !err.empty())
+          throw std::runtime_error(err);
+        std::ostringstream vtp;
+        writeVtp(vtp, mesh);
+        type = "application/xml";
+        return vtp.str();
+      }
       if (what == "samples") {
         const v1::JobResults r = store_.results(rest, true);
         nlohmann::json j = {{"columns", r.columns()}, {"rows", nlohmann::json::array()}};
@@ -287,52 +432,6 @@ std::string HttpEndpoint::handle(const std::string& target, int& code, std::stri
   } catch (const std::exception& e) {
     code = 500;
     return nlohmann::json{{"error", e.what()}}.dump();
-  }
-}
-
-void HttpEndpoint::loop() {
-  while (!stop_) {
-    pollfd p{fd_, POLLIN, 0};
-    if (poll(&p, 1, 200) <= 0) continue;
-    const int c = accept(fd_, nullptr, nullptr);
-    if (c < 0) continue;
-    timeval tv{2, 0};
-    setsockopt(c, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-    std::string req;
-    char buf[2048];
-    while (req.find("\r\n\r\n") == std::string::npos && req.size() < 16384) {
-      const ssize_t n = recv(c, buf, sizeof buf, 0);
-      if (n <= 0) break;
-      req.append(buf, static_cast<std::size_t>(n));
-    }
-    int code = 400;
-    std::string type = "text/plain", body = "bad request\n";
-    std::istringstream line(req.substr(0, req.find("\r\n")));
-    std::string method, path;
-    line >> method >> path;
-    if (method == "GET")
-      body = handle(path, code, type);
-    else if (!method.empty()) {
-      code = 405;
-      body = "read-only endpoint: GET only\n";
-    }
-    const char* text = code == 200   ? "OK"
-                       : code == 404 ? "Not Found"
-                       : code == 405 ? "Method Not Allowed"
-                       : code == 500 ? "Internal Server Error"
-                       : code == 503 ? "Service Unavailable"
-                                     : "Bad Request";
-    std::string resp = "HTTP/1.0 " + std::to_string(code) + " " + text +
-                       "\r\nContent-Type: " + type +
-                       "\r\nContent-Length: " + std::to_string(body.size()) +
-                       "\r\nConnection: close\r\n\r\n" + body;
-    std::size_t off = 0;
-    while (off < resp.size()) {
-      const ssize_t n = send(c, resp.data() + off, resp.size() - off, MSG_NOSIGNAL);
-      if (n <= 0) break;
-      off += static_cast<std::size_t>(n);
-    }
-    close(c);
   }
 }
 

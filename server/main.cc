@@ -1,12 +1,16 @@
 // foamd: the activefoam server (DESIGN.md §8).
 //
 //   foamd [--listen HOST:PORT] [--db PATH] [--workers N] [--threads-per-job N]
-//         [--token-file F] [--http HOST:PORT]
-//         [--tls-cert F --tls-key F] [--config F] [--keep-snapshots N] [--log-level L]
+//         [--token-file F] [--http HOST:PORT [--http-threads N] [--metrics-public]]
+//         [--tls-cert F --tls-key F] [--insecure-public] [--config F] [--keep-snapshots N]
+//         [--log-level L]
 //
 // With no flags: gRPC on 127.0.0.1:50051, database $XDG_DATA_HOME/activefoam/foamd.db (or
 // ~/.local/share/activefoam/foamd.db), one engine worker per core. The config file is TOML with
 // the long flag names as keys (listen = "127.0.0.1:50051", workers = 2, ...).
+// A non-loopback --listen needs --token-file (and with it TLS) unless --insecure-public; a
+// non-loopback --http always needs the token and TLS. The token guards every HTTP route but the
+// dashboard's page and /healthz (and /metrics with --metrics-public).
 // SIGTERM / SIGINT: stop accepting, stop the workers (their jobs go back to the queue and resume
 // from their last checkpoint on the next start), close the store. Exit 0; 2 on bad usage or
 // when the server cannot start.
@@ -70,7 +74,21 @@ int main(int argc, char** argv) {
                  "bit-identical for any count")
       ->check(CLI::Range(0, 1024));
   app.add_option("--token-file", token_file, "file holding the bearer token every call needs");
-  app.add_option("--http", http, "read-only HTTP endpoint HOST:PORT (JSON, /metrics)");
+  app.add_option("--http", http,
+                 "HTTP endpoint HOST:PORT: the dashboard at /, read-only JSON, /metrics, "
+                 "/healthz");
+  bool metrics_public = false, insecure_public = false;
+  int http_threads = HttpOptions{}.threads;
+  app.add_option("--http-threads", http_threads,
+                 "HTTP worker threads (each open connection holds one while it is kept alive)")
+      ->check(CLI::Range(4, 1024))
+      ->capture_default_str();
+  app.add_flag("--metrics-public", metrics_public,
+               "serve /metrics without the token (for Prometheus scrapers); the other routes "
+               "keep it");
+  app.add_flag("--insecure-public", insecure_public,
+               "allow a non-loopback --listen without --token-file (a trusted network only: "
+               "anyone who reaches it can submit and cancel jobs)");
   app.add_option("--tls-cert", cert, "TLS certificate (PEM)");
   app.add_option("--tls-key", key, "TLS private key (PEM)");
   app.add_option("--keep-snapshots", keep_snapshots,
@@ -140,6 +158,17 @@ int main(int argc, char** argv) {
     }
     if (!cert.empty()) config.tls_cert = readFile(cert, "TLS certificate");
     if (!key.empty()) config.tls_key = readFile(key, "TLS key");
+    config.insecure_public = insecure_public;
+    HttpOptions http_options;
+    http_options.listen = http;
+    http_options.token = config.token;
+    http_options.tls_cert_path = cert;
+    http_options.tls_key_path = key;
+    http_options.metrics_public = metrics_public;
+    http_options.threads = http_threads;
+    // Refused before anything starts: a bad listener must not leave a half-started server.
+    checkServerConfig(config);
+    if (!http.empty()) checkHttpOptions(http_options);
 
     if (const fs::path dir = fs::path(db).parent_path(); !dir.empty()) fs::create_directories(dir);
     StoreOptions so;
@@ -198,7 +227,7 @@ int main(int argc, char** argv) {
     FoamServer server(store, *pool, config);
     server.start();
     std::unique_ptr<HttpEndpoint> endpoint;
-    if (!http.empty()) endpoint = std::make_unique<HttpEndpoint>(store, *pool, http);
+    if (!http.empty()) endpoint = std::make_unique<HttpEndpoint>(store, *pool, http_options);
     pool->start();
 
     int sig = 0;

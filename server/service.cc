@@ -17,6 +17,7 @@
 #include "activefoam/run.h"
 #include "activefoam/spec_io.h"
 #include "activefoam/v1/service.grpc.pb.h"
+#include "listen.h"
 #include "spec_convert.h"
 
 namespace activefoam::server {
@@ -76,12 +77,6 @@ Status guarded(F&& fn) {
     spdlog::error("rpc: internal error: {}", e.what());
     return Status(StatusCode::INTERNAL, e.what());
   }
-}
-
-bool isLoopback(const std::string& hostport) {
-  const std::string host = hostport.substr(0, hostport.rfind(':'));
-  return host == "127.0.0.1" || host == "localhost" || host == "[::1]" || host == "::1" ||
-         host.rfind("127.", 0) == 0;
 }
 
 // Watchers waiting for new events of a job; poked by the store after each commit.
@@ -533,12 +528,31 @@ FoamServer::~FoamServer() {
   shutdown();
 }
 
+void checkServerConfig(const ServerConfig& c) {
+  if (!isLoopback(c.listen) && c.token.empty() && !c.insecure_public)
+    throw std::invalid_argument(
+        "--listen " + c.listen +
+        " is not a loopback address and foamd has no --token-file: anyone who reaches it could "
+        "submit and cancel jobs. Give --token-file (with --tls-cert/--tls-key), or "
+        "--insecure-public on a network you trust");
+  if (!isLoopback(c.listen) && !c.token.empty() && (c.tls_cert.empty() || c.tls_key.empty()))
+    throw std::invalid_argument("--listen " + c.listen +
+                                ": a token on a non-loopback address needs TLS "
+                                "(--tls-cert/--tls-key)");
+}
+
 void FoamServer::start() {
   Impl& m = *impl_;
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   m.service = std::make_unique<FoamService>(m.store, m.pool);
 
+  checkServerConfig(m.config);
+  if (!isLoopback(m.config.listen) && m.config.token.empty())
+    spdlog::warn(
+        "foamd: --insecure-public: gRPC on {} with no token; anyone who reaches it can "
+        "submit and cancel jobs",
+        m.config.listen);
   std::shared_ptr<grpc::ServerCredentials> creds;
   const bool tls = !m.config.tls_cert.empty() || !m.config.tls_key.empty();
   if (tls) {

@@ -16,11 +16,17 @@ struct ServerConfig {
   std::string token;     // empty: no authentication
   std::string tls_cert;  // PEM file contents (both or neither)
   std::string tls_key;
+  // A non-loopback listen address without a token is refused unless this is set.
+  bool insecure_public = false;
   // The transport's limit on a request; well above the 256 KiB a spec may have
   // (kMaxSpecTextBytes), so that an oversized spec gets an answer naming the field and the
   // limit rather than gRPC's own refusal.
   int max_message_bytes = 16 * 1024 * 1024;
 };
+
+// Throws std::invalid_argument when the listener breaks a rule: a non-loopback address needs a
+// token (or insecure_public), and a token there needs TLS. The message names the flags.
+void checkServerConfig(const ServerConfig& config);
 
 class FoamServer {
  public:

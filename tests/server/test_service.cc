@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "activefoam/v1/service.grpc.pb.h"
+#include "activefoam/vtk.h"
 #include "faulty_vfs.h"
 #include "http.h"
 #include "pool.h"
@@ -606,6 +607,7 @@ TEST_F(ServiceTest, QueryResultsFiltersByParameters) {
   for (double gamma : {0.4, 0.6}) {
     v1::SubmitJobRequest r = tinyCell();
     r.mutable_spec()->mutable_cells()->set_gamma(gamma);
+    r.mutable_spec()->set_snapshot_every_s(2);
     ids.push_back(submit(r));
   }
   for (const auto& id : ids) waitFor(id, terminal);
@@ -853,6 +855,7 @@ TEST_F(ServiceTest, HttpServesJobsResultsAndMetricsWithFilters) {
   for (double gamma : {0.4, 0.6}) {
     v1::SubmitJobRequest r = tinyCell();
     r.mutable_spec()->mutable_cells()->set_gamma(gamma);
+    r.mutable_spec()->set_snapshot_every_s(2);
     r.set_tag(gamma < 0.5 ? "low" : "high");
     ids.push_back(submit(r));
   }
@@ -895,7 +898,41 @@ TEST_F(ServiceTest, HttpServesJobsResultsAndMetricsWithFilters) {
       << metrics;
   EXPECT_NE(metrics.find("foamd_steps_total"), std::string::npos);
 
-  // Over the socket: HTTP/1.0, GET only.
+  // The samples as CSV: the columns, then one line per sample, equal to the JSON values.
+  const std::string csv = http.handle("/jobs/" + ids[0] + "/samples.csv", code, type);
+  EXPECT_EQ(code, 200);
+  EXPECT_EQ(type, "text/csv");
+  const nlohmann::json samples = get("/jobs/" + ids[0] + "/samples");
+  std::istringstream lines(csv);
+  std::string line;
+  std::getline(lines, line);
+  EXPECT_EQ(line.rfind("t_s,steps,", 0), 0u) << line;
+  std::size_t rows = 0;
+  for (; std::getline(lines, line); ++rows) {
+    ASSERT_LT(rows, samples.at("rows").size());
+    EXPECT_DOUBLE_EQ(std::stod(line.substr(0, line.find(','))),
+                     samples.at("rows")[rows][0].get<double>());
+  }
+  EXPECT_EQ(rows, samples.at("rows").size());
+  // The newest snapshot (and snapshot 0) as VTK PolyData: a closed 80-triangle cell.
+  const v1::JobResults res = store_->results(ids[0], false);
+  ASSERT_GE(res.snapshots_size(), 2);
+  for (const std::string which : {"latest", "0"}) {
+    const std::string vtp =
+        http.handle("/jobs/" + ids[0] + "/snapshots/" + which + ".vtp", code, type);
+    ASSERT_EQ(code, 200) << vtp;
+    const activefoam::VtkMesh mesh = activefoam::readVtp(vtp);
+    EXPECT_EQ(mesh.tri.size(), 80u);
+    EXPECT_DOUBLE_EQ(mesh.t_s, which == "latest" ? res.snapshots().rbegin()->t_s() : 0.0);
+  }
+  http.handle("/jobs/" + ids[0] + "/snapshots/99.vtp", code, type);
+  EXPECT_EQ(code, 404);
+  http.handle("/jobs/" + ids[0] + "/snapshots/-1.vtp", code, type);
+  EXPECT_EQ(code, 400);
+  http.handle("/jobs/nope/snapshots/latest.vtp", code, type);
+  EXPECT_EQ(code, 404);
+
+  // Over the socket (cpp-httplib answers HTTP/1.1), GET only.
   auto request = [&](const std::string& line) {
     const int fd = socket(AF_INET, SOCK_STREAM, 0);
     sockaddr_in a{};
@@ -912,8 +949,10 @@ TEST_F(ServiceTest, HttpServesJobsResultsAndMetricsWithFilters) {
     return resp;
   };
   const std::string r1 = request("GET /jobs?tag=low HTTP/1.0");
-  EXPECT_EQ(r1.rfind("HTTP/1.0 200 OK", 0), 0u) << r1;
+  EXPECT_EQ(r1.rfind("HTTP/1.1 200 OK", 0), 0u) << r1;
   EXPECT_NE(r1.find(ids[0]), std::string::npos);
   EXPECT_EQ(r1.find(ids[1]), std::string::npos);
-  EXPECT_EQ(request("POST /jobs HTTP/1.0").rfind("HTTP/1.0 405", 0), 0u);
+  const std::string r2 = request("POST /jobs HTTP/1.0\r\nContent-Length: 0");
+  EXPECT_EQ(r2.rfind("HTTP/1.1 405", 0), 0u) << r2;
+  EXPECT_NE(r2.find("GET only"), std::string::npos) << r2;
 }

@@ -1,0 +1,268 @@
+// foamd's HTTP endpoint as a client meets it over the socket: a pool of workers that idle and
+// slow clients cannot hold, limits with their status codes, the token on every data route, TLS,
+// and the listener rules shared with gRPC (issue 19).
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <random>
+#include <thread>
+#include <vector>
+
+#include "http.h"
+#include "pool.h"
+#include "process.h"
+#include "service.h"
+#include "store.h"
+
+// Last: it pulls in <resolv.h>, whose `_res` macro breaks Eigen parameter names.
+#include <httplib.h>
+
+using namespace activefoam::server;
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+using activefoam::testing::sh;
+using activefoam::testing::tempDir;
+
+namespace {
+
+int connectTo(int port) {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(static_cast<std::uint16_t>(port));
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+  return fd;
+}
+
+class HttpTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = tempDir();
+    store_ = std::make_unique<Store>((dir_ / "f.db").string());
+    pool_ = std::make_unique<Pool>(*store_, PoolOptions{});  // never started: no jobs run
+  }
+  void TearDown() override {
+    http_.reset();
+    pool_.reset();
+    store_.reset();
+    fs::remove_all(dir_);
+  }
+  HttpEndpoint& start(HttpOptions o) {
+    if (o.listen.empty()) o.listen = "127.0.0.1:0";
+    http_ = std::make_unique<HttpEndpoint>(*store_, *pool_, o);
+    return *http_;
+  }
+  httplib::Client client(const std::string& token = "") {
+    httplib::Client c("127.0.0.1", http_->port());
+    c.set_connection_timeout(2, 0);
+    c.set_read_timeout(5, 0);
+    if (!token.empty()) c.set_bearer_token_auth(token.c_str());
+    return c;
+  }
+
+  fs::path dir_;
+  std::unique_ptr<Store> store_;
+  std::unique_ptr<Pool> pool_;
+  std::unique_ptr<HttpEndpoint> http_;
+};
+
+}  // namespace
+
+// The hand-written server this replaced served one connection at a time: one client sending a
+// byte every 1.5 s held /healthz for 11.5 s.
+TEST_F(HttpTest, IdleConnectionsAndASlowClientDoNotDelayHealthz) {
+  HttpEndpoint& http = start({});
+  std::vector<int> idle;
+  for (int k = 0; k < 20; ++k) idle.push_back(connectTo(http.port()));
+  std::atomic<bool> stop{false};
+  std::thread drip([&] {
+    const int fd = connectTo(http.port());
+    const std::string req = "GET /jobs HTTP/1.1\r\nHost: x\r\nX-Padding: ";
+    for (std::size_t k = 0; !stop; k = (k + 1) % req.size()) {
+      (void)send(fd, req.data() + k, 1, MSG_NOSIGNAL);
+      for (int i = 0; i < 15 && !stop; ++i) std::this_thread::sleep_for(100ms);
+    }
+    close(fd);
+  });
+  std::this_thread::sleep_for(300ms);  // every connection accepted and waiting
+  for (int k = 0; k < 5; ++k) {
+    const auto t0 = std::chrono::steady_clock::now();
+    auto res = client().Get("/healthz");
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ASSERT_TRUE(res) << httplib::to_string(res.error());
+    EXPECT_EQ(res->status, 200);
+    EXPECT_LT(s, 1.0) << "try " << k;
+    std::this_thread::sleep_for(200ms);
+  }
+  stop = true;
+  drip.join();
+  for (int fd : idle) close(fd);
+}
+
+TEST_F(HttpTest, LimitsAnswerWithTheirStatus) {
+  start({});
+  auto c = client();
+  auto res = c.Get("/jobs?tag=" + std::string(20 * 1024, 'a'));
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 414);
+  EXPECT_NE(res->body.find("too long"), std::string::npos) << res->body;
+  // A truncated filter must never answer 200: just under the limit still filters correctly.
+  res = c.Get("/jobs?tag=" + std::string(8000, 'a'));
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  EXPECT_NE(res->body.find("\"jobs\":[]"), std::string::npos) << res->body;
+  res = c.Post("/jobs", std::string(100 * 1024, 'x'), "text/plain");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 413);
+  res = c.Delete("/jobs/j-1");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 405);
+  EXPECT_EQ(res->get_header_value("Allow"), "GET, HEAD");
+}
+
+TEST_F(HttpTest, TheTokenGuardsEveryDataRouteButNotThePageOrHealth) {
+  HttpOptions o;
+  o.token = "s3cret-token";
+  start(o);
+  for (const char* path : {"/jobs", "/jobs/j-1", "/jobs/j-1/samples", "/jobs/j-1/samples.csv",
+                           "/results", "/metrics", "/nowhere"}) {
+    auto res = client().Get(path);
+    ASSERT_TRUE(res) << path;
+    EXPECT_EQ(res->status, 401) << path;
+    EXPECT_EQ(res->get_header_value("WWW-Authenticate"), "Bearer realm=\"foamd\"") << path;
+    EXPECT_NE(res->body.find("Authorization: Bearer"), std::string::npos) << res->body;
+    res = client("s3cret-tokeN").Get(path);
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 401) << path;
+    EXPECT_NE(res->body.find("wrong token"), std::string::npos) << res->body;
+  }
+  auto res = client("s3cret-token").Get("/jobs");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200) << res->body;
+  EXPECT_EQ(client("s3cret-token").Get("/metrics")->status, 200);
+  // The page carries no data: the browser loads it, then asks for the token.
+  for (const char* path : {"/healthz", "/", "/index.html", "/app.js", "/style.css", "/chart.js"}) {
+    res = client().Get(path);
+    ASSERT_TRUE(res) << path;
+    EXPECT_EQ(res->status, 200) << path;
+    EXPECT_FALSE(res->body.empty()) << path;
+  }
+  EXPECT_EQ(client().Get("/")->get_header_value("Content-Type"), "text/html; charset=utf-8");
+  EXPECT_NE(client().Get("/chart.js")->body.find("Chart.js v3"), std::string::npos);
+}
+
+TEST_F(HttpTest, MetricsPublicOpensOnlyMetrics) {
+  HttpOptions o;
+  o.token = "s3cret-token";
+  o.metrics_public = true;
+  start(o);
+  auto res = client().Get("/metrics");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  EXPECT_NE(res->body.find("foamd_queue_depth 0"), std::string::npos) << res->body;
+  EXPECT_EQ(client().Get("/jobs")->status, 401);
+  EXPECT_EQ(client().Get("/results")->status, 401);
+}
+
+TEST_F(HttpTest, TlsWithTheServersCertificate) {
+  HttpOptions o;
+  o.token = "s3cret-token";
+  o.tls_cert_path = fs::path(SERVER_TEST_DATA) / "test-cert.pem";
+  o.tls_key_path = fs::path(SERVER_TEST_DATA) / "test-key.pem";
+  HttpEndpoint& http = start(o);
+  httplib::SSLClient tls("127.0.0.1", http.port());
+  tls.set_ca_cert_path(o.tls_cert_path.c_str());
+  tls.enable_server_certificate_verification(true);
+  tls.set_bearer_token_auth("s3cret-token");
+  auto res = tls.Get("/jobs");
+  ASSERT_TRUE(res) << httplib::to_string(res.error());
+  EXPECT_EQ(res->status, 200);
+  // Plain text to the TLS port gets no HTTP answer.
+  auto plain = client("s3cret-token").Get("/jobs");
+  EXPECT_TRUE(!plain || plain->status != 200);
+}
+
+TEST(HttpListener, NonLoopbackNeedsATokenAndTls) {
+  HttpOptions o;
+  o.listen = "0.0.0.0:8080";
+  auto message = [](const HttpOptions& x) {
+    try {
+      checkHttpOptions(x);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  std::string m = message(o);
+  EXPECT_NE(m.find("not a loopback address"), std::string::npos) << m;
+  EXPECT_NE(m.find("--token-file"), std::string::npos) << m;
+  EXPECT_NE(m.find("--tls-cert"), std::string::npos) << m;
+  o.token = "t";
+  EXPECT_FALSE(message(o).empty());  // a token in plain text is no better
+  o.tls_cert_path = "c.pem";
+  EXPECT_NE(message(o).find("both --tls-cert and --tls-key"), std::string::npos);
+  o.tls_key_path = "k.pem";
+  EXPECT_EQ(message(o), "");
+  for (const char* loop : {"127.0.0.1:0", "localhost:8080", "[::1]:8080"}) {
+    HttpOptions l;
+    l.listen = loop;
+    EXPECT_EQ(message(l), "") << loop;
+  }
+  HttpOptions t;
+  t.listen = "127.0.0.1:0";
+  t.threads = 2;
+  EXPECT_NE(message(t).find("--http-threads 2: allowed range [4, 1024]"), std::string::npos);
+  t.threads = 32;
+  t.listen = "127.0.0.1";
+  EXPECT_NE(message(t).find("expected HOST:PORT"), std::string::npos);
+}
+
+TEST(GrpcListener, NonLoopbackNeedsATokenOrInsecurePublic) {
+  ServerConfig c;
+  c.listen = "0.0.0.0:50051";
+  try {
+    checkServerConfig(c);
+    ADD_FAILURE() << "a public listener without a token was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("--insecure-public"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--token-file"), std::string::npos) << e.what();
+  }
+  c.insecure_public = true;
+  EXPECT_NO_THROW(checkServerConfig(c));
+  c.insecure_public = false;
+  c.token = "t";
+  EXPECT_THROW(checkServerConfig(c), std::invalid_argument);  // a token needs TLS there
+  c.tls_cert = "PEM";
+  c.tls_key = "PEM";
+  EXPECT_NO_THROW(checkServerConfig(c));
+  ServerConfig local;
+  local.listen = "127.0.0.1:50051";
+  EXPECT_NO_THROW(checkServerConfig(local));
+}
+
+// The refusals as a user meets them: foamd exits 2 before it opens the database.
+TEST(Listeners, FoamdRefusesPublicAddressesWithoutProtection) {
+  const fs::path dir = tempDir();
+  const std::string foamd = std::string(FOAMD_EXE) + " --db " + (dir / "f.db").string();
+  auto r = sh(foamd + " --listen 0.0.0.0:0 2>&1");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("--insecure-public"), std::string::npos) << r.out;
+  r = sh(foamd + " --listen 127.0.0.1:0 --http 0.0.0.0:0 2>&1");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("--http 0.0.0.0:0 is not a loopback address"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir / "f.db"));
+  // With --insecure-public it starts, and says so.
+  r = sh("timeout --preserve-status -s TERM 2 " + foamd +
+         " --listen 0.0.0.0:0 --insecure-public 2>&1");
+  EXPECT_EQ(r.rc, 0) << r.out;
+  EXPECT_NE(r.out.find("--insecure-public: gRPC on 0.0.0.0:0 with no token"), std::string::npos)
+      << r.out;
+  fs::remove_all(dir);
+}
