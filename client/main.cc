@@ -33,6 +33,7 @@
 
 #include "activefoam/snapshot_vtk.h"
 #include "activefoam/token_file.h"
+#include "activefoam/utf8.h"
 #include "activefoam/v1/service.grpc.pb.h"
 #include "activefoam/vtk.h"
 #include "report.h"
@@ -884,6 +885,16 @@ int main(int argc, char** argv) {
                    "seconds of foamd being unreachable before giving up (exit 75)")
       ->check(CLI::Range(1.0, 1e7));
 
+  // Every argument may end up in a request (a tag, a setting, an id): non-UTF-8 text (a Latin-1
+  // shell, say) would be refused by the server's protobuf parser without a word.
+  for (int k = 1; k < argc; ++k)
+    if (const std::size_t at = activefoam::invalidUtf8At(argv[k]); at != std::string::npos) {
+      const bool value = k > 1 && std::string_view(argv[k - 1]).rfind("--", 0) == 0;
+      std::cerr << "foam: argument " << k
+                << (value ? " (the value of " + std::string(argv[k - 1]) + ")" : std::string())
+                << " is not valid UTF-8 (byte " << at << "); foamd takes UTF-8 text only\n";
+      return kUsage;
+    }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -906,12 +917,21 @@ int main(int argc, char** argv) {
 
   auto specText = [&]() -> std::string {
     if (spec_file.empty()) return "";
+    std::string text;
     if (spec_file == "-") {
       std::ostringstream s;
       s << std::cin.rdbuf();
-      return s.str();
+      text = s.str();
+    } else {
+      text = readFile(spec_file);
     }
-    return readFile(spec_file);
+    if (const std::size_t at = activefoam::invalidUtf8At(text); at != std::string::npos) {
+      const auto line = 1 + std::count(text.begin(), text.begin() + static_cast<long>(at), '\n');
+      throw std::runtime_error("'" + spec_file + "': not valid UTF-8 at byte " +
+                               std::to_string(at) + " (line " + std::to_string(line) +
+                               "); save the spec as UTF-8");
+    }
+    return text;
   };
 
   if (*report)

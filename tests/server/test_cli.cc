@@ -23,6 +23,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "activefoam/utf8.h"
 #include "process.h"
 
 namespace fs = std::filesystem;
@@ -604,4 +605,39 @@ TEST(CliSlurm, CancelFailureAndAFoamdRestartMidSweep) {
   }
   s->stop(SIGTERM);
   fs::remove_all(slurm.dir);
+}
+
+TEST(Utf8, WellFormedAndMalformedSequences) {
+  using activefoam::invalidUtf8At;
+  constexpr auto ok = std::string::npos;
+  EXPECT_EQ(invalidUtf8At(""), ok);
+  EXPECT_EQ(invalidUtf8At("plain ascii"), ok);
+  EXPECT_EQ(invalidUtf8At("θ_eq 64° — 細胞 🧫"), ok);
+  EXPECT_EQ(invalidUtf8At("caf\xe9"), 3u);                       // Latin-1 é
+  EXPECT_EQ(invalidUtf8At("ab\xc3"), 2u);                        // truncated
+  EXPECT_EQ(invalidUtf8At("\xc0\xaf"), 0u);                      // overlong '/'
+  EXPECT_EQ(invalidUtf8At("x\xe0\x80\xaf"), 1u);                 // overlong, 3 bytes
+  EXPECT_EQ(invalidUtf8At("\xed\xa0\x80"), 0u);                  // a surrogate (U+D800)
+  EXPECT_EQ(invalidUtf8At("\xf4\x90\x80\x80"), 0u);              // above U+10FFFF
+  EXPECT_EQ(invalidUtf8At("\xe2\x82\x28"), 0u);                  // bad continuation
+  EXPECT_EQ(invalidUtf8At("\xef\xbf\xbf\xf4\x8f\xbf\xbf"), ok);  // U+FFFF, U+10FFFF
+}
+
+// Text that is not UTF-8 never reaches the server (whose protobuf parser would refuse it and
+// gRPC answer an empty UNIMPLEMENTED, exit 3): foam exits 2 saying where it is.
+TEST(Cli, TextThatIsNotUtf8IsRefusedBeforeItIsSent) {
+  const fs::path dir = tempDir();
+  const std::string foam = std::string(FOAM_EXE) + " --server 127.0.0.1:1";
+  Proc r = sh(foam + " submit --scene cell --tag $(printf 'caf\\351') 2>&1");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("argument 7 (the value of --tag) is not valid UTF-8 (byte 3)"),
+            std::string::npos)
+      << r.out;
+  std::ofstream(dir / "latin1.toml") << "scene = \"cell\"\n# r\xe9sum\xe9\nduration_s = 10\n";
+  r = sh(foam + " submit " + (dir / "latin1.toml").string() + " 2>&1");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("not valid UTF-8 at byte 18 (line 2); save the spec as UTF-8"),
+            std::string::npos)
+      << r.out;
+  fs::remove_all(dir);
 }
