@@ -1,7 +1,9 @@
 // Fault injection against foamd as a process (issue 18): the everyday mistakes of a deployment
 // must not corrupt or split results.
 #include <fstream>
+#include <iostream>
 #include <iterator>
+#include <random>
 #include <set>
 #include <sstream>
 #include <string>
@@ -34,7 +36,92 @@ std::string submitCell(const Foamd& d, double duration_s, double sample_every_s 
   return "";
 }
 
+// A job's samples as CSV lines without the wall-clock column (wall_s, the third): what must be
+// identical between an interrupted run and an uninterrupted one.
+std::vector<std::string> samplesWithoutWallTime(const Foamd& d, const std::string& id) {
+  const Proc r = sh(d.foam() + " results " + id + " --csv 2>&1");
+  EXPECT_EQ(r.rc, 0) << r.out;
+  std::vector<std::string> out;
+  std::istringstream lines(r.out);
+  for (std::string line; std::getline(lines, line);) {
+    const auto a = line.find(',', line.find(',') + 1);
+    const auto b = line.find(',', a + 1);
+    out.push_back(line.substr(0, a) + line.substr(b));
+  }
+  return out;
+}
+
 }  // namespace
+
+// kill -9 at random moments while a queue of three jobs runs on one worker (each ~1 s of wall
+// time, checkpoints every 200 simulated seconds, so most kills land mid-run): after the last
+// restart every job ends succeeded with the samples of an uninterrupted run, bit for bit (wall time
+// aside), each time once. The seed of the moments is printed for a rerun (FOAM_KILL_SEED).
+TEST(Faults, KillDashNineAtRandomMomentsOfAThreeJobQueue) {
+  const fs::path dir = tempDir();
+  const int port = freePort();
+  std::uint64_t seed = std::random_device{}();
+  if (const char* s = std::getenv("FOAM_KILL_SEED")) seed = std::stoull(s);
+  SCOPED_TRACE("FOAM_KILL_SEED=" + std::to_string(seed));
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<int> moment_ms(50, 1200);
+  const std::vector<std::string> flags{"--checkpoint-every-s", "200"};
+  auto submit = [](const Foamd& d, int job_seed, const std::string& tag) {
+    const std::string cmd = d.foam() +
+                            " submit --scene cell --set duration_s=6000 --set sample_every_s=400"
+                            " --set numerics.triangles_per_cell=80 --set snapshot_every_s=0"
+                            " --set seed=" +
+                            std::to_string(job_seed) + " --tag " + tag + " 2>/dev/null";
+    for (int i = 0; i < 100; ++i) {
+      const Proc r = sh(cmd);
+      if (r.rc == 0) return firstLine(r.out);
+      std::this_thread::sleep_for(100ms);
+    }
+    return std::string();
+  };
+  std::vector<std::string> ids;
+  {
+    Foamd d(dir / "foamd.db", port, 1, flags);
+    for (int s = 1; s <= 3; ++s) ids.push_back(submit(d, s, "killed"));
+    for (const auto& id : ids) ASSERT_FALSE(id.empty());
+    std::this_thread::sleep_for(std::chrono::milliseconds(moment_ms(rng)));
+    d.stop(SIGKILL);
+  }
+  for (int k = 0; k < 5; ++k) {
+    Foamd d(dir / "foamd.db", port, 1, flags);
+    std::this_thread::sleep_for(std::chrono::milliseconds(moment_ms(rng)));
+    d.stop(SIGKILL);
+  }
+  Foamd d(dir / "foamd.db", port, 1, flags);
+  // The kills must have hit running jobs, and some of those must have resumed from a checkpoint
+  // (not from the start): otherwise this tests nothing.
+  const std::string log = readAll(dir / "foamd.log");
+  auto count = [&](const std::string& what) {
+    std::size_t n = 0;
+    for (auto p = log.find(what); p != std::string::npos; p = log.find(what, p + 1)) ++n;
+    return n;
+  };
+  std::cout << "kills that hit a running job: " << count("were running when foamd stopped")
+            << ", resumed from a checkpoint: " << count("resuming from checkpoint") << "\n";
+  EXPECT_GE(count("were running when foamd stopped"), 2u) << log;
+  EXPECT_GE(count("resuming from checkpoint"), 1u) << log;
+  for (const auto& id : ids) {
+    const Proc w = sh(d.foam() + " watch " + id + " -q 2>&1");
+    EXPECT_EQ(w.rc, 0) << id << ": " << w.out;
+  }
+  for (int s = 1; s <= 3; ++s) {
+    const std::string ref = submit(d, s, "uninterrupted");
+    ASSERT_FALSE(ref.empty());
+    ASSERT_NE(ref, ids[s - 1]);
+    EXPECT_EQ(sh(d.foam() + " watch " + ref + " -q 2>/dev/null").rc, 0);
+    const std::vector<std::string> clean = samplesWithoutWallTime(d, ref);
+    const std::vector<std::string> killed = samplesWithoutWallTime(d, ids[s - 1]);
+    ASSERT_EQ(clean.size(), 17u);  // the header and t = 0, 400, ..., 6000 s
+    EXPECT_EQ(killed, clean) << "job " << ids[s - 1] << " (seed " << s << ")";
+  }
+  d.stop(SIGTERM);
+  fs::remove_all(dir);
+}
 
 // The second foamd on a database in use exits 2 naming the first's pid, before it touches the
 // database: the first's running job is not re-queued and run twice, and ends with exactly its
