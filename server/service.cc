@@ -66,6 +66,12 @@ Status storeStatus(const StoreError& e) {
   return Status(StatusCode::INTERNAL, e.what());
 }
 
+// A request that could not be taken as sent (request_traits.h): INVALID_ARGUMENT naming why.
+Status requestStatus(const google::protobuf::Message& req) {
+  const std::string why = activefoam::wire::requestError(req);
+  return why.empty() ? Status::OK : Status(StatusCode::INVALID_ARGUMENT, why);
+}
+
 // Runs `fn` and maps exceptions to statuses.
 template <class F>
 Status guarded(F&& fn) {
@@ -77,6 +83,13 @@ Status guarded(F&& fn) {
     spdlog::error("rpc: internal error: {}", e.what());
     return Status(StatusCode::INTERNAL, e.what());
   }
+}
+
+// The same for a handler of `req`: a request that could not be taken as sent is answered first.
+template <class F>
+Status guarded(const google::protobuf::Message& req, F&& fn) {
+  if (Status st = requestStatus(req); !st.ok()) return st;
+  return guarded(std::forward<F>(fn));
 }
 
 // Watchers waiting for new events of a job; poked by the store after each commit.
@@ -225,6 +238,13 @@ class SnapshotReactor : public grpc::ServerWriteReactor<v1::SnapshotChunk> {
   v1::SnapshotChunk chunk_;
 };
 
+// A server stream that ends at once with `status`.
+template <class Message>
+struct FailedStream : grpc::ServerWriteReactor<Message> {
+  explicit FailedStream(Status status) { this->Finish(std::move(status)); }
+  void OnDone() override { delete this; }
+};
+
 class FoamService final : public v1::Foam::CallbackService {
  public:
   FoamService(Store& store, Executor& pool) : store_(store), pool_(pool) {
@@ -235,7 +255,7 @@ class FoamService final : public v1::Foam::CallbackService {
   ServerUnaryReactor* SubmitJob(CallbackServerContext* ctx, const v1::SubmitJobRequest* req,
                                 v1::SubmitJobResponse* resp) override {
     return done(
-        ctx, guarded([&] {
+        ctx, guarded(*req, [&] {
           if (Status st = writable(); !st.ok()) return st;
           if (req->idempotency_key().size() > 256)
             return Status(StatusCode::INVALID_ARGUMENT, "idempotency_key: at most 256 bytes");
@@ -267,7 +287,7 @@ class FoamService final : public v1::Foam::CallbackService {
 
   ServerUnaryReactor* GetJob(CallbackServerContext* ctx, const v1::GetJobRequest* req,
                              v1::Job* resp) override {
-    return done(ctx, guarded([&] {
+    return done(ctx, guarded(*req, [&] {
                   auto j = store_.getJob(req->job_id());
                   if (!j)
                     return Status(StatusCode::NOT_FOUND, "no job " + cappedQuote(req->job_id()));
@@ -278,7 +298,7 @@ class FoamService final : public v1::Foam::CallbackService {
 
   ServerUnaryReactor* ListJobs(CallbackServerContext* ctx, const v1::ListJobsRequest* req,
                                v1::ListJobsResponse* resp) override {
-    return done(ctx, guarded([&] {
+    return done(ctx, guarded(*req, [&] {
                   *resp = store_.listJobs(*req);
                   return Status::OK;
                 }));
@@ -286,7 +306,7 @@ class FoamService final : public v1::Foam::CallbackService {
 
   ServerUnaryReactor* CancelJob(CallbackServerContext* ctx, const v1::CancelJobRequest* req,
                                 v1::Job* resp) override {
-    return done(ctx, guarded([&] {
+    return done(ctx, guarded(*req, [&] {
                   if (Status st = writable(); !st.ok()) return st;
                   const std::string reason =
                       req->reason().empty() ? "cancelled by request" : req->reason();
@@ -307,12 +327,13 @@ class FoamService final : public v1::Foam::CallbackService {
 
   grpc::ServerWriteReactor<v1::JobEvent>* WatchJob(CallbackServerContext*,
                                                    const v1::WatchJobRequest* req) override {
+    if (Status st = requestStatus(*req); !st.ok()) return new FailedStream<v1::JobEvent>(st);
     return new WatchReactor(store_, hub_, *req);
   }
 
   ServerUnaryReactor* GetResults(CallbackServerContext* ctx, const v1::GetResultsRequest* req,
                                  v1::JobResults* resp) override {
-    return done(ctx, guarded([&] {
+    return done(ctx, guarded(*req, [&] {
                   *resp = store_.results(req->job_id(), req->with_samples());
                   return Status::OK;
                 }));
@@ -320,7 +341,7 @@ class FoamService final : public v1::Foam::CallbackService {
 
   ServerUnaryReactor* QueryResults(CallbackServerContext* ctx, const v1::QueryResultsRequest* req,
                                    v1::QueryResultsResponse* resp) override {
-    return done(ctx, guarded([&] {
+    return done(ctx, guarded(*req, [&] {
                   *resp = store_.queryResults(*req);
                   return Status::OK;
                 }));
@@ -328,7 +349,7 @@ class FoamService final : public v1::Foam::CallbackService {
 
   ServerUnaryReactor* SubmitSweep(CallbackServerContext* ctx, const v1::SubmitSweepRequest* req,
                                   v1::SubmitSweepResponse* resp) override {
-    return done(ctx, guarded([&] {
+    return done(ctx, guarded(*req, [&] {
                   if (Status st = writable(); !st.ok()) return st;
                   return sweep(*req, resp);
                 }));
@@ -338,7 +359,7 @@ class FoamService final : public v1::Foam::CallbackService {
       CallbackServerContext*, const v1::GetSnapshotRequest* req) override {
     std::optional<std::tuple<v1::SnapshotInfo, std::string, std::string>> snap;
     Status status;
-    status = guarded([&] {
+    status = guarded(*req, [&] {
       if (req->index() < -1)
         return Status(StatusCode::INVALID_ARGUMENT,
                       "index: " + std::to_string(req->index()) + " is below -1 (-1 = the latest)");
@@ -351,13 +372,7 @@ class FoamService final : public v1::Foam::CallbackService {
                                                  std::to_string(req->index()));
       return Status::OK;
     });
-    if (!status.ok()) {
-      struct Fail : grpc::ServerWriteReactor<v1::SnapshotChunk> {
-        explicit Fail(Status s) { Finish(std::move(s)); }
-        void OnDone() override { delete this; }
-      };
-      return new Fail(status);
-    }
+    if (!status.ok()) return new FailedStream<v1::SnapshotChunk>(status);
     auto& [info, comp, data] = *snap;
     return new SnapshotReactor(info, comp, std::move(data));
   }
@@ -451,7 +466,7 @@ class FoamService final : public v1::Foam::CallbackService {
 
   ServerUnaryReactor* ReportTask(CallbackServerContext* ctx, const v1::ReportTaskRequest* req,
                                  v1::ReportTaskResponse* resp) override {
-    return done(ctx, guarded([&] { return reportTask(*req, *resp); }));
+    return done(ctx, guarded(*req, [&] { return reportTask(*req, *resp); }));
   }
 
   Status reportTask(const v1::ReportTaskRequest& req, v1::ReportTaskResponse& resp) {

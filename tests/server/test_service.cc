@@ -731,6 +731,70 @@ grpc::Status healthCheck(grpc::GenericStub& stub, const std::string& service, st
 
 }  // namespace
 
+// Strings that are not UTF-8, and bytes that are not a message at all: protobuf refuses both,
+// and gRPC's callback server used to answer UNIMPLEMENTED with no message (foam: exit 3,
+// "server unreachable"). Now INVALID_ARGUMENT naming the field, and the server keeps serving.
+TEST_F(ServiceTest, RequestsThatAreNotUtf8OrNotAMessageAreInvalidArgumentNamingTheField) {
+  startServer();
+  auto expectInvalid = [](const grpc::Status& st, const std::string& message) {
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
+    EXPECT_EQ(st.error_message(), message);
+  };
+  {
+    v1::GetJobRequest r;
+    r.set_job_id("j-\xff\xfe");
+    v1::Job j;
+    auto c = ctx();
+    expectInvalid(stub_->GetJob(c.get(), r, &j), "job_id: not valid UTF-8 (byte 2)");
+  }
+  {
+    v1::SubmitJobRequest r = tinyCell();
+    r.add_settings("duration_s=5");
+    r.add_settings("tag=caf\xe9");
+    v1::SubmitJobResponse resp;
+    auto c = ctx();
+    expectInvalid(stub_->SubmitJob(c.get(), r, &resp), "settings[1]: not valid UTF-8 (byte 7)");
+  }
+  {
+    v1::QueryResultsRequest q;
+    q.add_params()->set_key("gamma");
+    q.add_params()->set_key("\xc0\xaf");  // an overlong '/'
+    v1::QueryResultsResponse resp;
+    auto c = ctx();
+    expectInvalid(stub_->QueryResults(c.get(), q, &resp),
+                  "params[1].key: not valid UTF-8 (byte 0)");
+  }
+  {
+    v1::WatchJobRequest w;
+    w.set_job_id("\x80");
+    grpc::ClientContext c;
+    c.set_deadline(std::chrono::system_clock::now() + 10s);
+    auto reader = stub_->WatchJob(&c, w);
+    v1::JobEvent ev;
+    EXPECT_FALSE(reader->Read(&ev));
+    expectInvalid(reader->Finish(), "job_id: not valid UTF-8 (byte 0)");
+  }
+  {
+    // Field 1 announces 16 bytes, 3 follow.
+    grpc::GenericStub generic(channel_);
+    const grpc::ByteBuffer request =
+        bytes(std::string("\x0a\x10"
+                          "abc",
+                          5));
+    grpc::ByteBuffer response;
+    grpc::ClientContext c;
+    c.set_deadline(std::chrono::system_clock::now() + 10s);
+    std::promise<grpc::Status> done;
+    generic.UnaryCall(&c, "/activefoam.v1.Foam/GetJob", grpc::StubOptions(), &request, &response,
+                      [&](grpc::Status st) { done.set_value(st); });
+    expectInvalid(done.get_future().get(),
+                  "malformed request: 5 bytes that are not a activefoam.v1.GetJobRequest message");
+  }
+  // Well-formed requests are untouched, and the server still serves.
+  const std::string id = submit(tinyCell());
+  EXPECT_EQ(get(id).id(), id);
+}
+
 // Disk full mid-run (issue 18): every write fails with SQLITE_FULL for a while. The server
 // does not abort; it logs, counts the failures, reports NOT_SERVING and refuses new submits
 // while still answering reads; the running job's queued outputs are kept and committed when
