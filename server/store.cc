@@ -1,13 +1,6 @@
 // SQLite job store (see store.h).
 #include "store.h"
 
-#include <fcntl.h>
-#include <sqlite3.h>
-#include <sys/file.h>
-#include <unistd.h>
-
-#include <cctype>
-#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -20,314 +13,11 @@
 #include <nlohmann/json.hpp>
 
 #include "activefoam/run_output.h"
+#include "store_sql.h"
 
 namespace activefoam::server {
-namespace {
 
-// ---- small SQLite helpers ----------------------------------------------------------------
-
-// An SQLite failure with its primary result code, so that the writer can tell the storage
-// failing (disk full, I/O error: retried) from a bad statement (a bug: reported).
-struct SqliteError : std::runtime_error {
-  int code;
-  SqliteError(int c, const std::string& what) : std::runtime_error(what), code(c & 0xff) {}
-};
-
-// Failures of the storage, not of the statement: the same write may succeed later.
-bool storageFailure(int code) {
-  switch (code) {
-    case SQLITE_FULL:
-    case SQLITE_IOERR:
-    case SQLITE_READONLY:
-    case SQLITE_CANTOPEN:
-    case SQLITE_NOMEM:
-    case SQLITE_BUSY:
-    case SQLITE_LOCKED:
-    case SQLITE_PROTOCOL:
-      return true;
-    default:
-      return false;
-  }
-}
-
-bool storageFailure(const std::exception_ptr& e) {
-  try {
-    std::rethrow_exception(e);
-  } catch (const SqliteError& s) {
-    return storageFailure(s.code);
-  } catch (...) {
-    return false;
-  }
-}
-
-void check(int rc, sqlite3* db, const char* what) {
-  if (rc != SQLITE_OK && rc != SQLITE_DONE && rc != SQLITE_ROW)
-    throw SqliteError(rc, std::string(what) + ": " + sqlite3_errmsg(db));
-}
-
-void exec(sqlite3* db, const std::string& sql) {
-  char* err = nullptr;
-  if (const int rc = sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err); rc != SQLITE_OK) {
-    std::string msg = err ? err : "?";
-    sqlite3_free(err);
-    throw SqliteError(rc, "sqlite: " + msg + " in: " + sql.substr(0, 80));
-  }
-}
-
-class Stmt {
- public:
-  Stmt(sqlite3* db, const std::string& sql) : db_(db) {
-    check(sqlite3_prepare_v2(db, sql.c_str(), -1, &st_, nullptr), db, sql.c_str());
-  }
-  ~Stmt() { sqlite3_finalize(st_); }
-  Stmt(const Stmt&) = delete;
-  Stmt& operator=(const Stmt&) = delete;
-
-  Stmt& bind(int i, const std::string& v) {
-    sqlite3_bind_text(st_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT);
-    return *this;
-  }
-  Stmt& bind(int i, const char* v) { return bind(i, std::string(v)); }
-  Stmt& bind(int i, double v) {
-    sqlite3_bind_double(st_, i, v);
-    return *this;
-  }
-  Stmt& bind(int i, std::int64_t v) {
-    sqlite3_bind_int64(st_, i, v);
-    return *this;
-  }
-  Stmt& bind(int i, int v) { return bind(i, static_cast<std::int64_t>(v)); }
-  Stmt& blob(int i, const std::string& v) {
-    sqlite3_bind_blob(st_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT);
-    return *this;
-  }
-  Stmt& null(int i) {
-    sqlite3_bind_null(st_, i);
-    return *this;
-  }
-  bool step() {
-    const int rc = sqlite3_step(st_);
-    check(rc, db_, "step");
-    return rc == SQLITE_ROW;
-  }
-  void run() {
-    while (step()) {
-    }
-  }
-  std::int64_t i64(int c) { return sqlite3_column_int64(st_, c); }
-  double dbl(int c) { return sqlite3_column_double(st_, c); }
-  bool isNull(int c) { return sqlite3_column_type(st_, c) == SQLITE_NULL; }
-  std::string text(int c) {
-    const auto* p = reinterpret_cast<const char*>(sqlite3_column_blob(st_, c));
-    return p ? std::string(p, sqlite3_column_bytes(st_, c)) : std::string();
-  }
-
- private:
-  sqlite3* db_;
-  sqlite3_stmt* st_ = nullptr;
-};
-
-sqlite3* openDb(const std::string& path, int busy_ms) {
-  sqlite3* db = nullptr;
-  if (sqlite3_open_v2(path.c_str(), &db,
-                      SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX,
-                      nullptr) != SQLITE_OK) {
-    std::string msg = db ? sqlite3_errmsg(db) : "out of memory";
-    sqlite3_close(db);
-    throw std::runtime_error("cannot open database '" + path + "': " + msg);
-  }
-  sqlite3_busy_timeout(db, busy_ms);
-  exec(db, "PRAGMA journal_mode=WAL; PRAGMA synchronous=FULL; PRAGMA foreign_keys=ON;");
-  return db;
-}
-
-// Migrations: entry i brings the schema from version i to i + 1.
-const std::vector<std::string> kMigrations = {
-    R"sql(
-CREATE TABLE jobs(
-  seqno INTEGER PRIMARY KEY AUTOINCREMENT,
-  id TEXT NOT NULL UNIQUE,
-  state INTEGER NOT NULL,
-  reason TEXT NOT NULL DEFAULT '',
-  failure_kind TEXT NOT NULL DEFAULT '',
-  scene TEXT NOT NULL,
-  seed INTEGER NOT NULL,
-  priority INTEGER NOT NULL DEFAULT 0,
-  tag TEXT NOT NULL DEFAULT '',
-  sweep_id TEXT NOT NULL DEFAULT '',
-  idem_key TEXT UNIQUE,
-  spec_json TEXT NOT NULL,
-  engine_version TEXT NOT NULL,
-  created_utc TEXT NOT NULL,
-  started_utc TEXT NOT NULL DEFAULT '',
-  finished_utc TEXT NOT NULL DEFAULT '',
-  progress REAL NOT NULL DEFAULT 0,
-  t_s REAL NOT NULL DEFAULT 0,
-  steps INTEGER NOT NULL DEFAULT 0,
-  attempts INTEGER NOT NULL DEFAULT 0,
-  last_seq INTEGER NOT NULL DEFAULT 0,
-  columns_json TEXT NOT NULL DEFAULT '[]',
-  p_duration_s REAL, p_dt_s REAL, p_alpha REAL, p_p_a REAL, p_pa_reduced REAL, p_tau_p_s REAL,
-  p_xi REAL, p_gamma REAL, p_eta REAL, p_k_contact REAL, p_n_cells INTEGER,
-  p_triangles_per_cell INTEGER);
-CREATE INDEX jobs_queue ON jobs(state, priority DESC, seqno);
-CREATE INDEX jobs_tag ON jobs(tag);
-CREATE INDEX jobs_sweep ON jobs(sweep_id);
-CREATE TABLE events(job_id TEXT NOT NULL, seq INTEGER NOT NULL, time_utc TEXT NOT NULL,
-  data BLOB NOT NULL, PRIMARY KEY(job_id, seq)) WITHOUT ROWID;
-CREATE TABLE samples(job_id TEXT NOT NULL, idx INTEGER NOT NULL, t_s REAL NOT NULL,
-  vals BLOB NOT NULL, PRIMARY KEY(job_id, idx)) WITHOUT ROWID;
-CREATE TABLE results(job_id TEXT NOT NULL, name TEXT NOT NULL, value REAL,
-  PRIMARY KEY(job_id, name)) WITHOUT ROWID;
-CREATE TABLE snapshots(job_id TEXT NOT NULL, idx INTEGER NOT NULL, t_s REAL NOT NULL,
-  step INTEGER NOT NULL, bytes INTEGER NOT NULL, vertices INTEGER NOT NULL,
-  triangles INTEGER NOT NULL, compression TEXT NOT NULL, data BLOB NOT NULL,
-  PRIMARY KEY(job_id, idx));
-CREATE TABLE checkpoints(job_id TEXT PRIMARY KEY, t_s REAL NOT NULL, data BLOB NOT NULL,
-  written_utc TEXT NOT NULL);
-CREATE TABLE sweeps(id TEXT PRIMARY KEY, name TEXT NOT NULL DEFAULT '', idem_key TEXT UNIQUE,
-  created_utc TEXT NOT NULL, n_jobs INTEGER NOT NULL);
-)sql",
-    // 1 → 2: executors other than the pool (Slurm) record where a running job runs.
-    R"sql(
-ALTER TABLE jobs ADD COLUMN executor_ref TEXT NOT NULL DEFAULT '';
-)sql",
-    // 2 → 3: how a fusion job ended (fused, arrested, separated, no-contact), to filter on.
-    R"sql(
-ALTER TABLE jobs ADD COLUMN outcome TEXT NOT NULL DEFAULT '';
-CREATE INDEX jobs_outcome ON jobs(outcome);
-)sql",
-    // 3 → 4: the spec keys a sweep varies (its grid's, or its parameter sets'), for its tables.
-    R"sql(
-ALTER TABLE sweeps ADD COLUMN keys_json TEXT NOT NULL DEFAULT '[]';
-)sql",
-};
-
-const char* kJobCols =
-    "id, state, reason, failure_kind, scene, seed, priority, tag, sweep_id, spec_json, "
-    "engine_version, created_utc, started_utc, finished_utc, progress, t_s, steps, attempts, "
-    "last_seq, executor_ref, outcome";
-
-v1::Job readJob(Stmt& s) {
-  v1::Job j;
-  j.set_id(s.text(0));
-  j.set_state(static_cast<v1::JobState>(s.i64(1)));
-  j.set_reason(s.text(2));
-  j.set_failure_kind(s.text(3));
-  j.set_scene(s.text(4));
-  j.set_seed(static_cast<std::uint64_t>(s.i64(5)));
-  j.set_priority(static_cast<int>(s.i64(6)));
-  j.set_tag(s.text(7));
-  j.set_sweep_id(s.text(8));
-  j.set_spec_json(s.text(9));
-  j.set_engine_version(s.text(10));
-  j.set_created_utc(s.text(11));
-  j.set_started_utc(s.text(12));
-  j.set_finished_utc(s.text(13));
-  j.set_progress(s.dbl(14));
-  j.set_t_s(s.dbl(15));
-  j.set_steps(s.i64(16));
-  j.set_attempts(static_cast<int>(s.i64(17)));
-  j.set_last_seq(s.i64(18));
-  j.set_executor_ref(s.text(19));
-  j.set_outcome(s.text(20));
-  return j;
-}
-
-std::optional<v1::Job> loadJob(sqlite3* db, const std::string& id) {
-  Stmt s(db, std::string("SELECT ") + kJobCols + " FROM jobs WHERE id = ?");
-  s.bind(1, id);
-  if (!s.step()) return std::nullopt;
-  return readJob(s);
-}
-
-v1::Job requireJob(sqlite3* db, const std::string& id) {
-  auto j = loadJob(db, id);
-  if (!j) throw StoreError(StoreError::Kind::NotFound, "no job " + cappedQuote(id));
-  return *j;
-}
-
-std::string packDoubles(const std::vector<double>& v) {
-  std::string s(v.size() * sizeof(double), '\0');
-  if (!v.empty()) std::memcpy(s.data(), v.data(), s.size());
-  return s;
-}
-std::vector<double> unpackDoubles(const std::string& s) {
-  std::vector<double> v(s.size() / sizeof(double));
-  if (!v.empty()) std::memcpy(v.data(), s.data(), v.size() * sizeof(double));
-  return v;
-}
-
-// Parameter filter key → column ("cells.alpha" and "alpha" alike).
-const std::map<std::string, std::string>& paramColumns() {
-  static const std::map<std::string, std::string> m = {
-      {"seed", "seed"},
-      {"duration_s", "p_duration_s"},
-      {"dt_s", "p_dt_s"},
-      {"alpha", "p_alpha"},
-      {"p_a", "p_p_a"},
-      {"pa_reduced", "p_pa_reduced"},
-      {"tau_p_s", "p_tau_p_s"},
-      {"xi", "p_xi"},
-      {"gamma", "p_gamma"},
-      {"eta", "p_eta"},
-      {"k_contact", "p_k_contact"},
-      {"n_cells", "p_n_cells"},
-      {"triangles_per_cell", "p_triangles_per_cell"},
-  };
-  return m;
-}
-
-// WHERE clause and its bound values for the common filters.
-struct Where {
-  std::string sql = " WHERE 1";
-  std::vector<std::variant<std::string, double, std::int64_t>> args;
-  void add(const std::string& cond, std::variant<std::string, double, std::int64_t> v) {
-    sql += " AND " + cond;
-    args.push_back(std::move(v));
-  }
-  void bindAll(Stmt& s) const {
-    int i = 1;
-    for (const auto& a : args) std::visit([&](const auto& v) { s.bind(i++, v); }, a);
-  }
-};
-
-void addOutcomeFilter(Where& w, const std::string& outcome) {
-  if (outcome.empty()) return;
-  static const std::set<std::string> kOutcomes = {"fused", "arrested", "separated", "no-contact"};
-  if (!kOutcomes.count(outcome))
-    throw StoreError(StoreError::Kind::InvalidArgument,
-                     "outcome: '" + outcome.substr(0, 64) +
-                         "' is not one of fused|arrested|separated|no-contact");
-  w.add("outcome = ?", outcome);
-}
-
-void addParamFilters(Where& w, const google::protobuf::RepeatedPtrField<v1::ParamRange>& ranges) {
-  for (const v1::ParamRange& r : ranges) {
-    std::string key = r.key();
-    if (auto dot = key.rfind('.'); dot != std::string::npos) key = key.substr(dot + 1);
-    const auto it = paramColumns().find(key);
-    if (it == paramColumns().end()) {
-      std::string allowed;
-      for (const auto& [k, c] : paramColumns()) {
-        if (!allowed.empty()) allowed += "|";
-        allowed += k;
-      }
-      throw StoreError(StoreError::Kind::InvalidArgument,
-                       "params.key: unknown parameter '" + r.key() + "', one of " + allowed);
-    }
-    for (const auto& [has, v, name] :
-         {std::tuple{r.has_min(), r.min(), "min"}, std::tuple{r.has_max(), r.max(), "max"}})
-      if (has && std::isnan(v))
-        throw StoreError(
-            StoreError::Kind::InvalidArgument,
-            "params[" + cappedQuote(r.key(), 64) + "]." + name + ": NaN is not a bound");
-    if (r.has_min()) w.add(it->second + " >= ?", r.min());
-    if (r.has_max()) w.add(it->second + " <= ?", r.max());
-  }
-}
-
-}  // namespace
+using namespace sql;
 
 // ---- free helpers ---------------------------------------------------------------------------
 
@@ -352,10 +42,6 @@ std::string utcNowText() {
   std::snprintf(buf, sizeof buf, "%04d-%02d-%02dT%02d:%02d:%02d.%03dZ", tm.tm_year + 1900,
                 tm.tm_mon + 1, tm.tm_mday, tm.tm_hour, tm.tm_min, tm.tm_sec, static_cast<int>(ms));
   return buf;
-}
-
-bool isTerminal(v1::JobState s) {
-  return s == v1::JOB_STATE_SUCCEEDED || s == v1::JOB_STATE_FAILED || s == v1::JOB_STATE_CANCELLED;
 }
 
 const std::vector<std::string>& Store::paramKeys() {
@@ -388,6 +74,17 @@ struct Store::Tx {
     ins.run();
     touched.push_back(id);
     return seq;
+  }
+  // The only place a job's state changes (job_states.h): `from` → `to` if the job is in `from`
+  // now; false when it is not (a race the caller expected: a cancel against a final report).
+  // A change outside the table is a bug and throws.
+  bool changeState(const std::string& id, v1::JobState from, v1::JobState to) {
+    if (!allowedTransition(from, to))
+      throw std::logic_error("store: job " + id + ": no transition " + v1::JobState_Name(from) +
+                             " -> " + v1::JobState_Name(to));
+    Stmt up(db, "UPDATE jobs SET state = ? WHERE id = ? AND state = ?");
+    up.bind(1, static_cast<int>(to)).bind(2, id).bind(3, static_cast<int>(from)).run();
+    return sqlite3_changes(db) > 0;
   }
   void stateEvent(const std::string& id) {
     v1::JobEvent ev;
@@ -457,47 +154,11 @@ std::string cappedQuote(const std::string& value, std::size_t max) {
   return "'" + value.substr(0, max) + "'... (" + std::to_string(value.size()) + " bytes)";
 }
 
-DbLock::DbLock(const std::string& db_path) {
-  const std::string lock_path = db_path + ".lock";
-  fd_ = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-  if (fd_ < 0)
-    throw std::runtime_error("cannot open lock file '" + lock_path + "': " + std::strerror(errno));
-  if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
-    const int err = errno;
-    std::string holder;
-    char buf[256];
-    const ssize_t n = ::pread(fd_, buf, sizeof buf - 1, 0);
-    if (n > 0) holder.assign(buf, static_cast<std::size_t>(n));
-    while (!holder.empty() && std::isspace(static_cast<unsigned char>(holder.back())))
-      holder.pop_back();
-    ::close(fd_);
-    fd_ = -1;
-    if (err != EWOULDBLOCK)
-      throw std::runtime_error("cannot lock '" + lock_path + "': " + std::strerror(err));
-    throw StoreError(StoreError::Kind::FailedPrecondition,
-                     "database '" + db_path + "' is in use by another foamd (" +
-                         (holder.empty() ? std::string("holder unknown") : holder) + "; lock " +
-                         lock_path +
-                         "): one server per database — stop it first, or give this one its own "
-                         "--db");
-  }
-  char host[256] = "?";
-  ::gethostname(host, sizeof host - 1);
-  const std::string who =
-      "pid " + std::to_string(::getpid()) + " on " + host + ", since " + utcNowText() + "\n";
-  if (::ftruncate(fd_, 0) != 0 || ::pwrite(fd_, who.data(), who.size(), 0) < 0)
-    spdlog::warn("store: cannot record the holder in '{}': {}", lock_path, std::strerror(errno));
-}
-
-DbLock::~DbLock() {
-  if (fd_ >= 0) ::close(fd_);  // releases the flock
-}
-
 Store::Store(const std::string& path, StoreOptions options)
     : path_(path), options_(options), lock_(path) {
   wdb_ = openDb(path, options.busy_timeout_ms);
   try {
-    migrate();
+    migrateSchema(wdb_);
     rdb_ = openDb(path, options.busy_timeout_ms);
   } catch (...) {
     sqlite3_close(wdb_);
@@ -515,28 +176,6 @@ Store::~Store() {
   writer_.join();
   sqlite3_close(rdb_);
   sqlite3_close(wdb_);
-}
-
-void Store::migrate() {
-  exec(wdb_, "BEGIN IMMEDIATE");
-  try {
-    Stmt v(wdb_, "PRAGMA user_version");
-    v.step();
-    int version = static_cast<int>(v.i64(0));
-    if (version > kSchemaVersion)
-      throw std::runtime_error("database schema version " + std::to_string(version) +
-                               " is newer than this foamd (" + std::to_string(kSchemaVersion) +
-                               ")");
-    for (; version < kSchemaVersion; ++version) {
-      exec(wdb_, kMigrations[static_cast<std::size_t>(version)]);
-      exec(wdb_, "PRAGMA user_version = " + std::to_string(version + 1));
-      spdlog::info("store: migrated schema to version {}", version + 1);
-    }
-    exec(wdb_, "COMMIT");
-  } catch (...) {
-    exec(wdb_, "ROLLBACK");
-    throw;
-  }
 }
 
 int Store::schemaVersion() {
@@ -813,10 +452,11 @@ std::vector<Claimed> Store::claimQueued(int max, bool with_checkpoint) {
     while (q.step()) ids.push_back(q.text(0));
     std::vector<Claimed> out;
     for (const std::string& id : ids) {
+      tx.changeState(id, v1::JOB_STATE_QUEUED, v1::JOB_STATE_RUNNING);
       Stmt up(tx.db,
-              "UPDATE jobs SET state = ?, attempts = attempts + 1, started_utc = ?, reason = '', "
+              "UPDATE jobs SET attempts = attempts + 1, started_utc = ?, reason = '', "
               "executor_ref = '' WHERE id = ?");
-      up.bind(1, static_cast<int>(v1::JOB_STATE_RUNNING)).bind(2, utcNowText()).bind(3, id);
+      up.bind(1, utcNowText()).bind(2, id);
       up.run();
       tx.stateEvent(id);
       Claimed c;
@@ -888,14 +528,13 @@ void Store::notifyHealth(bool writable) {
 v1::Job Store::cancel(const std::string& id, const std::string& reason) {
   return write([&](Tx& tx) -> v1::Job {
     v1::Job j = requireJob(tx.db, id);
-    if (j.state() == v1::JOB_STATE_QUEUED) {
+    if (tx.changeState(id, v1::JOB_STATE_QUEUED, v1::JOB_STATE_CANCELLED)) {
       Stmt up(tx.db,
-              "UPDATE jobs SET state = ?, reason = ?, failure_kind = 'cancelled', "
-              "finished_utc = ? WHERE id = ?");
-      up.bind(1, static_cast<int>(v1::JOB_STATE_CANCELLED))
-          .bind(2, reason.empty() ? std::string("cancelled before it started") : reason)
-          .bind(3, utcNowText())
-          .bind(4, id);
+              "UPDATE jobs SET reason = ?, failure_kind = 'cancelled', finished_utc = ? WHERE "
+              "id = ?");
+      up.bind(1, reason.empty() ? std::string("cancelled before it started") : reason)
+          .bind(2, utcNowText())
+          .bind(3, id);
       up.run();
       Stmt del(tx.db, "DELETE FROM checkpoints WHERE job_id = ?");
       del.bind(1, id).run();
@@ -911,24 +550,24 @@ bool Store::finish(const std::string& id, v1::JobState state, const std::string&
                    const std::vector<std::pair<std::string, double>>& results, double t_s,
                    std::int64_t steps, const std::string& outcome) {
   return write([&](Tx& tx) {
+    if (!isTerminal(state))
+      throw std::logic_error("store: finish(" + id + ") with " + v1::JobState_Name(state) +
+                             ", not an end state");
     // Only a running job ends, once: a cancel racing a task's final report (Slurm) must not
     // turn one outcome into another.
+    if (!tx.changeState(id, v1::JOB_STATE_RUNNING, state)) return false;
     Stmt up(tx.db,
-            "UPDATE jobs SET state = ?, failure_kind = ?, reason = ?, finished_utc = ?, t_s = ?, "
-            "steps = ?, progress = CASE WHEN ? THEN 1 ELSE progress END, outcome = ? WHERE id = ? "
-            "AND state = ?");
-    up.bind(1, static_cast<int>(state))
-        .bind(2, failure_kind)
-        .bind(3, reason)
-        .bind(4, utcNowText())
-        .bind(5, t_s)
-        .bind(6, steps)
-        .bind(7, state == v1::JOB_STATE_SUCCEEDED ? 1 : 0)
-        .bind(8, outcome)
-        .bind(9, id)
-        .bind(10, static_cast<int>(v1::JOB_STATE_RUNNING));
+            "UPDATE jobs SET failure_kind = ?, reason = ?, finished_utc = ?, t_s = ?, steps = ?, "
+            "progress = CASE WHEN ? THEN 1 ELSE progress END, outcome = ? WHERE id = ?");
+    up.bind(1, failure_kind)
+        .bind(2, reason)
+        .bind(3, utcNowText())
+        .bind(4, t_s)
+        .bind(5, steps)
+        .bind(6, state == v1::JOB_STATE_SUCCEEDED ? 1 : 0)
+        .bind(7, outcome)
+        .bind(8, id);
     up.run();
-    if (sqlite3_changes(tx.db) == 0) return false;
     Stmt del(tx.db, "DELETE FROM results WHERE job_id = ?");
     del.bind(1, id).run();
     for (const auto& [name, value] : results) {
@@ -944,14 +583,9 @@ bool Store::finish(const std::string& id, v1::JobState state, const std::string&
 
 bool Store::requeue(const std::string& id, const std::string& reason) {
   return write([&](Tx& tx) {
-    Stmt up(tx.db,
-            "UPDATE jobs SET state = ?, reason = ?, executor_ref = '' WHERE id = ? AND state = ?");
-    up.bind(1, static_cast<int>(v1::JOB_STATE_QUEUED))
-        .bind(2, reason)
-        .bind(3, id)
-        .bind(4, static_cast<int>(v1::JOB_STATE_RUNNING));
-    up.run();
-    if (sqlite3_changes(tx.db) == 0) return false;
+    if (!tx.changeState(id, v1::JOB_STATE_RUNNING, v1::JOB_STATE_QUEUED)) return false;
+    Stmt up(tx.db, "UPDATE jobs SET reason = ?, executor_ref = '' WHERE id = ?");
+    up.bind(1, reason).bind(2, id).run();
     tx.stateEvent(id);
     return true;
   });
@@ -964,8 +598,9 @@ int Store::requeueRunning(const std::string& reason) {
     q.bind(1, static_cast<int>(v1::JOB_STATE_RUNNING));
     while (q.step()) ids.push_back(q.text(0));
     for (const std::string& id : ids) {
-      Stmt up(tx.db, "UPDATE jobs SET state = ?, reason = ?, executor_ref = '' WHERE id = ?");
-      up.bind(1, static_cast<int>(v1::JOB_STATE_QUEUED)).bind(2, reason).bind(3, id).run();
+      tx.changeState(id, v1::JOB_STATE_RUNNING, v1::JOB_STATE_QUEUED);
+      Stmt up(tx.db, "UPDATE jobs SET reason = ?, executor_ref = '' WHERE id = ?");
+      up.bind(1, reason).bind(2, id).run();
       tx.stateEvent(id);
     }
     return static_cast<int>(ids.size());
@@ -1018,235 +653,6 @@ void Store::saveCheckpoint(const std::string& id, double t_s, std::string data) 
              "INSERT OR REPLACE INTO checkpoints(job_id, t_s, data, written_utc) VALUES (?,?,?,?)");
     ins.bind(1, id).bind(2, t_s).blob(3, data).bind(4, utcNowText()).run();
   });
-}
-
-// ---- reads -----------------------------------------------------------------------------------
-
-std::optional<v1::Job> Store::getJob(const std::string& id) {
-  std::lock_guard lock(rmu_);
-  return loadJob(rdb_, id);
-}
-
-std::vector<v1::Job> Store::runningJobs() {
-  std::lock_guard lock(rmu_);
-  Stmt s(rdb_, std::string("SELECT ") + kJobCols + " FROM jobs WHERE state = ? ORDER BY seqno");
-  s.bind(1, static_cast<int>(v1::JOB_STATE_RUNNING));
-  std::vector<v1::Job> out;
-  while (s.step()) out.push_back(readJob(s));
-  return out;
-}
-
-v1::ListJobsResponse Store::listJobs(const v1::ListJobsRequest& req) {
-  Where w;
-  if (req.states_size() > 0) {
-    std::string in;
-    for (int s : req.states()) {
-      if (!v1::JobState_IsValid(s) || s == v1::JOB_STATE_UNSPECIFIED)
-        throw StoreError(StoreError::Kind::InvalidArgument,
-                         "states: " + std::to_string(s) +
-                             " is not a job state (1..5: queued, running, succeeded, failed, "
-                             "cancelled)");
-      if (!in.empty()) in += ",";
-      in += std::to_string(s);
-    }
-    w.sql += " AND state IN (" + in + ")";
-  }
-  if (!req.tag().empty()) w.add("tag = ?", req.tag());
-  if (!req.sweep_id().empty()) w.add("sweep_id = ?", req.sweep_id());
-  if (!req.scene().empty()) w.add("scene = ?", req.scene());
-  addOutcomeFilter(w, req.outcome());
-  addParamFilters(w, req.params());
-  if (req.page_size() < 0)
-    throw StoreError(StoreError::Kind::InvalidArgument, "page_size: must be in [0, 1000]");
-  const int page = req.page_size() == 0 ? 50 : std::min(req.page_size(), 1000);
-
-  std::lock_guard lock(rmu_);
-  v1::ListJobsResponse out;
-  {
-    Stmt c(rdb_, "SELECT COUNT(*) FROM jobs" + w.sql);
-    w.bindAll(c);
-    c.step();
-    out.set_total(c.i64(0));
-  }
-  Where wp = w;
-  if (!req.page_token().empty()) {
-    std::int64_t after = 0;
-    try {
-      std::size_t pos = 0;
-      after = std::stoll(req.page_token(), &pos);
-      if (pos != req.page_token().size() || after <= 0) throw std::invalid_argument("");
-    } catch (const std::exception&) {
-      throw StoreError(StoreError::Kind::InvalidArgument,
-                       "page_token: not a token from ListJobsResponse.next_page_token");
-    }
-    wp.add("seqno < ?", after);
-  }
-  Stmt q(rdb_, std::string("SELECT ") + kJobCols + ", seqno FROM jobs" + wp.sql +
-                   " ORDER BY seqno DESC LIMIT " + std::to_string(page + 1));
-  wp.bindAll(q);
-  std::int64_t last = 0;
-  int n = 0;
-  while (q.step()) {
-    if (n == page) {
-      out.set_next_page_token(std::to_string(last));
-      break;
-    }
-    *out.add_jobs() = readJob(q);
-    last = q.i64(21);  // seqno, after kJobCols
-    ++n;
-  }
-  return out;
-}
-
-std::vector<v1::JobEvent> Store::events(const std::string& id, std::int64_t after, int limit) {
-  std::lock_guard lock(rmu_);
-  Stmt q(rdb_, "SELECT data FROM events WHERE job_id = ? AND seq > ? ORDER BY seq LIMIT ?");
-  q.bind(1, id).bind(2, after).bind(3, limit);
-  std::vector<v1::JobEvent> out;
-  while (q.step()) {
-    v1::JobEvent ev;
-    ev.ParseFromString(q.text(0));
-    out.push_back(std::move(ev));
-  }
-  return out;
-}
-
-v1::JobResults Store::results(const std::string& id, bool with_samples) {
-  std::lock_guard lock(rmu_);
-  v1::JobResults out;
-  *out.mutable_job() = requireJob(rdb_, id);
-  {
-    Stmt q(rdb_, "SELECT name, value FROM results WHERE job_id = ? ORDER BY name");
-    q.bind(1, id);
-    while (q.step()) {
-      auto* r = out.add_results();
-      r->set_name(q.text(0));
-      r->set_value(q.isNull(1) ? std::nan("") : q.dbl(1));
-    }
-  }
-  {
-    Stmt q(rdb_, "SELECT columns_json FROM jobs WHERE id = ?");
-    q.bind(1, id);
-    if (q.step())
-      for (const auto& c : nlohmann::json::parse(q.text(0))) out.add_columns(c.get<std::string>());
-  }
-  if (with_samples) {
-    Stmt q(rdb_, "SELECT t_s, vals FROM samples WHERE job_id = ? ORDER BY idx");
-    q.bind(1, id);
-    while (q.step()) {
-      auto* s = out.add_samples();
-      s->set_t_s(q.dbl(0));
-      for (double v : unpackDoubles(q.text(1))) s->add_values(v);
-    }
-  }
-  {
-    Stmt q(rdb_,
-           "SELECT idx, t_s, step, bytes, vertices, triangles FROM snapshots WHERE job_id = ? "
-           "ORDER BY idx");
-    q.bind(1, id);
-    while (q.step()) {
-      auto* s = out.add_snapshots();
-      s->set_index(static_cast<int>(q.i64(0)));
-      s->set_t_s(q.dbl(1));
-      s->set_step(q.i64(2));
-      s->set_bytes(q.i64(3));
-      s->set_vertices(static_cast<int>(q.i64(4)));
-      s->set_triangles(static_cast<int>(q.i64(5)));
-    }
-  }
-  return out;
-}
-
-v1::QueryResultsResponse Store::queryResults(const v1::QueryResultsRequest& req) {
-  Where w;
-  w.add("state = ?", static_cast<std::int64_t>(v1::JOB_STATE_SUCCEEDED));
-  if (!req.scene().empty()) w.add("scene = ?", req.scene());
-  if (!req.tag().empty()) w.add("tag = ?", req.tag());
-  if (!req.sweep_id().empty()) w.add("sweep_id = ?", req.sweep_id());
-  addOutcomeFilter(w, req.outcome());
-  addParamFilters(w, req.params());
-  if (req.limit() < 0 || req.limit() > 100000)
-    throw StoreError(StoreError::Kind::InvalidArgument,
-                     "limit: " + std::to_string(req.limit()) +
-                         " is outside [0, 100000] (0 = the default, 1000)");
-  const int limit = req.limit() == 0 ? 1000 : req.limit();
-  std::string cols = "id, outcome";
-  for (const auto& [k, c] : paramColumns()) cols += ", " + c;
-  std::lock_guard lock(rmu_);
-  Stmt q(rdb_, "SELECT " + cols + " FROM jobs" + w.sql + " ORDER BY seqno LIMIT " +
-                   std::to_string(limit));
-  w.bindAll(q);
-  v1::QueryResultsResponse out;
-  if (!req.sweep_id().empty()) {
-    Stmt k(rdb_, "SELECT keys_json FROM sweeps WHERE id = ?");
-    k.bind(1, req.sweep_id());
-    if (k.step())
-      for (const auto& key : nlohmann::json::parse(k.text(0))) out.add_swept_keys(key);
-  }
-  while (q.step()) {
-    auto* row = out.add_rows();
-    row->set_job_id(q.text(0));
-    row->set_outcome(q.text(1));
-    int c = 2;
-    for (const auto& [k, col] : paramColumns()) (*row->mutable_params())[k] = q.dbl(c++);
-  }
-  for (auto& row : *out.mutable_rows()) {
-    Stmt r(rdb_, "SELECT name, value FROM results WHERE job_id = ? ORDER BY name");
-    r.bind(1, row.job_id());
-    while (r.step()) {
-      const std::string name = r.text(0);
-      if (req.names_size() > 0 &&
-          std::find(req.names().begin(), req.names().end(), name) == req.names().end())
-        continue;
-      auto* res = row.add_results();
-      res->set_name(name);
-      res->set_value(r.isNull(1) ? std::nan("") : r.dbl(1));
-    }
-  }
-  return out;
-}
-
-std::optional<std::tuple<v1::SnapshotInfo, std::string, std::string>> Store::snapshot(
-    const std::string& id, int index) {
-  std::lock_guard lock(rmu_);
-  Stmt q(rdb_, index < 0 ? "SELECT idx, t_s, step, bytes, vertices, triangles, compression, data "
-                           "FROM snapshots WHERE job_id = ? ORDER BY idx DESC LIMIT 1"
-                         : "SELECT idx, t_s, step, bytes, vertices, triangles, compression, data "
-                           "FROM snapshots WHERE job_id = ? AND idx = ?");
-  q.bind(1, id);
-  if (index >= 0) q.bind(2, index);
-  if (!q.step()) return std::nullopt;
-  v1::SnapshotInfo info;
-  info.set_index(static_cast<int>(q.i64(0)));
-  info.set_t_s(q.dbl(1));
-  info.set_step(q.i64(2));
-  info.set_bytes(q.i64(3));
-  info.set_vertices(static_cast<int>(q.i64(4)));
-  info.set_triangles(static_cast<int>(q.i64(5)));
-  return std::make_tuple(info, q.text(6), q.text(7));
-}
-
-std::optional<std::pair<double, std::string>> Store::checkpoint(const std::string& id) {
-  std::lock_guard lock(rmu_);
-  Stmt q(rdb_, "SELECT t_s, data FROM checkpoints WHERE job_id = ?");
-  q.bind(1, id);
-  if (!q.step()) return std::nullopt;
-  return std::make_pair(q.dbl(0), q.text(1));
-}
-
-std::map<v1::JobState, std::int64_t> Store::countByState() {
-  std::lock_guard lock(rmu_);
-  Stmt q(rdb_, "SELECT state, COUNT(*) FROM jobs GROUP BY state");
-  std::map<v1::JobState, std::int64_t> out;
-  while (q.step()) out[static_cast<v1::JobState>(q.i64(0))] = q.i64(1);
-  return out;
-}
-
-std::int64_t Store::countRows(const std::string& table) {
-  std::lock_guard lock(rmu_);
-  Stmt q(rdb_, "SELECT COUNT(*) FROM " + table);
-  q.step();
-  return q.i64(0);
 }
 
 }  // namespace activefoam::server

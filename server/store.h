@@ -3,6 +3,10 @@
 // into one IMMEDIATE transaction (one SAVEPOINT each, so one failing write does not undo the
 // others) and returns only after COMMIT: what a write call returns is on disk. Reads use their
 // own connection and see committed data only.
+//
+// Its parts: sqlite.h (the SQLite C API wrapped), store_sql.h (schema and migrations, rows to
+// messages, filter clauses), job_states.h (the one table of allowed state changes), db_lock.cc
+// (one server per database), store.cc (the writer thread and the writes), store_reads.cc.
 #pragma once
 
 #include <atomic>
@@ -23,6 +27,7 @@
 #include "activefoam/spec.h"
 #include "activefoam/v1/job.pb.h"
 #include "activefoam/v1/service.pb.h"
+#include "job_states.h"
 
 struct sqlite3;
 
@@ -179,7 +184,6 @@ class Store {
   auto write(F f) -> decltype(f(std::declval<Tx&>()));
   void post(std::function<void(Tx&)> fn);  // fire and forget (errors logged)
   void writerLoop();
-  void migrate();
   void notifyHealth(bool writable);
 
   std::string path_;
@@ -205,6 +209,5 @@ class Store {
 
 std::string newId(const std::string& prefix);
 std::string utcNowText();
-bool isTerminal(v1::JobState s);
 
 }  // namespace activefoam::server

@@ -15,6 +15,7 @@
 #include <future>
 #include <optional>
 #include <random>
+#include <set>
 #include <sstream>
 #include <thread>
 
@@ -661,6 +662,56 @@ TEST(Store, PriorityThenAgeAndRequeueAfterRestart) {
   EXPECT_DOUBLE_EQ(c2->checkpoint_t_s, 3.5);
   EXPECT_EQ(c2->job.attempts(), 2);
   EXPECT_EQ(s.claimNext()->job.id(), low);
+  fs::remove_all(db.parent_path());
+}
+
+// The lifecycle table (job_states.h): exactly these six changes, nothing out of an end state.
+TEST(JobStates, OnlyTheLifecycleTransitionsAreAllowed) {
+  using S = v1::JobState;
+  const std::vector<S> states = {S::JOB_STATE_QUEUED, S::JOB_STATE_RUNNING, S::JOB_STATE_SUCCEEDED,
+                                 S::JOB_STATE_FAILED, S::JOB_STATE_CANCELLED};
+  const std::set<std::pair<S, S>> allowed = {
+      {S::JOB_STATE_QUEUED, S::JOB_STATE_RUNNING},    {S::JOB_STATE_QUEUED, S::JOB_STATE_CANCELLED},
+      {S::JOB_STATE_RUNNING, S::JOB_STATE_SUCCEEDED}, {S::JOB_STATE_RUNNING, S::JOB_STATE_FAILED},
+      {S::JOB_STATE_RUNNING, S::JOB_STATE_CANCELLED}, {S::JOB_STATE_RUNNING, S::JOB_STATE_QUEUED}};
+  for (S from : states)
+    for (S to : {S::JOB_STATE_UNSPECIFIED, S::JOB_STATE_QUEUED, S::JOB_STATE_RUNNING,
+                 S::JOB_STATE_SUCCEEDED, S::JOB_STATE_FAILED, S::JOB_STATE_CANCELLED})
+      EXPECT_EQ(allowedTransition(from, to), allowed.count({from, to}) == 1)
+          << v1::JobState_Name(from) << " -> " << v1::JobState_Name(to);
+  EXPECT_EQ(jobTransitions().size(), allowed.size());
+  for (S s : states)
+    EXPECT_EQ(isTerminal(s), s != S::JOB_STATE_QUEUED && s != S::JOB_STATE_RUNNING);
+}
+
+// Every store operation that would move a job outside the table leaves it as it is: finishing
+// a queued or an ended job, ending it twice, re-queueing an ended one, cancelling an ended one,
+// and finish() with a state that is not an end.
+TEST(Store, StateChangesOutsideTheLifecycleAreRefused) {
+  const fs::path db = tempDb();
+  Store s(db.string());
+  NewJob j;
+  j.spec.scene = SceneKind::Cell;
+  j.spec = resolve(j.spec);
+  j.spec_json = "{}";
+  const std::string a = s.submit(j).first;
+  EXPECT_FALSE(s.finish(a, v1::JOB_STATE_SUCCEEDED, "", "", {}, 1, 1));  // queued: not running
+  EXPECT_FALSE(s.requeue(a, "x"));
+  EXPECT_EQ(s.getJob(a)->state(), v1::JOB_STATE_QUEUED);
+  ASSERT_EQ(s.claimNext()->job.id(), a);
+  EXPECT_THROW(s.finish(a, v1::JOB_STATE_QUEUED, "", "", {}, 1, 1), std::logic_error);
+  EXPECT_EQ(s.getJob(a)->state(), v1::JOB_STATE_RUNNING);
+  EXPECT_TRUE(s.finish(a, v1::JOB_STATE_FAILED, "non-finite", "boom", {{"x", 1.0}}, 2, 20));
+  const std::int64_t seq = s.getJob(a)->last_seq();
+  EXPECT_FALSE(s.finish(a, v1::JOB_STATE_SUCCEEDED, "", "", {}, 3, 30));  // once only
+  EXPECT_FALSE(s.requeue(a, "restart"));
+  EXPECT_EQ(s.requeueRunning("restart"), 0);
+  EXPECT_EQ(s.cancel(a, "late").state(), v1::JOB_STATE_FAILED);
+  const v1::Job after = *s.getJob(a);
+  EXPECT_EQ(after.state(), v1::JOB_STATE_FAILED);
+  EXPECT_EQ(after.reason(), "boom");
+  EXPECT_EQ(after.steps(), 20);
+  EXPECT_EQ(after.last_seq(), seq) << "a refused change records no event";
   fs::remove_all(db.parent_path());
 }
 
