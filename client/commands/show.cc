@@ -1,0 +1,76 @@
+// foam show: a job's state on the first line (for scripts), then its details.
+#include <exception>
+#include <iostream>
+#include <sstream>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "../commands.h"
+
+namespace activefoam::client {
+namespace {
+
+// "preset draft (Δt 0.5 s, 320 triangles, ε_CG 0.001), chosen for the accuracy target contact
+// angle ≤ 2°" from a job's resolved spec.
+std::string fidelityText(const std::string& spec_json) {
+  try {
+    const nlohmann::json spec = nlohmann::json::parse(spec_json);
+    const nlohmann::json& n = spec.at("numerics");
+    std::ostringstream os;
+    os << "preset " << n.value("preset", std::string("?")) << " (" << n.value("integrator", "")
+       << ", Δt " << n.value("dt_s", 0.0) << " s, " << n.value("triangles_per_cell", 0)
+       << " triangles, ε_CG " << n.value("cg_tol", 0.0) << ")";
+    // Unset targets are null in a resolved spec.
+    const nlohmann::json a = spec.value("accuracy", nlohmann::json::object());
+    const bool angle = a.contains("contact_angle_deg") && a["contact_angle_deg"].is_number();
+    const bool path = a.contains("trajectory_deg") && a["trajectory_deg"].is_number();
+    if (angle || path) os << ", chosen for the accuracy target";
+    if (angle) os << " contact angle ≤ " << a["contact_angle_deg"].get<double>() << "°";
+    if (path) os << " θ(t) RMS ≤ " << a["trajectory_deg"].get<double>() << "°";
+    return os.str();
+  } catch (const std::exception&) {
+    return "?";
+  }
+}
+
+}  // namespace
+
+CLI::App* setupShow(CLI::App& app, ShowOptions& o) {
+  auto* show = app.add_subcommand("show", "print a job's state (first line), then its details");
+  show->add_option("ID", o.id)->required();
+  show->add_flag("--json", o.json);
+  return show;
+}
+
+int runShow(Conn& conn, const ShowOptions& o) {
+  v1::GetJobRequest req;
+  req.set_job_id(o.id);
+  v1::Job j;
+  auto ctx = conn.ctx();
+  const grpc::Status st = conn.stub->GetJob(ctx.get(), req, &j);
+  if (!st.ok()) return rpcError(st, "show " + o.id);
+  if (o.json) {
+    std::cout << toJsonText(j) << "\n";
+    return kOk;
+  }
+  std::cout << stateName(j.state()) << "\n"
+            << "id:        " << j.id() << "\n"
+            << "scene:     " << j.scene() << " (seed " << j.seed() << ")\n"
+            << "progress:  " << 100 * j.progress() << " % (t = " << j.t_s() << " s, " << j.steps()
+            << " steps)\n"
+            << "created:   " << j.created_utc() << "\n"
+            << "started:   " << j.started_utc() << "\n"
+            << "finished:  " << j.finished_utc() << "\n"
+            << "attempts:  " << j.attempts() << "\n"
+            << "engine:    " << j.engine_version() << "\n";
+  std::cout << "fidelity:  " << fidelityText(j.spec_json()) << "\n";
+  if (!j.executor_ref().empty()) std::cout << "executor:  " << j.executor_ref() << "\n";
+  if (!j.outcome().empty()) std::cout << "outcome:   " << j.outcome() << "\n";
+  if (!j.reason().empty()) std::cout << "reason:    " << j.reason() << "\n";
+  if (!j.tag().empty()) std::cout << "tag:       " << j.tag() << "\n";
+  if (!j.sweep_id().empty()) std::cout << "sweep:     " << j.sweep_id() << "\n";
+  return kOk;
+}
+
+}  // namespace activefoam::client
