@@ -9,7 +9,9 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <future>
@@ -136,6 +138,10 @@ class ServiceTest : public ::testing::Test {
     return j;
   }
   v1::Job waitFor(const std::string& id, bool (*pred)(const v1::Job&), double timeout_s = 60) {
+    // Sanitizer builds run the engine several times slower (the asan-server test preset sets
+    // FOAM_TEST_TIME_SCALE).
+    if (const char* k = std::getenv("FOAM_TEST_TIME_SCALE"))
+      timeout_s *= std::max(1.0, std::atof(k));
     const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
     v1::Job j;
     do {
