@@ -2,6 +2,7 @@
 #include "http.h"
 
 #include <cctype>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <sstream>
@@ -256,6 +257,10 @@ HttpEndpoint::HttpEndpoint(Store& store, Executor& pool, HttpOptions options)
     throw std::runtime_error("--http: cannot listen on " + options_.listen +
                              ": the port is taken or the address is not this machine's");
   thread_ = std::thread([this] { http_->listen_after_bind(); });
+  // stop() is a no-op until the loop runs: a destructor right after construction (a failed
+  // start elsewhere, a test) would otherwise wait on a loop that never ends.
+  for (int i = 0; i < 5000 && !http_->is_running(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
   spdlog::info("foamd: HTTP (dashboard at /, JSON, /metrics) on {} (port {}){}{}{}",
                options_.listen, port_, tls ? ", TLS" : "",
                options_.token.empty() ? "" : ", token required",
