@@ -186,21 +186,21 @@ int Store::schemaVersion() {
 }
 
 void Store::setEventListener(std::function<void(const std::string&)> listener) {
-  std::lock_guard lock(qmu_);
+  // Under lmu_: once this returns, the writer runs the old listener no more (the service
+  // clears it in its destructor; ASan caught the writer notifying a freed service).
+  std::lock_guard lock(lmu_);
   listener_ = std::move(listener);
 }
 
 void Store::writerLoop() {
   for (;;) {
     std::deque<std::unique_ptr<Task>> batch;
-    std::function<void(const std::string&)> listener;
     {
       std::unique_lock lock(qmu_);
       qcv_.wait(lock, [&] { return stop_ || !queue_.empty(); });
       if (queue_.empty()) return;  // stop_ and drained
       batch.swap(queue_);
       busy_ = true;
-      listener = listener_;
     }
     Tx tx{wdb_, {}};
     std::vector<std::exception_ptr> errors(batch.size());
@@ -276,10 +276,13 @@ void Store::writerLoop() {
       else
         batch[i]->done.set_value();
     }
-    if (listener) {
-      std::sort(tx.touched.begin(), tx.touched.end());
-      tx.touched.erase(std::unique(tx.touched.begin(), tx.touched.end()), tx.touched.end());
-      for (const std::string& id : tx.touched) listener(id);
+    {
+      std::lock_guard lock(lmu_);
+      if (listener_) {
+        std::sort(tx.touched.begin(), tx.touched.end());
+        tx.touched.erase(std::unique(tx.touched.begin(), tx.touched.end()), tx.touched.end());
+        for (const std::string& id : tx.touched) listener_(id);
+      }
     }
     {
       std::lock_guard lock(qmu_);
@@ -512,17 +515,13 @@ std::string Store::lastError() const {
 }
 
 void Store::setHealthListener(std::function<void(bool)> listener) {
-  std::lock_guard lock(emu_);
+  std::lock_guard lock(lmu_);  // as setEventListener: no call of the old one after this
   health_listener_ = std::move(listener);
 }
 
 void Store::notifyHealth(bool writable) {
-  std::function<void(bool)> h;
-  {
-    std::lock_guard lock(emu_);
-    h = health_listener_;
-  }
-  if (h) h(writable);
+  std::lock_guard lock(lmu_);
+  if (health_listener_) health_listener_(writable);
 }
 
 v1::Job Store::cancel(const std::string& id, const std::string& reason) {

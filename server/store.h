@@ -201,7 +201,11 @@ class Store {
   std::function<void(const std::string&)> listener_;
   std::atomic<bool> degraded_{false};
   std::atomic<std::int64_t> store_errors_{0};
-  mutable std::mutex emu_;  // last_error_, health_listener_
+  // Held while the writer runs a listener and while one is replaced: a listener that is
+  // replaced (or cleared by its owner's destructor) is never called afterwards. Listeners must
+  // not call setEventListener / setHealthListener.
+  std::mutex lmu_;          // listener_, health_listener_
+  mutable std::mutex emu_;  // last_error_
   std::string last_error_;
   std::function<void(bool)> health_listener_;
   std::thread writer_;
