@@ -2,6 +2,7 @@
 #pragma once
 
 #include <gtest/gtest.h>
+#include <cstdint>
 
 #include "activefoam/rng.h"
 #include "activefoam/simulation.h"
@@ -22,20 +23,21 @@ inline SceneSpec cellSpec(double axes_ratio = 1.0, int triangles = 320) {
   return s;
 }
 
-// A resolved fusion of two tiny spheroids (3 + 4 cells of 80 triangles, 10 s at Δt 0.5 s,
-// sampled every second), relaxed for 10 s only: fast enough for the sanitizer passes.
-inline SceneSpec smallFusionSpec() {
+// A resolved fusion of two tiny spheroids (by default 3 + 4 cells of 80 triangles, 10 s at
+// Δt 0.5 s, sampled every second), relaxed for 10 s only: fast enough for the sanitizer passes.
+inline SceneSpec smallFusionSpec(std::uint64_t seed = 5, int n_cells_a = 3, int n_cells_b = 4,
+                                 double duration_s = 10, double sample_every_s = 1) {
   SceneSpec s;
   s.scene = SceneKind::Fusion;
-  s.seed = 5;
-  s.scene_params.n_cells_a = 3;
-  s.scene_params.n_cells_b = 4;
+  s.seed = seed;
+  s.scene_params.n_cells_a = n_cells_a;
+  s.scene_params.n_cells_b = n_cells_b;
   s.scene_params.prep_max_s = 10;  // not compact: a few steps of relaxation suffice here
   s.scene_params.allow_uncompacted = true;
   s.numerics.triangles_per_cell = 80;
   s.numerics.dt_s = 0.5;
-  s.duration_s = 10;
-  s.sample_every_s = 1;
+  s.duration_s = duration_s;
+  s.sample_every_s = sample_every_s;
   s.snapshot_every_s = 0;
   EXPECT_TRUE(validate(s).empty());
   return resolve(s);

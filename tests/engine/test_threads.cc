@@ -52,20 +52,8 @@ bool sameBits(const std::vector<std::vector<double>>& a,
 }
 
 SceneSpec fusion2x4() {
-  SceneSpec s;
-  s.scene = SceneKind::Fusion;
-  s.seed = 11;
-  s.scene_params.n_cells_a = 4;
-  s.scene_params.n_cells_b = 4;
-  s.scene_params.prep_max_s = 10;  // not compact: a few steps of relaxation suffice here
-  s.scene_params.allow_uncompacted = true;
-  s.numerics.triangles_per_cell = 80;
-  s.numerics.dt_s = 0.5;
-  s.duration_s = 20;
-  s.sample_every_s = 2;
-  s.snapshot_every_s = 0;
-  EXPECT_TRUE(validate(s).empty());
-  return resolve(s);
+  return activefoam::testing::smallFusionSpec(/*seed=*/11, 4, 4, /*duration_s=*/20,
+                                              /*sample_every_s=*/2);
 }
 
 SceneSpec motileDoublet() {
