@@ -2,11 +2,15 @@
 // motile doublet) and single kernels at 1, 2 and 3 threads compared byte by byte. The scenes are
 // small, so the tests shrink the work grain (setGrain) until every parallel path runs with
 // many chunks; one test keeps the production grain on a scene large enough to split.
+#include <cmath>
 #include <cstring>
 #include <thread>
+#include <tuple>
 
 #include <gtest/gtest.h>
 
+#include "activefoam/contacts.h"
+#include "activefoam/rng.h"
 #include "activefoam/run.h"
 #include "activefoam/spheroid.h"
 #include "activefoam/threads.h"
@@ -220,4 +224,61 @@ TEST(Threads, AdaptiveRunWithRejectedStepsIsBitIdenticalForAnyThreadCount) {
   ASSERT_GT(one.summary.steps_rejected, 0);
   EXPECT_LT(one.summary.dt_min_s, 0.1);
   expectSameRuns(s, kFine);
+}
+
+// The contact kernels split the pairs among parts that own whole cells: every side of every pair
+// (its three vertices in one cell) is written by exactly one part, each part walks its pairs in
+// pair order — so every vertex gets its pairs' shares in the order one thread would add them —
+// and the parts carry about equal numbers of pair sides.
+TEST(Threads, ContactPartitionOwnsEveryPairSideOnceInPairOrder) {
+  const int cells = 12, tris_per_cell = 5;
+  std::vector<int> tri_cell(cells * tris_per_cell);
+  for (std::size_t t = 0; t < tri_cell.size(); ++t) tri_cell[t] = static_cast<int>(t) / 5;
+  Rng rng(3, 1);
+  std::vector<ContactPair> pairs;
+  for (int q = 0; q < 400; ++q) {
+    const int ta = static_cast<int>(rng.uniform() * 60), tb = static_cast<int>(rng.uniform() * 60);
+    if (tri_cell[ta] != tri_cell[tb]) pairs.push_back({std::min(ta, tb), std::max(ta, tb), {}});
+  }
+  ASSERT_GT(pairs.size(), 300u);
+  for (int parts : {1, 2, 3, 5, 12, 20}) {
+    ContactPartition part;
+    part.build(pairs, tri_cell, cells, parts);
+    EXPECT_EQ(part.parts, parts);
+    EXPECT_EQ(part.num_pairs, pairs.size());
+    if (parts == 1) {
+      EXPECT_TRUE(part.item.empty());  // one part walks every pair, both sides
+      continue;
+    }
+    std::vector<int> owner_a(pairs.size(), -1), owner_b(pairs.size(), -1);
+    std::vector<int> cell_owner(cells, -1);
+    std::vector<std::int64_t> sides(parts, 0);
+    for (int k = 0; k < parts; ++k) {
+      std::int64_t last = -1;
+      for (std::int64_t e = part.begin[k]; e < part.begin[k + 1]; ++e) {
+        const auto q = static_cast<std::int64_t>(part.item[e] >> 2);
+        const bool own_a = part.item[e] & 1, own_b = part.item[e] & 2;
+        EXPECT_GT(q, last) << "part " << k << " is not in pair order";
+        last = q;
+        EXPECT_TRUE(own_a || own_b);
+        for (auto [own, owner, t] :
+             {std::tuple{own_a, &owner_a, pairs[q].ta}, std::tuple{own_b, &owner_b, pairs[q].tb}}) {
+          if (!own) continue;
+          EXPECT_EQ((*owner)[q], -1) << "pair " << q << " side written twice";
+          (*owner)[q] = k;
+          ++sides[k];
+          int& co = cell_owner[tri_cell[t]];
+          EXPECT_TRUE(co == -1 || co == k) << "cell " << tri_cell[t] << " in two parts";
+          co = k;
+        }
+      }
+    }
+    for (std::size_t q = 0; q < pairs.size(); ++q)
+      EXPECT_TRUE(owner_a[q] >= 0 && owner_b[q] >= 0) << "pair " << q << " has an unowned side";
+    if (parts <= 3) {  // 12 cells of ~67 sides each can be split about evenly in up to 3 parts
+      const double mean = 2.0 * pairs.size() / parts;
+      for (int k = 0; k < parts; ++k)
+        EXPECT_LT(std::abs(sides[k] - mean), 0.3 * mean) << parts << " parts, part " << k;
+    }
+  }
 }

@@ -10,41 +10,80 @@
 
 namespace activefoam {
 
-void ContactIncidence::build(const std::vector<ContactPair>& pairs, const std::vector<Tri>& tri,
-                             int num_vertices) {
+int contactParts(std::size_t num_pairs) {
+  return static_cast<std::int64_t>(num_pairs) > grain().min_items ? threads() : 1;
+}
+
+void ContactPartition::build(const std::vector<ContactPair>& pairs,
+                             const std::vector<int>& tri_cell, int num_cells, int n_parts) {
   num_pairs = pairs.size();
-  std::vector<int> fill(static_cast<std::size_t>(num_vertices), 0);
-  for (const ContactPair& p : pairs)
-    for (int k = 0; k < 3; ++k) {
-      ++fill[tri[p.ta][k]];
-      ++fill[tri[p.tb][k]];
-    }
-  vertex.clear();
-  begin.assign(1, 0);
-  for (int v = 0; v < num_vertices; ++v) {
-    if (fill[v] == 0) continue;
-    const int n = fill[v];
-    fill[v] = begin.back();
-    vertex.push_back(v);
-    begin.push_back(begin.back() + n);
+  parts = std::max(1, n_parts);
+  begin.assign(static_cast<std::size_t>(parts) + 1, 0);
+  item.clear();
+  if (parts == 1) return;
+  // Cells to parts by the running count of pair sides, so that the parts' work is about equal;
+  // the bits do not depend on the split.
+  std::vector<std::int64_t> load(static_cast<std::size_t>(num_cells), 0);
+  for (const ContactPair& p : pairs) {
+    ++load[tri_cell[p.ta]];
+    ++load[tri_cell[p.tb]];
   }
-  entry.resize(static_cast<std::size_t>(begin.back()));
-  // A vertex takes part in a pair at most once (ta and tb belong to different cells), so filling
-  // in pair order lists each vertex's pairs in pair order.
-  for (std::size_t p = 0; p < pairs.size(); ++p)
-    for (int k = 0; k < 3; ++k) {
-      entry[fill[tri[pairs[p].ta][k]]++] = static_cast<int>(6 * p + k);
-      entry[fill[tri[pairs[p].tb][k]]++] = static_cast<int>(6 * p + 3 + k);
+  const std::int64_t total = std::max<std::int64_t>(1, 2 * static_cast<std::int64_t>(num_pairs));
+  std::vector<int> cell_part(static_cast<std::size_t>(num_cells));
+  std::int64_t before = 0;
+  for (int c = 0; c < num_cells; ++c) {
+    cell_part[c] =
+        static_cast<int>(std::min<std::int64_t>(parts - 1, (before + load[c] / 2) * parts / total));
+    before += load[c];
+  }
+  auto sides = [&](const ContactPair& p) {
+    return std::pair{cell_part[tri_cell[p.ta]], cell_part[tri_cell[p.tb]]};
+  };
+  for (const ContactPair& p : pairs) {
+    const auto [pa, pb] = sides(p);
+    ++begin[pa + 1];
+    if (pb != pa) ++begin[pb + 1];
+  }
+  for (int k = 0; k < parts; ++k) begin[k + 1] += begin[k];
+  item.resize(static_cast<std::size_t>(begin[parts]));
+  std::vector<std::int64_t> fill(begin.begin(), begin.end() - 1);
+  for (std::size_t q = 0; q < pairs.size(); ++q) {
+    const auto [pa, pb] = sides(pairs[q]);
+    const std::uint64_t code = static_cast<std::uint64_t>(q) << 2;
+    if (pa == pb) {
+      item[fill[pa]++] = code | 3;
+    } else {
+      item[fill[pa]++] = code | 1;
+      item[fill[pb]++] = code | 2;
     }
+  }
 }
 
 namespace {
 
-const ContactIncidence& incidenceOf(const ContactList& con, const CellSet& cells,
-                                    ContactIncidence& scratch) {
-  if (con.incidence.num_pairs == con.pairs.size()) return con.incidence;
-  scratch.build(con.pairs, cells.tri, cells.numVertices());
+const ContactPartition& partitionOf(const ContactList& con, const CellSet& cells,
+                                    ContactPartition& scratch) {
+  const int parts = contactParts(con.pairs.size());
+  if (con.partition.num_pairs == con.pairs.size() && con.partition.parts == parts)
+    return con.partition;
+  scratch.build(con.pairs, cells.tri_cell, cells.numCells(), parts);
   return scratch;
+}
+
+// f(q, owns_a, owns_b) for every pair q and the sides a part owns, each part's pairs in pair
+// order; the parts run concurrently and write disjoint vertices.
+template <class F>
+void forEachOwnedSide(const ContactPartition& part, const F& f) {
+  if (part.parts <= 1) {
+    for (std::size_t q = 0; q < part.num_pairs; ++q) f(q, true, true);
+    return;
+  }
+#pragma omp parallel for schedule(static, 1)
+  for (int k = 0; k < part.parts; ++k)
+    for (std::int64_t e = part.begin[k]; e < part.begin[k + 1]; ++e) {
+      const std::uint64_t code = part.item[e];
+      f(static_cast<std::size_t>(code >> 2), (code & 1) != 0, (code & 2) != 0);
+    }
 }
 
 }  // namespace
@@ -53,7 +92,7 @@ void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw&
                     ContactQuadrature quadrature, ContactList& out, CandidateCache* cache) {
   const int nt = cells.numTriangles();
   out.pairs.clear();
-  out.incidence = ContactIncidence{};
+  out.partition = ContactPartition{};
   out.tri_contact_area.assign(nt, 0.0);
   out.tri_contact_fraction.assign(nt, 0.0);
   out.vertex_contact_area.assign(cells.numVertices(), 0.0);
@@ -95,27 +134,25 @@ void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw&
     for (int k = 0; k < 3; ++k) out.vertex_contact_area[cells.tri[t][k]] += a / 3.0;
     out.cell_contact_area[cells.tri_cell[t]] += a;
   }
-  out.incidence.build(out.pairs, cells.tri, cells.numVertices());
+  out.partition.build(out.pairs, cells.tri_cell, cells.numCells(), contactParts(out.pairs.size()));
 }
 
 double ContactAdhesion::addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) const {
   if (!ctx.contacts) return 0;
   const ContactList& con = *ctx.contacts;
-  ContactIncidence scratch;
-  const ContactIncidence& inc = incidenceOf(con, ctx.cells, scratch);
-  const int nv = static_cast<int>(inc.vertex.size());
-#pragma omp parallel for schedule(static) if (nv > grain().min_items)
-  for (int j = 0; j < nv; ++j) {
-    auto fv = f.col(inc.vertex[j]);
-    for (int e = inc.begin[j]; e < inc.begin[j + 1]; ++e) {
-      const int code = inc.entry[e], k = code % 3;
-      const ContactPair& p = con.pairs[code / 6];
-      if (code % 6 < 3)
-        fv += p.c.force_weight_a[k] * p.c.normal;
-      else
-        fv -= p.c.force_weight_b[k] * p.c.normal;
-    }
-  }
+  ContactPartition scratch;
+  forEachOwnedSide(partitionOf(con, ctx.cells, scratch),
+                   [&](std::size_t q, bool own_a, bool own_b) {
+                     const ContactPair& p = con.pairs[q];
+                     const Tri& a = ctx.cells.tri[p.ta];
+                     const Tri& b = ctx.cells.tri[p.tb];
+                     if (own_a)
+                       for (int k = 0; k < 3; ++k)
+                         f.col(a[k]) += p.c.force_weight_a[k] * p.c.normal;
+                     if (own_b)
+                       for (int k = 0; k < 3; ++k)
+                         f.col(b[k]) -= p.c.force_weight_b[k] * p.c.normal;
+                   });
   double energy = 0;
   for (const ContactPair& p : con.pairs) energy += p.c.energy;
   return energy;
@@ -129,140 +166,117 @@ Eigen::Matrix3d ContactFriction::pairMatrix(const ContactPair& p, double stiffne
 
 void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& gamma) const {
   ops_.clear();
-  inc_ = nullptr;
+  part_ = nullptr;
   if (!ctx.contacts) return;
   // The centroid spring goes with the friction blocks; the consistent one separately.
   const double spring_dt = ctx.consistent_stiffness ? 0.0 : ctx.contact_stiffness_dt;
   const double ks = ctx.consistent_stiffness ? ctx.contact_stiffness_dt * k_ : 0.0;
   const ContactList& con = *ctx.contacts;
-  inc_ = &incidenceOf(con, ctx.cells, incidence_);
+  part_ = &partitionOf(con, ctx.cells, partition_);
   const auto np = static_cast<std::int64_t>(con.pairs.size());
   ops_.resize(con.pairs.size());
   moments_.resize(ks > 0 ? con.pairs.size() : 0);
-#pragma omp parallel if (np > grain().min_items)
-  {
-#pragma omp for schedule(static)
-    for (std::int64_t q = 0; q < np; ++q) {
-      const ContactPair& p = con.pairs[q];
-      const Tri& a = ctx.cells.tri[p.ta];
-      const Tri& b = ctx.cells.tri[p.tb];
-      PairOp& op = ops_[q];
-      for (int i = 0; i < 3; ++i) {
-        op.a[i] = a[i];
-        op.b[i] = b[i];
-        op.wa[i] = p.c.bary_a[i];
-        op.wb[i] = p.c.bary_b[i];
-      }
-      op.s = p.c.area * xi_t_;
-      op.d = p.c.area * (xi_n_ + spring_dt * k_ - xi_t_);
-      op.ks = ks;
-      if (ks > 0) {
-        Moments& m = moments_[q];
-        for (int k = 0; k < 9; ++k) m[k] = p.c.m_ab[k];
-        m[9] = p.c.m_aa[1], m[10] = p.c.m_aa[2], m[11] = p.c.m_aa[5];
-        m[12] = p.c.m_bb[1], m[13] = p.c.m_bb[2], m[14] = p.c.m_bb[5];
-      }
-      for (int k = 0; k < 3; ++k) op.n[k] = p.c.normal[k];
+#pragma omp parallel for schedule(static) if (np > grain().min_items)
+  for (std::int64_t q = 0; q < np; ++q) {
+    const ContactPair& p = con.pairs[q];
+    const Tri& a = ctx.cells.tri[p.ta];
+    const Tri& b = ctx.cells.tri[p.tb];
+    PairOp& op = ops_[q];
+    for (int i = 0; i < 3; ++i) {
+      op.a[i] = a[i];
+      op.b[i] = b[i];
+      op.wa[i] = p.c.bary_a[i];
+      op.wb[i] = p.c.bary_b[i];
     }
-    // Σ_k w_ik G = λ_i^A (Σ_k λ_k^B) G on vertex i of A, and the same for B; each thread owns
-    // whole vertices and adds their pairs in pair order.
-    const ContactIncidence& inc = *inc_;
-    const int nv = static_cast<int>(inc.vertex.size());
-#pragma omp for schedule(static)
-    for (int j = 0; j < nv; ++j)
-      for (int e = inc.begin[j]; e < inc.begin[j + 1]; ++e) {
-        const int code = inc.entry[e], k = code % 3;
-        const ContactPair& p = con.pairs[code / 6];
-        const bool side_a = code % 6 < 3;
-        if (ks > 0) {
-          const double m = side_a ? p.c.m_aa[4 * k] : p.c.m_bb[4 * k];
-          gamma.addDiagonal(inc.vertex[j], (ks * m) * (p.c.normal * p.c.normal.transpose()));
-        }
-        const double w = side_a ? p.c.bary_a[k] : p.c.bary_b[k];
-        if (!(w > 0)) continue;
-        const auto& other = side_a ? p.c.bary_b : p.c.bary_a;
-        const double so = other[0] + other[1] + other[2];
-        gamma.addDiagonal(inc.vertex[j], (w * so) * pairMatrix(p, spring_dt));
-      }
+    op.s = p.c.area * xi_t_;
+    op.d = p.c.area * (xi_n_ + spring_dt * k_ - xi_t_);
+    op.ks = ks;
+    if (ks > 0) {
+      Moments& m = moments_[q];
+      for (int k = 0; k < 9; ++k) m[k] = p.c.m_ab[k];
+      m[9] = p.c.m_aa[1], m[10] = p.c.m_aa[2], m[11] = p.c.m_aa[5];
+      m[12] = p.c.m_bb[1], m[13] = p.c.m_bb[2], m[14] = p.c.m_bb[5];
+    }
+    for (int k = 0; k < 3; ++k) op.n[k] = p.c.normal[k];
   }
+  // Σ_k w_ik G = λ_i^A (Σ_k λ_k^B) G on vertex i of A, and the same for B.
+  forEachOwnedSide(*part_, [&](std::size_t q, bool own_a, bool own_b) {
+    const ContactPair& p = con.pairs[q];
+    const Eigen::Matrix3d g = pairMatrix(p, spring_dt);
+    const Eigen::Matrix3d nn = p.c.normal * p.c.normal.transpose();
+    auto side = [&](const Tri& t, const std::array<double, 3>& w, const std::array<double, 3>& wo,
+                    const std::array<double, 9>& m_own) {
+      const double so = wo[0] + wo[1] + wo[2];
+      for (int k = 0; k < 3; ++k) {
+        if (ks > 0) gamma.addDiagonal(t[k], (ks * m_own[4 * k]) * nn);
+        if (w[k] > 0) gamma.addDiagonal(t[k], (w[k] * so) * g);
+      }
+    };
+    if (own_a) side(ctx.cells.tri[p.ta], p.c.bary_a, p.c.bary_b, p.c.m_aa);
+    if (own_b) side(ctx.cells.tri[p.tb], p.c.bary_b, p.c.bary_a, p.c.m_bb);
+  });
 }
 
 void ContactFriction::addCouplingProduct(const double* v, double* y) const {
   // The off-diagonal blocks −w_ik G: vertex i of A gets −λ_i^A G u_B with u_B = Σ_k λ_k^B v_k.
-  // First G u_A, G u_B per pair, then per vertex the pairs' shares in pair order: one thread
-  // per vertex, the same sums as one thread walking the pairs.
-  const auto np = static_cast<std::int64_t>(ops_.size());
-  if (np == 0) return;
+  if (ops_.empty()) return;
   const bool consistent = ops_[0].ks > 0;
-  const int stride = consistent ? 12 : 6;
-  g_.resize(stride * ops_.size());
-  double* g = g_.data();
-  const ContactIncidence& inc = *inc_;
-  const int nv = static_cast<int>(inc.vertex.size());
-#pragma omp parallel if (np > grain().min_items)
-  {
-#pragma omp for schedule(static)
-    for (std::int64_t q = 0; q < np; ++q) {
-      const PairOp& op = ops_[q];
-      double ua[3] = {0, 0, 0}, ub[3] = {0, 0, 0};
-      for (int i = 0; i < 3; ++i)
-        for (int c = 0; c < 3; ++c) {
-          ua[c] += op.wa[i] * v[3 * op.a[i] + c];
-          ub[c] += op.wb[i] * v[3 * op.b[i] + c];
-        }
-      const double na = op.n[0] * ua[0] + op.n[1] * ua[1] + op.n[2] * ua[2];
-      const double nb = op.n[0] * ub[0] + op.n[1] * ub[1] + op.n[2] * ub[2];
-      double* gq = g + stride * q;
+  forEachOwnedSide(*part_, [&](std::size_t q, bool own_a, bool own_b) {
+    const PairOp& op = ops_[q];
+    double ua[3] = {0, 0, 0}, ub[3] = {0, 0, 0};
+    for (int i = 0; i < 3; ++i)
       for (int c = 0; c < 3; ++c) {
-        gq[c] = op.s * ub[c] + op.d * nb * op.n[c];      // G u_B, for A's vertices
-        gq[3 + c] = op.s * ua[c] + op.d * na * op.n[c];  // G u_A, for B's vertices
+        ua[c] += op.wa[i] * v[3 * op.a[i] + c];
+        ub[c] += op.wb[i] * v[3 * op.b[i] + c];
       }
-      if (consistent) {
-        // Normal components of the vertices' velocities, then the off-diagonal part of
-        // K = k [M_aa, −M_ab; −M_abᵀ, M_bb] ⊗ n̂n̂ᵀ (the diagonal sits in Γ).
-        double an[3], bn[3];
-        for (int i = 0; i < 3; ++i) {
-          an[i] = bn[i] = 0;
-          for (int c = 0; c < 3; ++c) {
-            an[i] += op.n[c] * v[3 * op.a[i] + c];
-            bn[i] += op.n[c] * v[3 * op.b[i] + c];
-          }
+    const double na = op.n[0] * ua[0] + op.n[1] * ua[1] + op.n[2] * ua[2];
+    const double nb = op.n[0] * ub[0] + op.n[1] * ub[1] + op.n[2] * ub[2];
+    double ga[3], gb[3];  // G u_A (what B's vertices get), G u_B (what A's vertices get)
+    for (int c = 0; c < 3; ++c) {
+      gb[c] = op.s * ub[c] + op.d * nb * op.n[c];
+      ga[c] = op.s * ua[c] + op.d * na * op.n[c];
+    }
+    // The consistent stiffness' normal forces on A's and B's vertices (its off-diagonal part).
+    double fa[3] = {0, 0, 0}, fb[3] = {0, 0, 0};
+    if (consistent) {
+      // Normal components of the vertices' velocities, then the off-diagonal part of
+      // K = k [M_aa, −M_ab; −M_abᵀ, M_bb] ⊗ n̂n̂ᵀ (the diagonal sits in Γ).
+      double an[3], bn[3];
+      for (int i = 0; i < 3; ++i) {
+        an[i] = bn[i] = 0;
+        for (int c = 0; c < 3; ++c) {
+          an[i] += op.n[c] * v[3 * op.a[i] + c];
+          bn[i] += op.n[c] * v[3 * op.b[i] + c];
         }
-        const Moments& m = moments_[q];
-        // Off-diagonal index of (i, j), i ≠ j, in the symmetric triples: 01 → 0, 02 → 1, 12 → 2.
-        auto off = [](int i, int j) { return i + j - 1; };
-        for (int i = 0; i < 3; ++i) {
-          double fa = 0, fb = 0;
-          for (int j = 0; j < 3; ++j) {
-            if (j != i) {
-              fa += m[9 + off(i, j)] * an[j];
-              fb += m[12 + off(i, j)] * bn[j];
-            }
-            fa -= m[3 * i + j] * bn[j];
-            fb -= m[3 * j + i] * an[j];
+      }
+      const Moments& m = moments_[q];
+      // Off-diagonal index of (i, j), i ≠ j, in the symmetric triples: 01 → 0, 02 → 1, 12 → 2.
+      auto off = [](int i, int j) { return i + j - 1; };
+      for (int i = 0; i < 3; ++i) {
+        double sa = 0, sb = 0;
+        for (int j = 0; j < 3; ++j) {
+          if (j != i) {
+            sa += m[9 + off(i, j)] * an[j];
+            sb += m[12 + off(i, j)] * bn[j];
           }
-          gq[6 + i] = op.ks * fa;
-          gq[9 + i] = op.ks * fb;
+          sa -= m[3 * i + j] * bn[j];
+          sb -= m[3 * j + i] * an[j];
         }
+        fa[i] = op.ks * sa;
+        fb[i] = op.ks * sb;
       }
     }
-#pragma omp for schedule(static)
-    for (int j = 0; j < nv; ++j) {
-      double* yv = y + 3 * static_cast<std::int64_t>(inc.vertex[j]);
-      for (int e = inc.begin[j]; e < inc.begin[j + 1]; ++e) {
-        const int code = inc.entry[e], k = code % 3, q = code / 6;
-        const bool side_a = code % 6 < 3;
-        const double w = side_a ? ops_[q].wa[k] : ops_[q].wb[k];
-        const double* gp = g + stride * static_cast<std::int64_t>(q);
-        const double* gq = gp + (side_a ? 0 : 3);
-        for (int c = 0; c < 3; ++c) yv[c] -= w * gq[c];
-        if (consistent) {
-          const double fk = gp[(side_a ? 6 : 9) + k];
-          for (int c = 0; c < 3; ++c) yv[c] += fk * ops_[q].n[c];
-        }
+    auto side = [&](const int* t, const double* w, const double* g, const double* fn) {
+      for (int i = 0; i < 3; ++i) {
+        double* yv = y + 3 * static_cast<std::int64_t>(t[i]);
+        for (int c = 0; c < 3; ++c) yv[c] -= w[i] * g[c];
+        if (consistent)
+          for (int c = 0; c < 3; ++c) yv[c] += fn[i] * op.n[c];
       }
-    }
-  }
+    };
+    if (own_a) side(op.a, op.wa, gb, fa);
+    if (own_b) side(op.b, op.wb, ga, fb);
+  });
 }
 
 void ContactFriction::forEachCouplingBlock(const BlockSink& sink) const {
