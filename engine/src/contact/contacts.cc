@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <type_traits>
 
 #include "activefoam/rng.h"
 #include "activefoam/threads.h"
@@ -109,19 +110,23 @@ void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw&
   constexpr std::int64_t kChunk = 64;  // ~64 µs of work: far more than scheduling it
   const auto nc = static_cast<std::int64_t>(candidates.size());
   const std::int64_t chunks = (nc + kChunk - 1) / kChunk;
-  std::vector<std::vector<ContactPair>> found(static_cast<std::size_t>(chunks));
+  auto& found = out.narrow_chunks;
+  if (found.size() < static_cast<std::size_t>(chunks))
+    found.resize(static_cast<std::size_t>(chunks));
 #pragma omp parallel for schedule(dynamic) if (chunks > 1 && nc > grain().min_items)
-  for (std::int64_t j = 0; j < chunks; ++j)
+  for (std::int64_t j = 0; j < chunks; ++j) {
+    found[j].clear();
     for (std::int64_t i = j * kChunk; i < std::min(nc, (j + 1) * kChunk); ++i) {
       const auto [ta, tb] = candidates[i];
       TriangleContact c = computeTriangleContact(corners(ta), corners(tb), law, quadrature);
       if (c.active) found[j].push_back({ta, tb, c});
     }
+  }
   std::size_t total = 0;
-  for (const auto& f : found) total += f.size();
+  for (std::int64_t j = 0; j < chunks; ++j) total += found[j].size();
   out.pairs.reserve(total);
-  for (const auto& f : found)
-    for (const ContactPair& p : f) {
+  for (std::int64_t j = 0; j < chunks; ++j)
+    for (const ContactPair& p : found[j]) {
       out.tri_contact_area[p.ta] += p.c.area;
       out.tri_contact_area[p.tb] += p.c.area;
       out.pairs.push_back(p);
@@ -220,63 +225,71 @@ void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& g
 void ContactFriction::addCouplingProduct(const double* v, double* y) const {
   // The off-diagonal blocks −w_ik G: vertex i of A gets −λ_i^A G u_B with u_B = Σ_k λ_k^B v_k.
   if (ops_.empty()) return;
-  const bool consistent = ops_[0].ks > 0;
-  forEachOwnedSide(*part_, [&](std::size_t q, bool own_a, bool own_b) {
-    const PairOp& op = ops_[q];
-    double ua[3] = {0, 0, 0}, ub[3] = {0, 0, 0};
-    for (int i = 0; i < 3; ++i)
-      for (int c = 0; c < 3; ++c) {
-        ua[c] += op.wa[i] * v[3 * op.a[i] + c];
-        ub[c] += op.wb[i] * v[3 * op.b[i] + c];
-      }
-    const double na = op.n[0] * ua[0] + op.n[1] * ua[1] + op.n[2] * ua[2];
-    const double nb = op.n[0] * ub[0] + op.n[1] * ub[1] + op.n[2] * ub[2];
-    double ga[3], gb[3];  // G u_A (what B's vertices get), G u_B (what A's vertices get)
-    for (int c = 0; c < 3; ++c) {
-      gb[c] = op.s * ub[c] + op.d * nb * op.n[c];
-      ga[c] = op.s * ua[c] + op.d * na * op.n[c];
-    }
-    // The consistent stiffness' normal forces on A's and B's vertices (its off-diagonal part).
-    double fa[3] = {0, 0, 0}, fb[3] = {0, 0, 0};
-    if (consistent) {
-      // Normal components of the vertices' velocities, then the off-diagonal part of
-      // K = k [M_aa, −M_ab; −M_abᵀ, M_bb] ⊗ n̂n̂ᵀ (the diagonal sits in Γ).
-      double an[3], bn[3];
-      for (int i = 0; i < 3; ++i) {
-        an[i] = bn[i] = 0;
+  // One loop per kind, so that contact-implicit's pairs run without the consistent stiffness'
+  // branches (a runtime test cost ~20 % of the product).
+  auto product = [&](auto consistent_kind) {
+    constexpr bool consistent = decltype(consistent_kind)::value;
+    forEachOwnedSide(*part_, [&](std::size_t q, bool own_a, bool own_b) {
+      const PairOp& op = ops_[q];
+      double ua[3] = {0, 0, 0}, ub[3] = {0, 0, 0};
+      for (int i = 0; i < 3; ++i)
         for (int c = 0; c < 3; ++c) {
-          an[i] += op.n[c] * v[3 * op.a[i] + c];
-          bn[i] += op.n[c] * v[3 * op.b[i] + c];
+          ua[c] += op.wa[i] * v[3 * op.a[i] + c];
+          ub[c] += op.wb[i] * v[3 * op.b[i] + c];
         }
+      const double na = op.n[0] * ua[0] + op.n[1] * ua[1] + op.n[2] * ua[2];
+      const double nb = op.n[0] * ub[0] + op.n[1] * ub[1] + op.n[2] * ub[2];
+      double ga[3], gb[3];  // G u_A (what B's vertices get), G u_B (what A's vertices get)
+      for (int c = 0; c < 3; ++c) {
+        gb[c] = op.s * ub[c] + op.d * nb * op.n[c];
+        ga[c] = op.s * ua[c] + op.d * na * op.n[c];
       }
-      const Moments& m = moments_[q];
-      // Off-diagonal index of (i, j), i ≠ j, in the symmetric triples: 01 → 0, 02 → 1, 12 → 2.
-      auto off = [](int i, int j) { return i + j - 1; };
-      for (int i = 0; i < 3; ++i) {
-        double sa = 0, sb = 0;
-        for (int j = 0; j < 3; ++j) {
-          if (j != i) {
-            sa += m[9 + off(i, j)] * an[j];
-            sb += m[12 + off(i, j)] * bn[j];
+      // The consistent stiffness' normal forces on A's and B's vertices (its off-diagonal part).
+      double fa[3] = {0, 0, 0}, fb[3] = {0, 0, 0};
+      if constexpr (consistent) {
+        // Normal components of the vertices' velocities, then the off-diagonal part of
+        // K = k [M_aa, −M_ab; −M_abᵀ, M_bb] ⊗ n̂n̂ᵀ (the diagonal sits in Γ).
+        double an[3], bn[3];
+        for (int i = 0; i < 3; ++i) {
+          an[i] = bn[i] = 0;
+          for (int c = 0; c < 3; ++c) {
+            an[i] += op.n[c] * v[3 * op.a[i] + c];
+            bn[i] += op.n[c] * v[3 * op.b[i] + c];
           }
-          sa -= m[3 * i + j] * bn[j];
-          sb -= m[3 * j + i] * an[j];
         }
-        fa[i] = op.ks * sa;
-        fb[i] = op.ks * sb;
+        const Moments& m = moments_[q];
+        // Off-diagonal index of (i, j), i ≠ j, in the symmetric triples: 01 → 0, 02 → 1, 12 → 2.
+        auto off = [](int i, int j) { return i + j - 1; };
+        for (int i = 0; i < 3; ++i) {
+          double sa = 0, sb = 0;
+          for (int j = 0; j < 3; ++j) {
+            if (j != i) {
+              sa += m[9 + off(i, j)] * an[j];
+              sb += m[12 + off(i, j)] * bn[j];
+            }
+            sa -= m[3 * i + j] * bn[j];
+            sb -= m[3 * j + i] * an[j];
+          }
+          fa[i] = op.ks * sa;
+          fb[i] = op.ks * sb;
+        }
       }
-    }
-    auto side = [&](const int* t, const double* w, const double* g, const double* fn) {
-      for (int i = 0; i < 3; ++i) {
-        double* yv = y + 3 * static_cast<std::int64_t>(t[i]);
-        for (int c = 0; c < 3; ++c) yv[c] -= w[i] * g[c];
-        if (consistent)
-          for (int c = 0; c < 3; ++c) yv[c] += fn[i] * op.n[c];
-      }
-    };
-    if (own_a) side(op.a, op.wa, gb, fa);
-    if (own_b) side(op.b, op.wb, ga, fb);
-  });
+      auto side = [&](const int* t, const double* w, const double* g, const double* fn) {
+        for (int i = 0; i < 3; ++i) {
+          double* yv = y + 3 * static_cast<std::int64_t>(t[i]);
+          for (int c = 0; c < 3; ++c) yv[c] -= w[i] * g[c];
+          if constexpr (consistent)
+            for (int c = 0; c < 3; ++c) yv[c] += fn[i] * op.n[c];
+        }
+      };
+      if (own_a) side(op.a, op.wa, gb, fa);
+      if (own_b) side(op.b, op.wb, ga, fb);
+    });
+  };
+  if (ops_[0].ks > 0)
+    product(std::true_type{});
+  else
+    product(std::false_type{});
 }
 
 void ContactFriction::forEachCouplingBlock(const BlockSink& sink) const {
