@@ -53,28 +53,42 @@ void computeGeometry(const CellSet& cells, Geometry& geo) {
 
 bool updateTopology(const CellSet& cells, Topology& topo) {
   if (topo.version == cells.topology_version) return false;
-  // Each undirected edge appears as i→j in one triangle and j→i in the other.
-  std::vector<std::tuple<int, int, int>> half;  // (min, max, triangle), triangle sign by side
-  half.reserve(cells.tri.size() * 3);
-  for (int t = 0; t < cells.numTriangles(); ++t) {
-    const Tri& f = cells.tri[t];
-    for (int k = 0; k < 3; ++k) {
-      const int a = f[k], b = f[(k + 1) % 3];
-      // Encode the side: the triangle with a < b along its orientation is "A" (left).
-      half.emplace_back(std::min(a, b), std::max(a, b), a < b ? t : -t - 1);
+  // Each undirected edge appears as i→j in one triangle and j→i in the other. A cell's triangles
+  // use only its own vertices, and cells hold increasing vertex ranges: sorting each cell's
+  // half-edges on its own and joining the cells in order gives the globally sorted list (a
+  // global sort of the 2 × 100-cell fusion's ~190 000 half-edges took ~11 ms after every remesh),
+  // and the cells can be sorted in parallel.
+  const int nc = cells.numCells();
+  std::vector<std::size_t> edge_begin(static_cast<std::size_t>(nc) + 1, 0);
+  for (int c = 0; c < nc; ++c)
+    edge_begin[c + 1] =
+        edge_begin[c] +
+        3 * static_cast<std::size_t>(cells.cell_tri_begin[c + 1] - cells.cell_tri_begin[c]) / 2;
+  topo.edges.resize(edge_begin[nc]);
+#pragma omp parallel if (cells.numTriangles() > grain().min_items)
+  {
+    std::vector<std::tuple<int, int, int>> half;  // (min, max, triangle), triangle sign by side
+#pragma omp for schedule(dynamic, 8)
+    for (int c = 0; c < nc; ++c) {
+      half.clear();
+      for (int t = cells.cell_tri_begin[c]; t < cells.cell_tri_begin[c + 1]; ++t) {
+        const Tri& f = cells.tri[t];
+        for (int k = 0; k < 3; ++k) {
+          const int a = f[k], b = f[(k + 1) % 3];
+          // Encode the side: the triangle with a < b along its orientation is "A" (left).
+          half.emplace_back(std::min(a, b), std::max(a, b), a < b ? t : -t - 1);
+        }
+      }
+      std::sort(half.begin(), half.end());
+      Edge* out = topo.edges.data() + edge_begin[c];
+      for (size_t k = 0; k + 1 < half.size(); k += 2) {
+        const auto& [i, j, s0] = half[k];
+        const int s1 = std::get<2>(half[k + 1]);
+        const int ta = s0 >= 0 ? s0 : s1;
+        const int tb = s0 >= 0 ? -s1 - 1 : -s0 - 1;
+        *out++ = {i, j, ta, tb};
+      }
     }
-  }
-  std::sort(half.begin(), half.end());
-  topo.edges.clear();
-  topo.edges.reserve(half.size() / 2);
-  for (size_t k = 0; k + 1 < half.size(); k += 2) {
-    const auto& [i, j, s0] = half[k];
-    const auto& [i1, j1, s1] = half[k + 1];
-    (void)i1;
-    (void)j1;
-    const int ta = s0 >= 0 ? s0 : s1;
-    const int tb = s0 >= 0 ? -s1 - 1 : -s0 - 1;
-    topo.edges.push_back({i, j, ta, tb});
   }
   topo.version = cells.topology_version;
   return true;
