@@ -183,16 +183,19 @@ TEST(Doublet, Ros2ConsistentContactStiffnessIsOneSpdOperator) {
   Simulation sim(doubletSpec(0.4375, IntegratorKind::Ros2));
   for (int k = 0; k < 1500; ++k) ASSERT_TRUE(sim.step().ok());
   ASSERT_GT(sim.contacts().pairs.size(), 10u);
-  for (const ContactPair& p : sim.contacts().pairs) {
+  ASSERT_EQ(sim.contacts().moments.size(), sim.contacts().pairs.size());
+  for (std::size_t q = 0; q < sim.contacts().pairs.size(); ++q) {
+    const ContactPair& p = sim.contacts().pairs[q];
+    const ContactMoments& m = sim.contacts().moments[q];
     double sum = 0;
     for (int i = 0; i < 3; ++i) {
       double row_ab = 0, row_aa = 0, row_bb = 0, col_ab = 0;
       for (int k = 0; k < 3; ++k) {
-        row_ab += p.c.m_ab[3 * i + k];
-        col_ab += p.c.m_ab[3 * k + i];
-        row_aa += p.c.m_aa[3 * i + k];
-        row_bb += p.c.m_bb[3 * i + k];
-        EXPECT_EQ(p.c.m_aa[3 * i + k], p.c.m_aa[3 * k + i]);
+        row_ab += m.ab[3 * i + k];
+        col_ab += m.ab[3 * k + i];
+        row_aa += m.aa[3 * i + k];
+        row_bb += m.bb[3 * i + k];
+        EXPECT_EQ(m.aa[3 * i + k], m.aa[3 * k + i]);
       }
       EXPECT_NEAR(row_ab, row_aa, 1e-12 * p.c.area);  // Σ_k λ^B_k = 1 on the polygon
       EXPECT_NEAR(col_ab, row_bb, 1e-12 * p.c.area);
@@ -206,7 +209,9 @@ TEST(Doublet, Ros2ConsistentContactStiffnessIsOneSpdOperator) {
   for (Eigen::Index k = 0; k < v.size(); ++k) v[k] = rng.uniform() - 0.5;
   // The stiffness part alone: Γ(with K) − Γ(without) = γΔt k ∫ δg² for the field of v.
   double energy = 0;
-  for (const ContactPair& p : sim.contacts().pairs) {
+  for (std::size_t q = 0; q < sim.contacts().pairs.size(); ++q) {
+    const ContactPair& p = sim.contacts().pairs[q];
+    const ContactMoments& m = sim.contacts().moments[q];
     const Tri& ta = sim.cells().tri[p.ta];
     const Tri& tb = sim.cells().tri[p.tb];
     const Vec3& n = p.c.normal;
@@ -214,8 +219,8 @@ TEST(Doublet, Ros2ConsistentContactStiffnessIsOneSpdOperator) {
       for (int j = 0; j < 3; ++j) {
         const double ai = n.dot(v.segment<3>(3 * ta[i])), aj = n.dot(v.segment<3>(3 * ta[j]));
         const double bi = n.dot(v.segment<3>(3 * tb[i])), bj = n.dot(v.segment<3>(3 * tb[j]));
-        energy += p.c.m_aa[3 * i + j] * ai * aj + p.c.m_bb[3 * i + j] * bi * bj -
-                  2 * p.c.m_ab[3 * i + j] * ai * bj;
+        energy +=
+            m.aa[3 * i + j] * ai * aj + m.bb[3 * i + j] * bi * bj - 2 * m.ab[3 * i + j] * ai * bj;
       }
   }
   const SceneSpec& s = sim.spec();

@@ -18,9 +18,18 @@ namespace activefoam {
 struct ContactLaw {
   double k = 71.1;   // nN/µm³
   double h0 = 0.06;  // µm
-  // Also integrate TriangleContact::m_* (the consistent stiffness, which only ros2 uses; ~27
-  // more products per quadrature point in the narrow phase).
+  // detectContacts also integrates each pair's ContactMoments (the consistent stiffness, which
+  // only ros2 uses; ~27 more products per quadrature point in the narrow phase).
   bool stiffness_moments = false;
+};
+
+// ∫ λ^A_i λ^B_k dS, ∫ λ^A_i λ^A_j dS, ∫ λ^B_k λ^B_l dS (row-major 3 × 3) over a pair's contact
+// polygon: the consistent stiffness of the spring field, ½ k ∫ δg² dS with δg = Σ λ^B u^B −
+// Σ λ^A u^A (normal parts). Exact for Exact and Dunavant7. Kept apart from TriangleContact: only
+// ros2 uses them, and in every pair they doubled the pair data that each detection copies and
+// the force terms read (448 instead of 232 bytes a pair).
+struct ContactMoments {
+  std::array<double, 9> ab{}, aa{}, bb{};
 };
 
 struct TriangleContact {
@@ -39,10 +48,6 @@ struct TriangleContact {
   // w_ik = bary_a[i]·bary_b[k]); non-negative, each sums to 1.
   std::array<double, 3> bary_a{0, 0, 0};
   std::array<double, 3> bary_b{0, 0, 0};
-  // ∫ λ^A_i λ^B_k dS, ∫ λ^A_i λ^A_j dS, ∫ λ^B_k λ^B_l dS (row-major 3 × 3): the consistent
-  // stiffness of the spring field, ½ k ∫ δg² dS with δg = Σ λ^B u^B − Σ λ^A u^A (normal parts).
-  // Exact for Exact and Dunavant7; zero unless ContactLaw::stiffness_moments.
-  std::array<double, 9> m_ab{}, m_aa{}, m_bb{};
   double energy = 0;    // ∫ ½ k g² dS over the contact polygon (for consistency tests)
   double mean_gap = 0;  // ∫ g dS / S_AB
 };
@@ -55,8 +60,10 @@ struct TriangleContact {
 // that interpenetrates deeply is pushed apart with P = k g, however negative g is.
 // `area`, `force`, `centroid` are exact for every quadrature; `force_weight_*`,
 // `center_of_pressure` and `energy` are exact for Exact and Dunavant7 only.
+// With `moments`, also the pair's ContactMoments (all zeros for an inactive contact).
 TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::array<Vec3, 3>& b,
-                                       const ContactLaw& law, ContactQuadrature quadrature);
+                                       const ContactLaw& law, ContactQuadrature quadrature,
+                                       ContactMoments* moments = nullptr);
 
 // Broad phase: all pairs (tA, tB), tA < tB, of triangles of different cells whose axis-aligned
 // bounding boxes, inflated by `margin`, overlap and whose normals face (n̂_A·n̂_B < 0).

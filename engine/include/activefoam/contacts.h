@@ -40,8 +40,9 @@ struct ContactPartition {
 int contactParts(std::size_t num_pairs);
 
 struct ContactList {
-  std::vector<ContactPair> pairs;            // active pairs this step
-  std::vector<double> tri_contact_area;      // Σ S_AB over the pairs a triangle takes part in
+  std::vector<ContactPair> pairs;        // active pairs this step
+  std::vector<ContactMoments> moments;   // theirs, when the law asks for them (ros2), else empty
+  std::vector<double> tri_contact_area;  // Σ S_AB over the pairs a triangle takes part in
   std::vector<double> tri_contact_fraction;  // f_A = min(1, contact area / S_A)
   std::vector<double> vertex_contact_area;   // S_i^c = Σ_{A∋i} f_A S_A / 3
   std::vector<double> cell_contact_area;     // S_c,l = Σ_{A∈l} f_A S_A
@@ -52,7 +53,11 @@ struct ContactList {
   // detectContacts' buffers for the narrow phase's chunks, kept so that the next detection
   // reuses their memory: allocated afresh, the ~60 MB of pairs of the 2 × 100-cell fusion cost
   // page faults at every detection. Not part of the contact set.
-  std::vector<std::vector<ContactPair>> narrow_chunks;
+  struct NarrowChunk {
+    std::vector<ContactPair> pairs;
+    std::vector<ContactMoments> moments;
+  };
+  std::vector<NarrowChunk> narrow_chunks;
 };
 
 // The broad phase of a simulation, keeping its work between steps (a Verlet list per pair of

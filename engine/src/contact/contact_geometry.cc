@@ -169,8 +169,10 @@ double maxEdgeSquared(const std::array<Vec3, 3>& p) {
 }  // namespace
 
 TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::array<Vec3, 3>& b,
-                                       const ContactLaw& law, ContactQuadrature quadrature) {
+                                       const ContactLaw& law, ContactQuadrature quadrature,
+                                       ContactMoments* moments) {
   TriangleContact out;
+  if (moments) *moments = ContactMoments{};
 
   // Outward normals; degenerate (or non-finite) triangles never make contact.
   const Vec3 na_raw = (a[1] - a[0]).cross(a[2] - a[0]);
@@ -238,13 +240,13 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
   Integrals I;
   switch (quadrature) {
     case ContactQuadrature::Exact:
-      integrate(poly, edgeMidpointRule(), g0, g_grad, lam_a, lam_b, law.stiffness_moments, I);
+      integrate(poly, edgeMidpointRule(), g0, g_grad, lam_a, lam_b, moments != nullptr, I);
       break;
     case ContactQuadrature::Dunavant7:
-      integrate(poly, dunavant7Rule(), g0, g_grad, lam_a, lam_b, law.stiffness_moments, I);
+      integrate(poly, dunavant7Rule(), g0, g_grad, lam_a, lam_b, moments != nullptr, I);
       break;
     case ContactQuadrature::Centroid:
-      integrate(poly, centroidRule(), g0, g_grad, lam_a, lam_b, law.stiffness_moments, I);
+      integrate(poly, centroidRule(), g0, g_grad, lam_a, lam_b, moments != nullptr, I);
       break;
   }
 
@@ -276,9 +278,7 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
       I.aa[3 * j + i] = I.aa[3 * i + j];
       I.bb[3 * j + i] = I.bb[3 * i + j];
     }
-  out.m_ab = I.ab;
-  out.m_aa = I.aa;
-  out.m_bb = I.bb;
+  if (moments) *moments = {I.ab, I.aa, I.bb};
   out.energy = 0.5 * k * I.g2;
   out.mean_gap = I.g / I.area;
   return out;

@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <stdexcept>
 #include <type_traits>
 
 #include "activefoam/rng.h"
@@ -71,6 +72,15 @@ const ContactPartition& partitionOf(const ContactList& con, const CellSet& cells
   return scratch;
 }
 
+// The consistent stiffness (ks > 0) reads each pair's moments, which only a detection whose law
+// asked for them has.
+void checkMoments(const ContactList& con, double ks) {
+  if (ks > 0 && con.moments.size() != con.pairs.size())
+    throw std::logic_error(
+        "contact friction: the consistent stiffness needs the contacts' moments "
+        "(ContactLaw::stiffness_moments)");
+}
+
 // f(q, owns_a, owns_b) for every pair q and the sides a part owns, each part's pairs in pair
 // order; the parts run concurrently and write disjoint vertices.
 template <class F>
@@ -93,6 +103,7 @@ void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw&
                     ContactQuadrature quadrature, ContactList& out, CandidateCache* cache) {
   const int nt = cells.numTriangles();
   out.pairs.clear();
+  out.moments.clear();
   out.partition = ContactPartition{};
   out.tri_contact_area.assign(nt, 0.0);
   out.tri_contact_fraction.assign(nt, 0.0);
@@ -115,18 +126,29 @@ void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw&
     found.resize(static_cast<std::size_t>(chunks));
 #pragma omp parallel for schedule(dynamic) if (chunks > 1 && nc > grain().min_items)
   for (std::int64_t j = 0; j < chunks; ++j) {
-    found[j].clear();
+    ContactList::NarrowChunk& chunk = found[j];
+    chunk.pairs.clear();
+    chunk.moments.clear();
+    ContactMoments m;
     for (std::int64_t i = j * kChunk; i < std::min(nc, (j + 1) * kChunk); ++i) {
       const auto [ta, tb] = candidates[i];
-      TriangleContact c = computeTriangleContact(corners(ta), corners(tb), law, quadrature);
-      if (c.active) found[j].push_back({ta, tb, c});
+      const TriangleContact c = computeTriangleContact(corners(ta), corners(tb), law, quadrature,
+                                                       law.stiffness_moments ? &m : nullptr);
+      if (!c.active) continue;
+      chunk.pairs.push_back({ta, tb, c});
+      if (law.stiffness_moments) chunk.moments.push_back(m);
     }
   }
   std::size_t total = 0;
-  for (std::int64_t j = 0; j < chunks; ++j) total += found[j].size();
+  for (std::int64_t j = 0; j < chunks; ++j) total += found[j].pairs.size();
   out.pairs.reserve(total);
+  if (law.stiffness_moments) {
+    out.moments.reserve(total);
+    for (std::int64_t j = 0; j < chunks; ++j)
+      out.moments.insert(out.moments.end(), found[j].moments.begin(), found[j].moments.end());
+  }
   for (std::int64_t j = 0; j < chunks; ++j)
-    for (const ContactPair& p : found[j]) {
+    for (const ContactPair& p : found[j].pairs) {
       out.tri_contact_area[p.ta] += p.c.area;
       out.tri_contact_area[p.tb] += p.c.area;
       out.pairs.push_back(p);
@@ -177,6 +199,7 @@ void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& g
   const double spring_dt = ctx.consistent_stiffness ? 0.0 : ctx.contact_stiffness_dt;
   const double ks = ctx.consistent_stiffness ? ctx.contact_stiffness_dt * k_ : 0.0;
   const ContactList& con = *ctx.contacts;
+  checkMoments(con, ks);
   part_ = &partitionOf(con, ctx.cells, partition_);
   const auto np = static_cast<std::int64_t>(con.pairs.size());
   ops_.resize(con.pairs.size());
@@ -198,9 +221,10 @@ void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& g
     op.ks = ks;
     if (ks > 0) {
       Moments& m = moments_[q];
-      for (int k = 0; k < 9; ++k) m[k] = p.c.m_ab[k];
-      m[9] = p.c.m_aa[1], m[10] = p.c.m_aa[2], m[11] = p.c.m_aa[5];
-      m[12] = p.c.m_bb[1], m[13] = p.c.m_bb[2], m[14] = p.c.m_bb[5];
+      const ContactMoments& mo = con.moments[q];
+      for (int k = 0; k < 9; ++k) m[k] = mo.ab[k];
+      m[9] = mo.aa[1], m[10] = mo.aa[2], m[11] = mo.aa[5];
+      m[12] = mo.bb[1], m[13] = mo.bb[2], m[14] = mo.bb[5];
     }
     for (int k = 0; k < 3; ++k) op.n[k] = p.c.normal[k];
   }
@@ -209,16 +233,18 @@ void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& g
     const ContactPair& p = con.pairs[q];
     const Eigen::Matrix3d g = pairMatrix(p, spring_dt);
     const Eigen::Matrix3d nn = p.c.normal * p.c.normal.transpose();
+    // m_own: ∫ λλ dS of the side's own triangle (the consistent stiffness' diagonal), if used.
     auto side = [&](const Tri& t, const std::array<double, 3>& w, const std::array<double, 3>& wo,
-                    const std::array<double, 9>& m_own) {
+                    const double* m_own) {
       const double so = wo[0] + wo[1] + wo[2];
       for (int k = 0; k < 3; ++k) {
         if (ks > 0) gamma.addDiagonal(t[k], (ks * m_own[4 * k]) * nn);
         if (w[k] > 0) gamma.addDiagonal(t[k], (w[k] * so) * g);
       }
     };
-    if (own_a) side(ctx.cells.tri[p.ta], p.c.bary_a, p.c.bary_b, p.c.m_aa);
-    if (own_b) side(ctx.cells.tri[p.tb], p.c.bary_b, p.c.bary_a, p.c.m_bb);
+    const ContactMoments* mo = ks > 0 ? &con.moments[q] : nullptr;
+    if (own_a) side(ctx.cells.tri[p.ta], p.c.bary_a, p.c.bary_b, mo ? mo->aa.data() : nullptr);
+    if (own_b) side(ctx.cells.tri[p.tb], p.c.bary_b, p.c.bary_a, mo ? mo->bb.data() : nullptr);
   });
 }
 
@@ -321,7 +347,9 @@ void ContactFriction::addFriction(const StepContext& ctx, BlockMatrix& gamma) co
   if (!ctx.contacts) return;
   const double spring_dt = ctx.consistent_stiffness ? 0.0 : ctx.contact_stiffness_dt;
   const double ks = ctx.consistent_stiffness ? ctx.contact_stiffness_dt * k_ : 0.0;
-  for (const ContactPair& p : ctx.contacts->pairs) {
+  checkMoments(*ctx.contacts, ks);
+  for (std::size_t q = 0; q < ctx.contacts->pairs.size(); ++q) {
+    const ContactPair& p = ctx.contacts->pairs[q];
     const Eigen::Matrix3d g = pairMatrix(p, spring_dt);
     const Tri& a = ctx.cells.tri[p.ta];
     const Tri& b = ctx.cells.tri[p.tb];
@@ -334,11 +362,12 @@ void ContactFriction::addFriction(const StepContext& ctx, BlockMatrix& gamma) co
     // δg has coefficients c = (−λ^A, +λ^B) summing to zero, so c cᵀ = Σ_{p<q} (−c_p c_q)
     // (e_p − e_q)(e_p − e_q)ᵀ: couplings +k∫λ^Aλ^B across, −k∫λλ within a triangle.
     const Eigen::Matrix3d nn = p.c.normal * p.c.normal.transpose();
+    const ContactMoments& mo = ctx.contacts->moments[q];
     for (int i = 0; i < 3; ++i) {
-      for (int k = 0; k < 3; ++k) gamma.addCoupling(a[i], b[k], (ks * p.c.m_ab[3 * i + k]) * nn);
+      for (int k = 0; k < 3; ++k) gamma.addCoupling(a[i], b[k], (ks * mo.ab[3 * i + k]) * nn);
       for (int j = i + 1; j < 3; ++j) {
-        gamma.addCoupling(a[i], a[j], (-ks * p.c.m_aa[3 * i + j]) * nn);
-        gamma.addCoupling(b[i], b[j], (-ks * p.c.m_bb[3 * i + j]) * nn);
+        gamma.addCoupling(a[i], a[j], (-ks * mo.aa[3 * i + j]) * nn);
+        gamma.addCoupling(b[i], b[j], (-ks * mo.bb[3 * i + j]) * nn);
       }
     }
   }
