@@ -1,10 +1,12 @@
 // Step cost of the single-cell engine and its split by phase, for 1 cell and for 200 separate
 // cells (no contacts) at 320 triangles per cell; the packed aggregates' steps and kernels at 1
-// and 2 threads. Run: build/release/bench/bench_step
+// and 2 threads; the contact kernels on the reference fusion when its spheroids are cached
+// (ACTIVEFOAM_REFERENCE_CACHE). Run: build/release/bench/bench_step
 // Cells start as 1.3 ellipsoids so the solver works on a relaxing, not a resting, state.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <map>
 #include <memory>
 #include <string>
@@ -12,6 +14,7 @@
 #include <benchmark/benchmark.h>
 
 #include "activefoam/simulation.h"
+#include "activefoam/spheroid.h"
 #include "activefoam/threads.h"
 
 using namespace activefoam;
@@ -224,6 +227,75 @@ void BM_NarrowPhase(benchmark::State& state) {  // detectContacts on a fresh can
   state.counters["pairs"] = static_cast<double>(out.pairs.size());
 }
 BENCHMARK(BM_NarrowPhase)->ArgsProduct({{100, 200}, {1, 2}})->Unit(benchmark::kMillisecond);
+
+// The reference fusion's touching 2 × 100-cell spheroids (bench/specs/fusion_reference.toml) at
+// Δt 0.5 s, from the spheroid cache named by $ACTIVEFOAM_REFERENCE_CACHE (a foam-run of that spec
+// with --spheroid-cache DIR fills it, ~15 min): ~129 000 contact pairs, whose data outgrow the
+// CPU's caches. The aggregates above (≤ 41 600 pairs) did not show a 2× regression of the
+// contact product that this scene did (docs/benchmarks.md). Skipped without the cache.
+std::unique_ptr<Simulation> referenceFusion(std::string* why) {
+  const char* dir = std::getenv("ACTIVEFOAM_REFERENCE_CACHE");
+  if (!dir || !*dir) {
+    *why =
+        "set ACTIVEFOAM_REFERENCE_CACHE to the spheroid cache of bench/specs/fusion_reference.toml";
+    return nullptr;
+  }
+  SceneSpec s;
+  s.scene = SceneKind::Fusion;
+  s.seed = 1;
+  s.scene_params.n_cells = 100;
+  s.scene_params.prep_max_s = 600;  // as in bench/specs/fusion_reference.toml
+  s.numerics.triangles_per_cell = 320;
+  s = resolve(s);
+  if (const auto error = setField(s, "numerics.dt_s", SpecValue(0.5))) {
+    *why = error->str();
+    return nullptr;
+  }
+  const SpheroidCache cache(dir);
+  for (int which : {0, 1})
+    if (!cache.load(spheroidPrepSpec(s, s.scene_params.n_cells, spheroidSeed(s.seed, which)))) {
+      *why = std::string("the reference spheroids are not in ") + dir +
+             " (foam-run bench/specs/fusion_reference.toml --spheroid-cache DIR prepares them)";
+      return nullptr;
+    }
+  return std::make_unique<Simulation>(s, buildFusionCells(s, &cache));
+}
+
+void BM_CouplingProductReference(benchmark::State& state) {  // Γ v; argument: threads
+  std::string why;
+  auto sim = referenceFusion(&why);
+  if (!sim) return state.SkipWithError(why.c_str());
+  setThreads(static_cast<int>(state.range(0)));
+  sim->prepareFriction();
+  const Eigen::Index m = 3 * static_cast<Eigen::Index>(sim->cells().numVertices());
+  Eigen::VectorXd v = Eigen::VectorXd::Ones(m), y(m);
+  for (auto _ : state) {
+    sim->applyFriction(v.data(), y.data());
+    benchmark::DoNotOptimize(y.data());
+  }
+  state.counters["pairs"] = static_cast<double>(sim->contacts().pairs.size());
+}
+BENCHMARK(BM_CouplingProductReference)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->MinTime(1.0);
+
+void BM_NarrowPhaseReference(benchmark::State& state) {  // one detection; argument: threads
+  std::string why;
+  auto sim = referenceFusion(&why);
+  if (!sim) return state.SkipWithError(why.c_str());
+  setThreads(static_cast<int>(state.range(0)));
+  const SceneSpec& spec = sim->spec();
+  const ContactLaw law{spec.cells.k_contact, contactRangeH0(spec.cells)};
+  CandidateCache cache(0.4);
+  ContactList out;
+  detectContacts(sim->cells(), sim->geometry(), law, spec.numerics.contact_quadrature, out,
+                 &cache);  // builds the lists: the loop times the per-step filter + narrow phase
+  for (auto _ : state) {
+    detectContacts(sim->cells(), sim->geometry(), law, spec.numerics.contact_quadrature, out,
+                   &cache);
+    benchmark::DoNotOptimize(out.pairs.data());
+  }
+  state.counters["pairs"] = static_cast<double>(out.pairs.size());
+}
+BENCHMARK(BM_NarrowPhaseReference)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
 // One step's incomplete-Cholesky factor of Γ (prepareFriction first), as Integrator::solve builds
 // it.
