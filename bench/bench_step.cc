@@ -188,20 +188,39 @@ BENCHMARK(BM_StepAggregate)
     ->Unit(benchmark::kMillisecond)
     ->Iterations(50);
 
+// The timed bodies of the contact kernels, shared by the aggregate and the reference scene.
+void timeCouplingProduct(benchmark::State& state, Simulation& sim) {  // y = Γ v
+  sim.prepareFriction();
+  const Eigen::Index m = 3 * static_cast<Eigen::Index>(sim.cells().numVertices());
+  Eigen::VectorXd v = Eigen::VectorXd::Ones(m), y(m);
+  for (auto _ : state) {
+    sim.applyFriction(v.data(), y.data());
+    benchmark::DoNotOptimize(y.data());
+  }
+  state.counters["pairs"] = static_cast<double>(sim.contacts().pairs.size());
+}
+
+void timeDetection(benchmark::State& state, const Simulation& sim) {
+  const SceneSpec& spec = sim.spec();
+  const ContactLaw law{spec.cells.k_contact, contactRangeH0(spec.cells)};
+  CandidateCache cache(0.4);
+  ContactList out;
+  detectContacts(sim.cells(), sim.geometry(), law, spec.numerics.contact_quadrature, out,
+                 &cache);  // builds the lists: the loop times the per-step filter + narrow phase
+  for (auto _ : state) {
+    detectContacts(sim.cells(), sim.geometry(), law, spec.numerics.contact_quadrature, out, &cache);
+    benchmark::DoNotOptimize(out.pairs.data());
+  }
+  state.counters["pairs"] = static_cast<double>(out.pairs.size());
+}
+
 // Kernels of one step on the relaxed aggregate, at 1 and 2 threads. Arguments: cells, threads.
-void BM_CouplingProduct(benchmark::State& state) {  // y = Γ v: block product + contact product
+void BM_CouplingProduct(benchmark::State& state) {  // block product + contact product
   std::string why;
   auto sim = relaxedAggregate(static_cast<int>(state.range(0)), true, &why);
   if (!sim) return state.SkipWithError(why.c_str());
   setThreads(static_cast<int>(state.range(1)));
-  sim->prepareFriction();
-  const Eigen::Index m = 3 * static_cast<Eigen::Index>(sim->cells().numVertices());
-  Eigen::VectorXd v = Eigen::VectorXd::Ones(m), y(m);
-  for (auto _ : state) {
-    sim->applyFriction(v.data(), y.data());
-    benchmark::DoNotOptimize(y.data());
-  }
-  state.counters["pairs"] = static_cast<double>(sim->contacts().pairs.size());
+  timeCouplingProduct(state, *sim);
 }
 BENCHMARK(BM_CouplingProduct)
     ->ArgsProduct({{100, 200}, {1, 2}})
@@ -213,18 +232,7 @@ void BM_NarrowPhase(benchmark::State& state) {  // detectContacts on a fresh can
   auto sim = relaxedAggregate(static_cast<int>(state.range(0)), true, &why);
   if (!sim) return state.SkipWithError(why.c_str());
   setThreads(static_cast<int>(state.range(1)));
-  const SceneSpec& spec = sim->spec();
-  const ContactLaw law{spec.cells.k_contact, contactRangeH0(spec.cells)};
-  CandidateCache cache(0.4);
-  ContactList out;
-  detectContacts(sim->cells(), sim->geometry(), law, spec.numerics.contact_quadrature, out,
-                 &cache);  // builds the lists: the loop times the per-step filter + narrow phase
-  for (auto _ : state) {
-    detectContacts(sim->cells(), sim->geometry(), law, spec.numerics.contact_quadrature, out,
-                   &cache);
-    benchmark::DoNotOptimize(out.pairs.data());
-  }
-  state.counters["pairs"] = static_cast<double>(out.pairs.size());
+  timeDetection(state, *sim);
 }
 BENCHMARK(BM_NarrowPhase)->ArgsProduct({{100, 200}, {1, 2}})->Unit(benchmark::kMillisecond);
 
@@ -266,14 +274,7 @@ void BM_CouplingProductReference(benchmark::State& state) {  // Γ v; argument: 
   auto sim = referenceFusion(&why);
   if (!sim) return state.SkipWithError(why.c_str());
   setThreads(static_cast<int>(state.range(0)));
-  sim->prepareFriction();
-  const Eigen::Index m = 3 * static_cast<Eigen::Index>(sim->cells().numVertices());
-  Eigen::VectorXd v = Eigen::VectorXd::Ones(m), y(m);
-  for (auto _ : state) {
-    sim->applyFriction(v.data(), y.data());
-    benchmark::DoNotOptimize(y.data());
-  }
-  state.counters["pairs"] = static_cast<double>(sim->contacts().pairs.size());
+  timeCouplingProduct(state, *sim);
 }
 BENCHMARK(BM_CouplingProductReference)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->MinTime(1.0);
 
@@ -282,18 +283,7 @@ void BM_NarrowPhaseReference(benchmark::State& state) {  // one detection; argum
   auto sim = referenceFusion(&why);
   if (!sim) return state.SkipWithError(why.c_str());
   setThreads(static_cast<int>(state.range(0)));
-  const SceneSpec& spec = sim->spec();
-  const ContactLaw law{spec.cells.k_contact, contactRangeH0(spec.cells)};
-  CandidateCache cache(0.4);
-  ContactList out;
-  detectContacts(sim->cells(), sim->geometry(), law, spec.numerics.contact_quadrature, out,
-                 &cache);  // builds the lists: the loop times the per-step filter + narrow phase
-  for (auto _ : state) {
-    detectContacts(sim->cells(), sim->geometry(), law, spec.numerics.contact_quadrature, out,
-                   &cache);
-    benchmark::DoNotOptimize(out.pairs.data());
-  }
-  state.counters["pairs"] = static_cast<double>(out.pairs.size());
+  timeDetection(state, *sim);
 }
 BENCHMARK(BM_NarrowPhaseReference)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
