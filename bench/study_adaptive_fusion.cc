@@ -9,7 +9,9 @@
 // Run (about 2 CPU hours; shards split the rows between processes, e.g. 0/2 and 1/2 on the
 // 2-core machine; prepared spheroids are shared through the cache):
 //   OMP_NUM_THREADS=1 build/release/bench/study_adaptive_fusion OUT.csv CACHE_DIR
-//       [seeds=1,2] [duration_s=1500] [shard=0/1]
+//       [seeds=1,2] [duration_s=1500] [shard=0/1] [cg_tol=1e-3]
+// cg_tol: ε_CG of every run (the `draft` preset's 1e-3 by default; issue 15 asks whether 1e-2
+// is as robust).
 // One CSV row per run, appended as each run ends (a rerun skips rows already in OUT.csv);
 // bench/report_adaptive_fusion.py turns the CSVs into the table of docs/study/adaptive-fusion.md.
 #include <chrono>
@@ -80,7 +82,7 @@ int main(int argc, char** argv) {
   if (argc < 3) {
     std::fprintf(stderr,
                  "usage: study_adaptive_fusion OUT.csv CACHE_DIR [seeds=1,2] [duration_s=1500] "
-                 "[shard=0/1]\n");
+                 "[shard=0/1] [cg_tol=1e-3]\n");
     return 2;
   }
   const std::string out_path = argv[1];
@@ -89,6 +91,11 @@ int main(int argc, char** argv) {
   const double duration = argc > 4 ? std::atof(argv[4]) : 1500;
   int shard = 0, shards = 1;
   if (argc > 5 && std::sscanf(argv[5], "%d/%d", &shard, &shards) != 2) return 2;
+  const double cg_tol = argc > 6 ? std::atof(argv[6]) : 1e-3;
+  if (!(cg_tol > 0 && cg_tol < 1)) {
+    std::fprintf(stderr, "cg_tol must be in (0, 1), got %s\n", argv[6]);
+    return 2;
+  }
 
   std::set<std::string> done;
   {
@@ -127,6 +134,7 @@ int main(int argc, char** argv) {
         s.numerics.dt_s = 0.5;
         s.numerics.triangles_per_cell = 320;
         s.numerics.integrator = IntegratorKind::ContactImplicit;
+        s.numerics.cg_tol = cg_tol;
         s = resolve(s);
         const auto o = bench::runForked([&] { return runOne(s, cache); });
         if (!o) {

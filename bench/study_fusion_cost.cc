@@ -10,9 +10,10 @@
 //       --spheroid-cache /tmp/ref-cache     (prepares and caches the two spheroids)
 //   OMP_NUM_THREADS=1 build/release/bench/study_fusion_cost /tmp/ref-cache [steps] [n_cells]
 //       [prep_max_s] [configs]
-// configs: comma-separated integrator:Δt:preconditioner, e.g.
-// "contact-implicit:0.5:jacobi,ros2:0.5:incomplete-cholesky" (default: contact-implicit at 0.1
-// and 0.5 s and semi-implicit at 0.005 s, Jacobi).
+// configs: comma-separated integrator:Δt:preconditioner[:ε_CG], e.g.
+// "contact-implicit:0.5:jacobi,ros2:0.5:incomplete-cholesky,contact-implicit:0.5:jacobi:1e-2"
+// (default: contact-implicit at 0.1 and 0.5 s and semi-implicit at 0.005 s, Jacobi, ε_CG of the
+// spec's default, 1e-3).
 // prep_max_s = 0 times the packed, unrelaxed spheroids (no preparation needed; contacts are
 // fewer than in relaxed ones, so it underestimates the cost per step).
 #include <chrono>
@@ -48,10 +49,11 @@ int main(int argc, char** argv) {
       base, &cache, {[](const std::string& l) { std::fprintf(stderr, "%s\n", l.c_str()); }});
 
   std::printf(
-      "| integrator | Δt (s) | preconditioner | CG iters/step | ms/step | geometry | contacts | "
+      "| integrator | Δt (s) | preconditioner | ε_CG | CG iters/step | ms/step | geometry | "
+      "contacts | "
       "forces | "
       "matrix | solve | remesh | wall per simulated min | projected 24 h |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   std::vector<std::string> configs = {"contact-implicit:0.1:jacobi", "contact-implicit:0.5:jacobi",
                                       "semi-implicit:0.005:jacobi"};
   if (argc > 5) {
@@ -61,18 +63,20 @@ int main(int argc, char** argv) {
   }
   for (const std::string& config : configs) {
     SceneSpec s = base;
-    std::string integrator, dt, pre;
+    std::string integrator, dt, pre, tol;
     std::stringstream parts(config);
     std::getline(parts, integrator, ':');
     std::getline(parts, dt, ':');
     std::getline(parts, pre, ':');
-    for (auto [key, text] : {std::pair<const char*, std::string>{"numerics.integrator", integrator},
-                             {"numerics.dt_s", dt},
-                             {"numerics.preconditioner", pre}}) {
+    std::getline(parts, tol, ':');
+    std::vector<std::pair<std::string, std::string>> fields = {{"numerics.integrator", integrator},
+                                                               {"numerics.dt_s", dt},
+                                                               {"numerics.preconditioner", pre}};
+    if (!tol.empty()) fields.emplace_back("numerics.cg_tol", tol);
+    for (const auto& [key, text] : fields) {
+      const bool number = key == "numerics.dt_s" || key == "numerics.cg_tol";
       const auto error =
-          setField(s, key,
-                   key == std::string("numerics.dt_s") ? SpecValue(std::atof(text.c_str()))
-                                                       : SpecValue(text));
+          setField(s, key, number ? SpecValue(std::atof(text.c_str())) : SpecValue(text));
       if (error) {
         std::fprintf(stderr, "%s: %s\n", config.c_str(), error->str().c_str());
         return 2;
@@ -105,13 +109,13 @@ int main(int argc, char** argv) {
     auto ms = [&](double now, double then) { return done ? 1e3 * (now - then) / done : 0.0; };
     const double per_min = per * 60 / c.dt, per_day = per * 86400 / c.dt;
     std::printf(
-        "| %s | %g | %s | %.1f | %.0f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f min | "
+        "| %s | %g | %s | %g | %.1f | %.0f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f min | "
         "%.0f h |%s\n",
         std::string(toString(c.integrator)).c_str(), c.dt,
-        std::string(toString(s.numerics.preconditioner)).c_str(), done ? double(iters) / done : 0.0,
-        1e3 * per, ms(p.geometry, before.geometry), ms(p.contacts, before.contacts),
-        ms(p.forces, before.forces), ms(p.matrix, before.matrix), ms(p.solve, before.solve),
-        ms(p.remesh, before.remesh), per_min / 60, per_day / 3600,
+        std::string(toString(s.numerics.preconditioner)).c_str(), s.numerics.cg_tol,
+        done ? double(iters) / done : 0.0, 1e3 * per, ms(p.geometry, before.geometry),
+        ms(p.contacts, before.contacts), ms(p.forces, before.forces), ms(p.matrix, before.matrix),
+        ms(p.solve, before.solve), ms(p.remesh, before.remesh), per_min / 60, per_day / 3600,
         failure.empty() ? "" : (" failed: " + failure).c_str());
     std::fflush(stdout);
   }

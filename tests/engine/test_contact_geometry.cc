@@ -736,8 +736,11 @@ TEST(ContactNarrowPhase, QuadratureRulesAgreeWhereExact) {
   int weights_differ = 0, checked = 0;
   for (int trial = 0; trial < 300; ++trial) {
     const Pair pr = randomFacingPair(rng, -0.1, 0.1, 0.3);
-    const TriangleContact e = computeTriangleContact(pr.a, pr.b, law, ContactQuadrature::Exact);
-    const TriangleContact d = computeTriangleContact(pr.a, pr.b, law, ContactQuadrature::Dunavant7);
+    ContactMoments em, dm;
+    const TriangleContact e =
+        computeTriangleContact(pr.a, pr.b, law, ContactQuadrature::Exact, &em);
+    const TriangleContact d =
+        computeTriangleContact(pr.a, pr.b, law, ContactQuadrature::Dunavant7, &dm);
     const TriangleContact m = computeTriangleContact(pr.a, pr.b, law, ContactQuadrature::Centroid);
     ASSERT_EQ(e.active, d.active);
     ASSERT_EQ(e.active, m.active);
@@ -753,6 +756,12 @@ TEST(ContactNarrowPhase, QuadratureRulesAgreeWhereExact) {
     for (int i = 0; i < 3; ++i) {
       EXPECT_NEAR(e.force_weight_a[i], d.force_weight_a[i], 1e-10 * fs);
       EXPECT_NEAR(e.force_weight_b[i], d.force_weight_b[i], 1e-10 * fs);
+    }
+    // The stiffness moments ∫λλ dS (degree 2) agree too.
+    for (int j = 0; j < 9; ++j) {
+      EXPECT_NEAR(em.ab[j], dm.ab[j], 1e-12 * e.area);
+      EXPECT_NEAR(em.aa[j], dm.aa[j], 1e-12 * e.area);
+      EXPECT_NEAR(em.bb[j], dm.bb[j], 1e-12 * e.area);
     }
     // Centroid rule: exact for the affine pressure (same total force, area, centroid) ...
     EXPECT_NEAR(e.area, m.area, 1e-12 * e.area);
