@@ -49,7 +49,9 @@ TriData triangleData(const Eigen::Matrix3Xd& x, const std::vector<Tri>& tri,
   d.box.resize(tri.size());
   d.normal.resize(tri.size());
   const Vec3 m = Vec3::Constant(margin);
-  for (size_t t = 0; t < tri.size(); ++t) {
+  const auto T = static_cast<std::int64_t>(tri.size());
+#pragma omp parallel for schedule(static) if (T > grain().min_items)
+  for (std::int64_t t = 0; t < T; ++t) {
     const Vec3 p0 = x.col(tri[t][0]), p1 = x.col(tri[t][1]), p2 = x.col(tri[t][2]);
     d.box[t].lo = p0.cwiseMin(p1).cwiseMin(p2) - m;
     d.box[t].hi = p0.cwiseMax(p1).cwiseMax(p2) + m;
@@ -69,24 +71,61 @@ inline std::uint64_t packPair(int s, int t) {
 }
 
 // Sorted, duplicate-free pair list: counting sort by the first index (O(pairs + T)), then the
-// short runs of second indices sorted in place.
+// short runs of second indices sorted in place. Threaded: keys are counted and scattered over
+// consecutive ranges, runs sorted and written per first index; the order of `keys` (a merge of
+// the threads' finds) does not matter, the result is the same.
 std::vector<std::pair<int, int>> unpackSorted(const std::vector<std::uint64_t>& keys, int T) {
-  std::vector<int> start(static_cast<size_t>(T) + 1, 0);
-  for (std::uint64_t k : keys) ++start[(k >> 32) + 1];
-  for (int t = 0; t < T; ++t) start[t + 1] += start[t];
-  std::vector<int> second(keys.size());
-  {
-    std::vector<int> fill(start.begin(), start.end() - 1);
-    for (std::uint64_t k : keys) second[fill[k >> 32]++] = static_cast<int>(k & 0xffffffffu);
+  const std::size_t n = keys.size();
+  const bool parallel = static_cast<std::int64_t>(n) > grain().min_items;
+  const int R = parallel ? threads() : 1;
+  const auto range = [&](int r) {
+    return std::pair<std::size_t, std::size_t>{n * r / R, n * (r + 1) / R};
+  };
+  // count[r * (T + 1) + s + 1]: keys of range r with first index s; then where they go.
+  const std::size_t stride = static_cast<std::size_t>(T) + 1;
+  std::vector<std::int64_t> count(static_cast<std::size_t>(R) * stride, 0);
+#pragma omp parallel for schedule(static, 1) if (parallel)
+  for (int r = 0; r < R; ++r) {
+    std::int64_t* c = &count[r * stride];
+    const auto [b, e] = range(r);
+    for (std::size_t i = b; i < e; ++i) ++c[(keys[i] >> 32) + 1];
   }
-  std::vector<std::pair<int, int>> out;
-  out.reserve(keys.size());
+  std::vector<std::int64_t> start(stride, 0);
+  {
+    std::int64_t at = 0;
+    for (int s = 0; s < T; ++s) {
+      start[s] = at;
+      for (int r = 0; r < R; ++r) {
+        std::int64_t& slot = count[r * stride + s + 1];
+        const std::int64_t k = slot;
+        slot = at;
+        at += k;
+      }
+    }
+    start[T] = at;
+  }
+  std::vector<int> second(n);
+#pragma omp parallel for schedule(static, 1) if (parallel)
+  for (int r = 0; r < R; ++r) {
+    std::int64_t* next = &count[r * stride + 1];
+    const auto [b, e] = range(r);
+    for (std::size_t i = b; i < e; ++i)
+      second[next[keys[i] >> 32]++] = static_cast<int>(keys[i] & 0xffffffffu);
+  }
+  // Sort each run, count its distinct entries, then write them at their final places.
+  std::vector<std::int64_t> unique(stride, 0);
+#pragma omp parallel for schedule(static) if (parallel)
   for (int s = 0; s < T; ++s) {
     const auto b = second.begin() + start[s], e = second.begin() + start[s + 1];
     std::sort(b, e);
-    for (auto it = b; it != e; ++it)
-      if (it == b || *it != *(it - 1)) out.emplace_back(s, *it);
+    unique[s + 1] = std::unique(b, e) - b;
   }
+  for (int s = 0; s < T; ++s) unique[s + 1] += unique[s];
+  std::vector<std::pair<int, int>> out(static_cast<std::size_t>(unique[T]));
+#pragma omp parallel for schedule(static) if (parallel)
+  for (int s = 0; s < T; ++s)
+    for (std::int64_t k = 0; k < unique[s + 1] - unique[s]; ++k)
+      out[unique[s] + k] = {s, second[start[s] + k]};
   return out;
 }
 
@@ -286,6 +325,7 @@ std::vector<std::pair<int, int>> CandidateCache::find(const CellSet& cells, doub
   // --- current boxes, cell boxes, the pairs of cells that may touch now -----------------------
   const TriData d = triangleData(cells.x, cells.tri, cells.tri_cell, margin);
   std::vector<Box> cell_box(C, Box{Vec3::Constant(INFINITY), Vec3::Constant(-INFINITY)});
+#pragma omp parallel for schedule(static) if (T > grain().min_items)
   for (int c = 0; c < C; ++c)
     for (int t = cells.cell_tri_begin[c]; t < cells.cell_tri_begin[c + 1]; ++t) {
       cell_box[c].lo = cell_box[c].lo.cwiseMin(d.box[t].lo);

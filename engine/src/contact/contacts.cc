@@ -23,40 +23,74 @@ void ContactPartition::build(const std::vector<ContactPair>& pairs,
   begin.assign(static_cast<std::size_t>(parts) + 1, 0);
   item.clear();
   if (parts == 1) return;
+  // Counted over `parts` consecutive ranges of pairs, one per thread, and combined in range order:
+  // the items of each part stay in pair order, as a serial pass would leave them.
+  const int R = parts;
+  const auto range = [&](int r) {
+    return std::pair<std::size_t, std::size_t>{num_pairs * r / R, num_pairs * (r + 1) / R};
+  };
   // Cells to parts by the running count of pair sides, so that the parts' work is about equal;
   // the bits do not depend on the split.
-  std::vector<std::int64_t> load(static_cast<std::size_t>(num_cells), 0);
-  for (const ContactPair& p : pairs) {
-    ++load[tri_cell[p.ta]];
-    ++load[tri_cell[p.tb]];
+  std::vector<std::int64_t> range_load(static_cast<std::size_t>(R) * num_cells, 0);
+#pragma omp parallel for schedule(static, 1)
+  for (int r = 0; r < R; ++r) {
+    std::int64_t* load = &range_load[static_cast<std::size_t>(r) * num_cells];
+    const auto [b, e] = range(r);
+    for (std::size_t q = b; q < e; ++q) {
+      ++load[tri_cell[pairs[q].ta]];
+      ++load[tri_cell[pairs[q].tb]];
+    }
   }
   const std::int64_t total = std::max<std::int64_t>(1, 2 * static_cast<std::int64_t>(num_pairs));
   std::vector<int> cell_part(static_cast<std::size_t>(num_cells));
   std::int64_t before = 0;
   for (int c = 0; c < num_cells; ++c) {
+    std::int64_t load = 0;
+    for (int r = 0; r < R; ++r) load += range_load[static_cast<std::size_t>(r) * num_cells + c];
     cell_part[c] =
-        static_cast<int>(std::min<std::int64_t>(parts - 1, (before + load[c] / 2) * parts / total));
-    before += load[c];
+        static_cast<int>(std::min<std::int64_t>(parts - 1, (before + load / 2) * parts / total));
+    before += load;
   }
   auto sides = [&](const ContactPair& p) {
     return std::pair{cell_part[tri_cell[p.ta]], cell_part[tri_cell[p.tb]]};
   };
-  for (const ContactPair& p : pairs) {
-    const auto [pa, pb] = sides(p);
-    ++begin[pa + 1];
-    if (pb != pa) ++begin[pb + 1];
+  // fill[r * parts + k]: where range r's first item of part k goes.
+  std::vector<std::int64_t> fill(static_cast<std::size_t>(R) * parts, 0);
+#pragma omp parallel for schedule(static, 1)
+  for (int r = 0; r < R; ++r) {
+    std::int64_t* count = &fill[static_cast<std::size_t>(r) * parts];
+    const auto [b, e] = range(r);
+    for (std::size_t q = b; q < e; ++q) {
+      const auto [pa, pb] = sides(pairs[q]);
+      ++count[pa];
+      if (pb != pa) ++count[pb];
+    }
   }
-  for (int k = 0; k < parts; ++k) begin[k + 1] += begin[k];
-  item.resize(static_cast<std::size_t>(begin[parts]));
-  std::vector<std::int64_t> fill(begin.begin(), begin.end() - 1);
-  for (std::size_t q = 0; q < pairs.size(); ++q) {
-    const auto [pa, pb] = sides(pairs[q]);
-    const std::uint64_t code = static_cast<std::uint64_t>(q) << 2;
-    if (pa == pb) {
-      item[fill[pa]++] = code | 3;
-    } else {
-      item[fill[pa]++] = code | 1;
-      item[fill[pb]++] = code | 2;
+  std::int64_t at = 0;
+  for (int k = 0; k < parts; ++k) {
+    begin[k] = at;
+    for (int r = 0; r < R; ++r) {
+      std::int64_t& slot = fill[static_cast<std::size_t>(r) * parts + k];
+      const std::int64_t n = slot;
+      slot = at;
+      at += n;
+    }
+  }
+  begin[parts] = at;
+  item.resize(static_cast<std::size_t>(at));
+#pragma omp parallel for schedule(static, 1)
+  for (int r = 0; r < R; ++r) {
+    std::int64_t* next = &fill[static_cast<std::size_t>(r) * parts];
+    const auto [b, e] = range(r);
+    for (std::size_t q = b; q < e; ++q) {
+      const auto [pa, pb] = sides(pairs[q]);
+      const std::uint64_t code = static_cast<std::uint64_t>(q) << 2;
+      if (pa == pb) {
+        item[next[pa]++] = code | 3;
+      } else {
+        item[next[pa]++] = code | 1;
+        item[next[pb]++] = code | 2;
+      }
     }
   }
 }
@@ -102,14 +136,17 @@ void forEachOwnedSide(const ContactPartition& part, const F& f) {
 void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw& law,
                     ContactQuadrature quadrature, ContactList& out, CandidateCache* cache) {
   const int nt = cells.numTriangles();
-  out.pairs.clear();
-  out.moments.clear();
-  out.partition = ContactPartition{};
+  out.partition.num_pairs = 0;
+  out.partition.parts = 0;
   out.tri_contact_area.assign(nt, 0.0);
   out.tri_contact_fraction.assign(nt, 0.0);
   out.vertex_contact_area.assign(cells.numVertices(), 0.0);
   out.cell_contact_area.assign(cells.numCells(), 0.0);
-  if (cells.numCells() < 2) return;
+  if (cells.numCells() < 2) {
+    out.pairs.clear();
+    out.moments.clear();
+    return;
+  }
   const auto candidates = cache ? cache->find(cells, law.h0)
                                 : findContactCandidates(cells.x, cells.tri, cells.tri_cell, law.h0);
   auto corners = [&](int t) {
@@ -139,29 +176,39 @@ void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw&
       if (law.stiffness_moments) chunk.moments.push_back(m);
     }
   }
-  std::size_t total = 0;
-  for (std::int64_t j = 0; j < chunks; ++j) total += found[j].pairs.size();
-  out.pairs.reserve(total);
-  if (law.stiffness_moments) {
-    out.moments.reserve(total);
-    for (std::int64_t j = 0; j < chunks; ++j)
-      out.moments.insert(out.moments.end(), found[j].moments.begin(), found[j].moments.end());
+  // Join: chunk j's pairs go to [at[j], at[j + 1]), copied in parallel. `out` keeps its size from
+  // the last detection, so that resizing value-initialises only growth (~30 MB of pairs on the
+  // 2 × 100-cell fusion).
+  std::vector<std::size_t> at(static_cast<std::size_t>(chunks) + 1, 0);
+  for (std::int64_t j = 0; j < chunks; ++j) at[j + 1] = at[j] + found[j].pairs.size();
+  const std::size_t total = at[chunks];
+  out.pairs.resize(total);
+  out.moments.resize(law.stiffness_moments ? total : 0);
+#pragma omp parallel for schedule(dynamic, 64) if (chunks > 1 && nc > grain().min_items)
+  for (std::int64_t j = 0; j < chunks; ++j) {
+    std::copy(found[j].pairs.begin(), found[j].pairs.end(), out.pairs.begin() + at[j]);
+    if (law.stiffness_moments)
+      std::copy(found[j].moments.begin(), found[j].moments.end(), out.moments.begin() + at[j]);
   }
-  for (std::int64_t j = 0; j < chunks; ++j)
-    for (const ContactPair& p : found[j].pairs) {
-      out.tri_contact_area[p.ta] += p.c.area;
-      out.tri_contact_area[p.tb] += p.c.area;
-      out.pairs.push_back(p);
+  out.partition.build(out.pairs, cells.tri_cell, cells.numCells(), contactParts(total));
+  // Each triangle's area sum in pair order, by the part that owns its cell (the same bits as one
+  // pass over the pairs).
+  forEachOwnedSide(out.partition, [&](std::size_t q, bool own_a, bool own_b) {
+    const ContactPair& p = out.pairs[q];
+    if (own_a) out.tri_contact_area[p.ta] += p.c.area;
+    if (own_b) out.tri_contact_area[p.tb] += p.c.area;
+  });
+  // Per cell: a cell's triangles touch only its own vertices, in the order of one pass.
+#pragma omp parallel for schedule(static) if (nt > grain().min_items)
+  for (int c = 0; c < cells.numCells(); ++c)
+    for (int t = cells.cell_tri_begin[c]; t < cells.cell_tri_begin[c + 1]; ++t) {
+      if (out.tri_contact_area[t] <= 0) continue;
+      const double f = std::min(1.0, out.tri_contact_area[t] / geo.tri_area[t]);
+      out.tri_contact_fraction[t] = f;
+      const double a = f * geo.tri_area[t];
+      for (int k = 0; k < 3; ++k) out.vertex_contact_area[cells.tri[t][k]] += a / 3.0;
+      out.cell_contact_area[c] += a;
     }
-  for (int t = 0; t < nt; ++t) {
-    if (out.tri_contact_area[t] <= 0) continue;
-    const double f = std::min(1.0, out.tri_contact_area[t] / geo.tri_area[t]);
-    out.tri_contact_fraction[t] = f;
-    const double a = f * geo.tri_area[t];
-    for (int k = 0; k < 3; ++k) out.vertex_contact_area[cells.tri[t][k]] += a / 3.0;
-    out.cell_contact_area[cells.tri_cell[t]] += a;
-  }
-  out.partition.build(out.pairs, cells.tri_cell, cells.numCells(), contactParts(out.pairs.size()));
 }
 
 double ContactAdhesion::addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) const {
