@@ -111,6 +111,9 @@ struct Kernels {
   double energy = 0;
   Eigen::VectorXd product;  // Γ v for a fixed v
   std::vector<double> contact_areas;
+  std::vector<double> tri_contact_area, cell_contact_area;
+  std::vector<std::array<double, 3>> pair_list;  // ta, tb, area of each pair, in list order
+  std::vector<std::array<double, 11>> friction_blocks;  // i, j, and the block, lower triangle
   Eigen::Matrix3Xd after_step;  // positions after one step (CG solve included)
   int pairs = 0;
 };
@@ -127,6 +130,15 @@ Kernels kernels(const SceneSpec& spec, const CellSet& cells, int n, Grain g) {
   k.product.resize(m);
   sim.applyFriction(v.data(), k.product.data());
   k.contact_areas = sim.contacts().vertex_contact_area;
+  k.tri_contact_area = sim.contacts().tri_contact_area;
+  k.cell_contact_area = sim.contacts().cell_contact_area;
+  for (const ContactPair& p : sim.contacts().pairs)
+    k.pair_list.push_back({double(p.ta), double(p.tb), p.c.area});
+  sim.forEachFrictionBlock([&](int i, int j, const Eigen::Matrix3d& b) {
+    std::array<double, 11> e{double(i), double(j)};
+    for (int q = 0; q < 9; ++q) e[2 + q] = b(q);
+    k.friction_blocks.push_back(e);
+  });
   k.pairs = static_cast<int>(sim.contacts().pairs.size());
   EXPECT_TRUE(sim.step().ok());
   k.after_step = sim.cells().x;
@@ -141,6 +153,11 @@ void expectSameKernels(const SceneSpec& spec, const CellSet& cells, Grain g) {
   EXPECT_EQ(std::memcmp(&a.energy, &b.energy, sizeof(double)), 0);
   EXPECT_TRUE(sameBits(a.product, b.product));
   EXPECT_TRUE(a.contact_areas == b.contact_areas);
+  EXPECT_TRUE(a.tri_contact_area == b.tri_contact_area);
+  EXPECT_TRUE(a.cell_contact_area == b.cell_contact_area);
+  EXPECT_TRUE(a.pair_list == b.pair_list);  // the detection's list, in the same order
+  EXPECT_GT(a.friction_blocks.size(), 0u);
+  EXPECT_TRUE(a.friction_blocks == b.friction_blocks);  // pattern (rebuilt threaded) and values
   EXPECT_TRUE(sameBits(a.after_step, b.after_step));
 }
 

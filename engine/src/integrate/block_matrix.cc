@@ -12,59 +12,96 @@ namespace activefoam {
 void BlockMatrix::setPattern(int num_blocks, std::vector<std::pair<int, int>> couplings) {
   n_ = num_blocks;
   // Bucket by row, then sort each short row: a global sort of the ~10⁶ couplings of a 2 × 100-cell
-  // aggregate was 15 % of a step whenever a remesh forced a rebuild.
-  row_begin_.assign(n_ + 1, 0);
-  for (const auto& [i, j] : couplings) {
-    ++row_begin_[i + 1];
-    ++row_begin_[j + 1];
+  // aggregate was 15 % of a step whenever a remesh forced a rebuild. Threaded (the rebuild follows
+  // every remesh): couplings counted and scattered over per-thread ranges, rows sorted and laid
+  // out in parallel. Integers only, and rows are sorted: the pattern does not depend on the split.
+  const auto m = static_cast<std::int64_t>(couplings.size());
+  const bool parallel = m > grain().min_items;
+  const int R = parallel ? threads() : 1;
+  const auto range = [&](int r) {
+    return std::pair<std::int64_t, std::int64_t>{m * r / R, m * (r + 1) / R};
+  };
+  const std::size_t stride = static_cast<std::size_t>(n_) + 1;
+  // count[r · stride + i + 1]: row i's entries from range r; then where range r writes them.
+  std::vector<int> count(static_cast<std::size_t>(R) * stride, 0);
+#pragma omp parallel for schedule(static, 1) if (parallel)
+  for (int r = 0; r < R; ++r) {
+    int* c = &count[r * stride + 1];
+    const auto [b, e] = range(r);
+    for (std::int64_t q = b; q < e; ++q) {
+      ++c[couplings[q].first];
+      ++c[couplings[q].second];
+    }
   }
-  for (int i = 0; i < n_; ++i) row_begin_[i + 1] += row_begin_[i] + 1;  // + the diagonal
-  std::vector<int> fill(row_begin_.begin(), row_begin_.end() - 1);
-  std::vector<int> all(row_begin_[n_]);
-  for (int i = 0; i < n_; ++i) all[fill[i]++] = i;
-  for (const auto& [i, j] : couplings) {
-    all[fill[i]++] = j;
-    all[fill[j]++] = i;
+  std::vector<int> start(stride, 0);
+  std::vector<int> all;
+  {
+    int at = 0;
+    for (int i = 0; i < n_; ++i) {
+      start[i] = at;
+      ++at;  // the diagonal
+      for (int r = 0; r < R; ++r) {
+        int& slot = count[r * stride + i + 1];
+        const int k = slot;
+        slot = at;
+        at += k;
+      }
+    }
+    start[n_] = at;
+    all.resize(static_cast<std::size_t>(at));
+  }
+#pragma omp parallel for schedule(static, 1) if (parallel)
+  for (int r = 0; r < R; ++r) {
+    int* next = &count[r * stride + 1];
+    const auto [b, e] = range(r);
+    for (std::int64_t q = b; q < e; ++q) {
+      const auto [i, j] = couplings[q];
+      all[next[i]++] = j;
+      all[next[j]++] = i;
+    }
   }
   couplings.clear();
   couplings.shrink_to_fit();
-  cols_.clear();
-  cols_.reserve(all.size());
-  int begin = 0;
+  row_begin_.assign(stride, 0);
+#pragma omp parallel for schedule(static) if (parallel)
   for (int i = 0; i < n_; ++i) {
-    const auto first = all.begin() + begin, last = all.begin() + row_begin_[i + 1];
+    const auto first = all.begin() + start[i], last = all.begin() + start[i + 1];
+    *first = i;
     std::sort(first, last);
-    begin = row_begin_[i + 1];
-    row_begin_[i] = static_cast<int>(cols_.size());
-    cols_.insert(cols_.end(), first, std::unique(first, last));
+    row_begin_[i + 1] = static_cast<int>(std::unique(first, last) - first);
   }
-  row_begin_[n_] = static_cast<int>(cols_.size());
+  for (int i = 0; i < n_; ++i) row_begin_[i + 1] += row_begin_[i];
+  cols_.resize(static_cast<std::size_t>(row_begin_[n_]));
+  offset_.resize(cols_.size());
+  width_.resize(cols_.size());
+  diag_.resize(n_);
+  transpose_.resize(cols_.size());
 
-  // Scalar CSR: row 3i+a holds, for each block k of block-row i, columns 3·cols_[k] + {0,1,2}.
+  // Scalar CSR: row 3i+a holds, for each block k of block-row i, columns 3·cols_[k] + {0,1,2};
+  // block-row i's 3 rows of 3·nb entries start at 9 · row_begin_[i].
   const Eigen::Index nnz = 9 * static_cast<Eigen::Index>(cols_.size());
   a_.resize(3 * n_, 3 * n_);
   a_.resizeNonZeros(nnz);
   auto* outer = a_.outerIndexPtr();
   auto* inner = a_.innerIndexPtr();
-  offset_.resize(cols_.size());
-  width_.resize(cols_.size());
-  diag_.resize(n_);
-  Eigen::Index pos = 0;
+#pragma omp parallel for schedule(static) if (parallel)
   for (int i = 0; i < n_; ++i) {
-    const int nb = row_begin_[i + 1] - row_begin_[i];
-    for (int k = row_begin_[i]; k < row_begin_[i + 1]; ++k) {
-      offset_[k] = pos + 3 * (k - row_begin_[i]);
+    const int kb = row_begin_[i], nb = row_begin_[i + 1] - kb;
+    std::copy(all.begin() + start[i], all.begin() + start[i] + nb, cols_.begin() + kb);
+    Eigen::Index pos = 9 * static_cast<Eigen::Index>(kb);
+    for (int k = kb; k < kb + nb; ++k) {
+      offset_[k] = pos + 3 * (k - kb);
       width_[k] = 3 * nb;
       if (cols_[k] == i) diag_[i] = k;
     }
     for (int r = 0; r < 3; ++r) {
       outer[3 * i + r] = static_cast<SpMat::StorageIndex>(pos);
-      for (int k = row_begin_[i]; k < row_begin_[i + 1]; ++k)
+      for (int k = kb; k < kb + nb; ++k)
         for (int c = 0; c < 3; ++c) inner[pos++] = 3 * cols_[k] + c;
     }
   }
-  outer[3 * n_] = static_cast<SpMat::StorageIndex>(pos);
-  transpose_.resize(cols_.size());
+  outer[3 * n_] = static_cast<SpMat::StorageIndex>(nnz);
+#pragma omp parallel for schedule(static) if (parallel)
   for (int i = 0; i < n_; ++i)
     for (int k = row_begin_[i]; k < row_begin_[i + 1]; ++k) transpose_[k] = findBlock(cols_[k], i);
   setZero();
