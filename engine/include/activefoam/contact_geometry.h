@@ -65,6 +65,20 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
                                        const ContactLaw& law, ContactQuadrature quadrature,
                                        ContactMoments* moments = nullptr);
 
+// A triangle's unit outward normal; `ok` is false for a degenerate or non-finite triangle (area ≤
+// 1e-14 · longest edge²), which never makes contact. detectContacts computes it once per triangle
+// (each is in ~8 candidate pairs of a packed aggregate) and passes it to the overload below,
+// which gives the same result as the one above.
+struct TriangleFrame {
+  Vec3 normal = Vec3::Zero();
+  bool ok = false;
+};
+TriangleFrame triangleFrame(const std::array<Vec3, 3>& p);
+TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::array<Vec3, 3>& b,
+                                       const TriangleFrame& fa, const TriangleFrame& fb,
+                                       const ContactLaw& law, ContactQuadrature quadrature,
+                                       ContactMoments* moments = nullptr);
+
 // Broad phase: all pairs (tA, tB), tA < tB, of triangles of different cells whose axis-aligned
 // bounding boxes, inflated by `margin`, overlap and whose normals face (n̂_A·n̂_B < 0).
 // Sorted ascending. `tri_cell[t]` is the cell of triangle t (any int ids; same size as `tri`,

@@ -58,6 +58,7 @@ struct ContactList {
     std::vector<ContactMoments> moments;
   };
   std::vector<NarrowChunk> narrow_chunks;
+  std::vector<TriangleFrame> tri_frames;  // per triangle, for the narrow phase
 };
 
 // The broad phase of a simulation, keeping its work between steps (a Verlet list per pair of

@@ -153,6 +153,10 @@ void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw&
     const Tri& f = cells.tri[t];
     return std::array<Vec3, 3>{cells.x.col(f[0]), cells.x.col(f[1]), cells.x.col(f[2])};
   };
+  auto& frame = out.tri_frames;
+  frame.resize(nt);
+#pragma omp parallel for schedule(static) if (nt > grain().min_items)
+  for (int t = 0; t < nt; ++t) frame[t] = triangleFrame(corners(t));
   // Narrow phase: fixed chunks of candidates keep their active pairs in candidate order; the
   // chunks are joined in order, so the list is the same for any thread count.
   constexpr std::int64_t kChunk = 64;  // ~64 µs of work: far more than scheduling it
@@ -169,8 +173,9 @@ void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw&
     ContactMoments m;
     for (std::int64_t i = j * kChunk; i < std::min(nc, (j + 1) * kChunk); ++i) {
       const auto [ta, tb] = candidates[i];
-      const TriangleContact c = computeTriangleContact(corners(ta), corners(tb), law, quadrature,
-                                                       law.stiffness_moments ? &m : nullptr);
+      const TriangleContact c =
+          computeTriangleContact(corners(ta), corners(tb), frame[ta], frame[tb], law, quadrature,
+                                 law.stiffness_moments ? &m : nullptr);
       if (!c.active) continue;
       chunk.pairs.push_back({ta, tb, c});
       if (law.stiffness_moments) chunk.moments.push_back(m);
