@@ -11,7 +11,7 @@
 namespace activefoam::client {
 namespace {
 
-// "preset draft (Δt 0.5 s, 320 triangles, ε_CG 0.001), chosen for the accuracy target contact
+// "preset draft (Δt 0.5 s, 320 triangles, ε_CG 0.01), chosen for the accuracy target contact
 // angle ≤ 2°" from a job's resolved spec.
 std::string fidelityText(const std::string& spec_json) {
   try {
