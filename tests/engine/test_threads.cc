@@ -112,7 +112,7 @@ struct Kernels {
   Eigen::VectorXd product;  // Γ v for a fixed v
   std::vector<double> contact_areas;
   std::vector<double> tri_contact_area, cell_contact_area;
-  std::vector<std::array<double, 3>> pair_list;  // ta, tb, area of each pair, in list order
+  std::vector<std::array<double, 3>> pair_list;         // ta, tb, area of each pair, in list order
   std::vector<std::array<double, 11>> friction_blocks;  // i, j, and the block, lower triangle
   Eigen::Matrix3Xd after_step;  // positions after one step (CG solve included)
   int pairs = 0;
