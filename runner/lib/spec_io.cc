@@ -436,6 +436,7 @@ std::vector<SpecError> checkSceneKeys(const SceneSpec& spec, const std::vector<s
       {"scene.n_cells_b", {SceneKind::Fusion}},
       {"scene.prep_dt_s", {SceneKind::Fusion}},
       {"scene.prep_max_s", {SceneKind::Fusion}},
+      {"scene.prep_min_s", {SceneKind::Fusion}},
       {"scene.compact_rate_per_s", {SceneKind::Fusion}},
       {"scene.allow_uncompacted", {SceneKind::Fusion}}};
   std::vector<SpecError> errors;

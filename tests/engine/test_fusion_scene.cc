@@ -137,6 +137,61 @@ TEST(FusionScene, AnUncompactedSpheroidFailsThePreparationNamingItsRate) {
   EXPECT_TRUE(runScene(s, obs).ok());
 }
 
+// Weak adhesion keeps the radius of gyration still while the junctions open (docs/validation.md):
+// scene.prep_min_s holds the compaction back, and a weak-adhesion fusion that could start
+// before weakAdhesionPrepMinS(α) is named (foamd refuses it, foam-run warns).
+TEST(FusionScene, PrepMinHoldsCompactionBackAndWeakAdhesionAsksForIt) {
+  SceneSpec s = smallFusionSpec();
+  s.scene_params.prep_max_s = 600;
+  s.scene_params.compact_rate_per_s = 1;  // any rate: compact at the earliest time allowed
+  const SceneSpec quick = spheroidPrepSpec(s, 3, 7);
+  const PreparedSpheroid q = prepareSpheroid(quick, nullptr);
+  EXPECT_TRUE(q.compact);
+  EXPECT_DOUBLE_EQ(q.relaxed_s, 120);  // two 60 s windows
+  s.scene_params.prep_min_s = 300;
+  const SceneSpec held = spheroidPrepSpec(s, 3, 7);
+  EXPECT_NE(spheroidCacheKey(held), spheroidCacheKey(quick));
+  const PreparedSpheroid h = prepareSpheroid(held, nullptr);
+  EXPECT_TRUE(h.compact);
+  EXPECT_DOUBLE_EQ(h.relaxed_s, 300);
+  // At 0 the key is the one of versions before the key existed (cached spheroids stay valid).
+  EXPECT_EQ(specFingerprint(quick).find("prep_min_s"), std::string::npos);
+
+  s.scene_params.prep_min_s = 700;  // beyond prep_max_s
+  const std::vector<SpecError> e = validate(s);
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_EQ(e[0].field, "scene.prep_min_s");
+  EXPECT_NE(e[0].message.find("exceeds scene.prep_max_s = 600 s"), std::string::npos)
+      << e[0].message;
+
+  SceneSpec weak;
+  weak.cells.alpha = 0.9;
+  EXPECT_TRUE(validate(weak).empty());
+  EXPECT_DOUBLE_EQ(weakAdhesionPrepMinS(0.9), 3000);
+  EXPECT_DOUBLE_EQ(weakAdhesionPrepMinS(0.8), 1500);
+  EXPECT_DOUBLE_EQ(weakAdhesionPrepMinS(0.75), 0);
+  std::vector<SpecError> w = silentlyWrong(weak);
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_EQ(w[0].field, "scene.prep_min_s");
+  for (const char* part : {"cells.alpha = 0.9", "at least 300/(1 - cells.alpha) = 3000 s",
+                           "scene.prep_max_s (now 1800 s) at least as long"})
+    EXPECT_NE(w[0].message.find(part), std::string::npos) << part << "\n" << w[0].message;
+  weak.scene_params.prep_max_s = 3000;
+  weak.scene_params.prep_min_s = 3000;
+  EXPECT_TRUE(silentlyWrong(weak).empty());
+  weak.scene_params.prep_min_s = 0;
+  weak.scene_params.allow_uncompacted = true;  // the user takes the spheroids as they are
+  EXPECT_TRUE(silentlyWrong(weak).empty());
+  weak.scene_params.allow_uncompacted = false;
+  weak.scene_params.prep_max_s = 0;  // the packed cells, no relaxation asked for
+  EXPECT_TRUE(silentlyWrong(weak).empty());
+  EXPECT_TRUE(silentlyWrong(SceneSpec{}).empty());  // the defaults (α = 0.4375)
+  SceneSpec doublet;
+  doublet.scene = SceneKind::Doublet;  // no spheroids to prepare
+  doublet.cells.alpha = 0.9;
+  EXPECT_TRUE(silentlyWrong(doublet).empty());
+}
+
 TEST(FusionScene, SamplesFitsAndResumeFromCheckpoint) {
   TempDir dir;
   const SceneSpec s = smallFusionSpec();

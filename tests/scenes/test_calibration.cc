@@ -6,12 +6,18 @@
 // shrinks (fewer triangles span it). At α = 0.9 the first contact takes ~2500 s to zip open
 // (θ_c ≈ 4° until then) and settles by ~4000 s; the durations below leave each case ≥ 500 s
 // at its equilibrium.
+#include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
 #include "activefoam/doublet_study.h"
+#include "activefoam/observables.h"
+#include "activefoam/simulation.h"
+#include "activefoam/spec.h"
 
 using namespace activefoam;
 
@@ -56,3 +62,101 @@ INSTANTIATE_TEST_SUITE_P(Alphas, PassiveDoublet,
                          [](const ::testing::TestParamInfo<Case>& i) {
                            return "alpha_" + std::to_string(static_cast<int>(i.param.alpha * 100));
                          });
+
+// Spheroids (issue 16 item 4; the supplement's Fig. 7E): the surface contact angle between
+// neighbouring surface cells (`surfaceContactAngle`) of an aggregate of N = 20 cells. Measured
+// 2026-11-24 (docs/validation.md, bench/validation_spheroids.sh: N = 20 and 30, three seeds,
+// `draft`): passive aggregates settle within 0.6° of arccos α at α = 0.3 … 0.9 (the bound asked
+// is 3°); motile ones (the default p_a) sit 3.3–5.6° below it at every α — the protrusions keep
+// the junctions from their passive balance (−1.6° at half p_a, −11.5° at double), a property
+// of the active model rather than of the measure. α = 0.9 opens its junctions slowly
+// (≈ 3000 s passive).
+namespace {
+
+struct SpheroidCase {
+  double alpha, p_a, duration_s;
+};
+void PrintTo(const SpheroidCase& c, std::ostream* os) {
+  *os << "α = " << c.alpha << ", p_a = " << c.p_a << " kPa, " << c.duration_s << " s";
+}
+
+struct SpheroidAngle {
+  double last_deg = 0, before_deg = 0;  // mean over the last 500 s, and the 500 s before
+  double volume_error_max = 0;          // over the last 1000 s
+};
+
+// The surface angle every 50 s of a 20-cell spheroid (seed 1) at `draft`, averaged over windows.
+SpheroidAngle relaxSpheroid(const SpheroidCase& c) {
+  SceneSpec s;
+  s.scene = SceneKind::Spheroid;
+  s.seed = 1;
+  s.scene_params.n_cells = 20;
+  s.cells.alpha = c.alpha;
+  s.cells.p_a = c.p_a;
+  EXPECT_EQ(setField(s, "numerics.preset", std::string("draft")), std::nullopt);
+  EXPECT_TRUE(validate(s).empty());
+  Simulation sim(resolve(s));
+  std::vector<std::pair<double, double>> series;  // (t, θ)
+  SpheroidAngle out;
+  for (double next = 50; next <= c.duration_s + 1e-9; next += 50) {
+    while (sim.time() < next - 1e-9) {
+      const StepReport r = sim.step();
+      EXPECT_TRUE(r.ok()) << r.reason;
+      if (!r.ok()) return out;
+      if (sim.time() <= c.duration_s - 1000) continue;  // the packed start squeezes cells
+      for (int k = 0; k < sim.cells().numCells(); ++k)
+        out.volume_error_max =
+            std::max(out.volume_error_max,
+                     std::abs(sim.geometry().cell_volume[k] - sim.cells().target_volume[k]) /
+                         sim.cells().target_volume[k]);
+    }
+    const SurfaceContactAngle a = surfaceContactAngle(sim.cells(), sim.contacts());
+    EXPECT_TRUE(a.ok) << a.why;
+    series.emplace_back(sim.time(), a.theta_deg);
+  }
+  auto mean = [&](double from, double to) {
+    double sum = 0;
+    int n = 0;
+    for (const auto& [t, th] : series)
+      if (t > from + 1e-9 && t <= to + 1e-9) sum += th, ++n;
+    return n ? sum / n : std::nan("");
+  };
+  out.last_deg = mean(c.duration_s - 500, c.duration_s);
+  out.before_deg = mean(c.duration_s - 1000, c.duration_s - 500);
+  return out;
+}
+
+class PassiveSpheroid : public ::testing::TestWithParam<SpheroidCase> {};
+
+}  // namespace
+
+TEST_P(PassiveSpheroid, SurfaceContactAngleIsArccosAlpha) {
+  const SpheroidCase c = GetParam();
+  const SpheroidAngle a = relaxSpheroid(c);
+  const double target = std::acos(c.alpha) * 180 / M_PI;
+  std::cout << "[ calibration ] spheroid α = " << c.alpha << ": θ_c = " << a.last_deg
+            << "° (500 s before: " << a.before_deg << "°), arccos α = " << target << "°\n";
+  EXPECT_NEAR(a.last_deg, target, 3.0);        // the issue's bound; measured ≤ 0.6°
+  EXPECT_NEAR(a.last_deg, a.before_deg, 1.0);  // settled, not passing through
+  EXPECT_LT(a.volume_error_max, 0.01);
+}
+
+INSTANTIATE_TEST_SUITE_P(Alphas, PassiveSpheroid,
+                         ::testing::Values(SpheroidCase{0.3, 0, 1500}, SpheroidCase{0.6, 0, 1500},
+                                           SpheroidCase{0.9, 0, 4000}),
+                         [](const ::testing::TestParamInfo<SpheroidCase>& i) {
+                           return "alpha_" + std::to_string(static_cast<int>(i.param.alpha * 100));
+                         });
+
+// The motile aggregate's offset, pinned to the documented measurement (docs/validation.md):
+// below arccos α by 3.3–5.6° over seeds and N; a change of the motility or of the measure that
+// moves it out of [2°, 7°] must update that page.
+TEST(MotileSpheroid, SurfaceContactAngleSitsBelowArccosAlphaAsDocumented) {
+  const SpheroidCase c{0.6, CellParams{}.p_a, 3000};
+  const SpheroidAngle a = relaxSpheroid(c);
+  const double target = std::acos(c.alpha) * 180 / M_PI;
+  std::cout << "[ calibration ] motile spheroid α = " << c.alpha << ": θ_c = " << a.last_deg
+            << "° (500 s before: " << a.before_deg << "°), arccos α = " << target << "°\n";
+  EXPECT_GT(target - a.last_deg, 2.0);
+  EXPECT_LT(target - a.last_deg, 7.0);
+}

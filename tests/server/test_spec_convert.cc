@@ -200,6 +200,26 @@ TEST(SpecConvert, AGapBeyondTheAdhesionRangeIsRefusedAndTheDefaultIsInsideIt) {
   EXPECT_DOUBLE_EQ(*r.spec->scene_params.gap_um, 0.05);
 }
 
+// Weak adhesion: spheroids that count as compact before their junctions open would start the
+// fusion from point contacts; refused naming scene.prep_min_s and the time it needs.
+TEST(SpecConvert, AWeakAdhesionFusionWithoutALongEnoughRelaxationIsRefused) {
+  v1::SceneSpec m;
+  m.mutable_fusion()->set_n_cells(20);
+  m.set_duration_s(10);
+  m.set_sample_every_s(1);
+  m.mutable_cells()->set_alpha(0.9);
+  ConvertResult r = convertSpec(m);
+  if (!sceneAvailable(SceneKind::Fusion)) GTEST_SKIP() << "fusion scene not available";
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.errors[0].field, "scene.prep_min_s");
+  EXPECT_NE(r.errors[0].message.find("= 3000 s"), std::string::npos) << r.errors[0].message;
+  m.mutable_fusion()->set_prep_min_s(3000);
+  m.mutable_fusion()->set_prep_max_s(3600);
+  r = convertSpec(m);
+  EXPECT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_EQ(r.spec->scene_params.prep_min_s, 3000);
+}
+
 TEST(SpecConvert, SettingsTheStabilityStudyMeasuredToFailAreRefusedNamingTheLimit) {
   v1::SceneSpec m;
   m.mutable_doublet();

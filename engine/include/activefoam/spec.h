@@ -102,6 +102,11 @@ struct SceneParams {
   double prep_dt_s = 0.5;            // time step of the relaxation (contact-implicit)
   double prep_max_s = 1800;          // longest relaxation, s (0: the packed cells as they are)
   double compact_rate_per_s = 5e-5;  // compact: |ΔRg|/Rg over 60 s below this × 60 s
+  // Shortest relaxation, s: compaction is not declared before it. Weak adhesion opens the
+  // cells' junctions slowly while the radius of gyration already stands still (α = 0.9: the
+  // surface contact angle still rises for ~2000 s; docs/validation.md), so silentlyWrong asks
+  // for weakAdhesionPrepMinS(α) there.
+  double prep_min_s = 0;
   // A spheroid not compact after prep_max_s (> 0) fails the job unless this is set (its rate of
   // compaction is named). prep_max_s = 0 asks for the packed cells as they are.
   bool allow_uncompacted = false;
@@ -277,9 +282,16 @@ double contactRangeH0(const CellParams& c);  // h0 = √(w / k_AB)
 double defaultGapUm(const CellParams& c);
 // scene.gap_um, or its default.
 double initialGapUm(const SceneSpec& spec);
+// Weak adhesion (α ≥ kWeakAdhesionAlpha) opens a spheroid's junctions slowly: measured on
+// 20-cell spheroids (docs/validation.md) the surface contact angle needs ~1000 s to settle at
+// α = 0.75 and ~2000–3000 s at α = 0.9 (motile / passive) while the radius of gyration stands
+// still from the start. The shortest relaxation asked of such a fusion: 300/(1 − α) s (0 below).
+inline constexpr double kWeakAdhesionAlpha = 0.8;
+double weakAdhesionPrepMinS(double alpha);
 // Settings that run but are known to give a wrong answer without failing: an initial gap of
-// doublet or fusion at or beyond the adhesion range (the cells or spheroids never touch). foamd
-// refuses them; foam-run warns.
+// doublet or fusion at or beyond the adhesion range (the cells or spheroids never touch); a
+// fusion at weak adhesion whose spheroids may count as compact before weakAdhesionPrepMinS
+// (the fusion would start from point contacts). foamd refuses them; foam-run warns.
 std::vector<SpecError> silentlyWrong(const SceneSpec& spec);
 
 }  // namespace activefoam

@@ -104,6 +104,10 @@ std::vector<std::pair<std::string, double>> sceneObservables(const Simulation& s
                        radiusOfGyration(sim.cells(), g.cell_volume, g.cell_centroid));
       out.emplace_back("shape_index_mean", meanShapeIndex(g));
       out.emplace_back("contact_pairs", static_cast<double>(sim.contacts().pairs.size()));
+      const SurfaceContactAngle sca = surfaceContactAngle(sim.cells(), sim.contacts());
+      const double nan = std::numeric_limits<double>::quiet_NaN();
+      out.emplace_back("surface_contact_angle_deg", sca.ok ? sca.theta_deg : nan);
+      out.emplace_back("gsi", sca.ok ? sca.gsi : nan);
       break;
     }
     case SceneKind::Fusion: {
@@ -192,7 +196,8 @@ std::vector<std::string> sampleColumns(SceneKind scene) {
                   {"contact_angle_deg", "contact_area_um2", "contact_pairs", "distance_um"});
       break;
     case SceneKind::Spheroid:
-      cols.insert(cols.end(), {"radius_gyration_um", "shape_index_mean", "contact_pairs"});
+      cols.insert(cols.end(), {"radius_gyration_um", "shape_index_mean", "contact_pairs",
+                               "surface_contact_angle_deg", "gsi"});
       break;
     case SceneKind::Fusion:
       cols.insert(cols.end(),

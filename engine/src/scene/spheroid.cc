@@ -114,6 +114,7 @@ SceneSpec spheroidPrepSpec(const SceneSpec& spec, std::int64_t n_cells, std::uin
   p.scene_params.prep_dt_s = spec.scene_params.prep_dt_s;
   p.scene_params.prep_max_s = spec.scene_params.prep_max_s;
   p.scene_params.compact_rate_per_s = spec.scene_params.compact_rate_per_s;
+  p.scene_params.prep_min_s = spec.scene_params.prep_min_s;
   p.numerics.dt_s = spec.scene_params.prep_dt_s;
   p.numerics.integrator = IntegratorKind::ContactImplicit;
   // The solver settings are the preparation's own (the defaults): a prepared spheroid is an
@@ -258,7 +259,8 @@ PreparedSpheroid prepareSpheroid(const SceneSpec& prep, const SpheroidCache* cac
       log("  relaxing: t = " + formatNumber(sim.time()) + " s, radius of gyration " +
           formatNumber(std::round(now * 1000) / 1000) +
           " µm, |dRg/dt|/Rg = " + formatNumber(std::round(rate * 1e8) / 1e8) + " /s");
-      if (sim.time() >= 2 * kWindowS - 0.5 * dt && rate < prep.scene_params.compact_rate_per_s) {
+      const double earliest = std::max(2 * kWindowS, prep.scene_params.prep_min_s);
+      if (sim.time() >= earliest - 0.5 * dt && rate < prep.scene_params.compact_rate_per_s) {
         out.compact = true;
         break;
       }

@@ -224,6 +224,11 @@ const std::vector<Entry>& entries() {
     t.push_back({real("scene.prep_max_s", kClosed, 0, 1e5, kClosed, "s",
                       "fusion: longest relaxation of a spheroid's packed cells; 0 = none"),
                  [](SceneSpec& s) -> Slot { return &s.scene_params.prep_max_s; }});
+    t.push_back({real("scene.prep_min_s", kClosed, 0, 1e5, kClosed, "s",
+                      "fusion: shortest relaxation of a spheroid (compaction is not declared "
+                      "before it); weak adhesion (cells.alpha >= 0.8) opens the junctions "
+                      "slowly and needs at least 300/(1 - alpha) s"),
+                 [](SceneSpec& s) -> Slot { return &s.scene_params.prep_min_s; }});
     t.push_back({real("scene.compact_rate_per_s", kOpen, 0, 1, kClosed, "1/s",
                       "fusion: a spheroid is prepared (compact) when its radius of "
                       "gyration changes by less than this (relative, per second) over 60 s"),
@@ -607,6 +612,13 @@ std::vector<SpecError> validate(const SceneSpec& spec) {
             "needs numerics.adaptive = true (a step over the estimate is retried at half Δt)");
   }
 
+  if (const SceneParams& sp = spec.scene_params; ok({"scene.prep_min_s", "scene.prep_max_s"}) &&
+                                                 sp.prep_max_s > 0 && sp.prep_min_s > sp.prep_max_s)
+    error("scene.prep_min_s", formatNumber(sp.prep_min_s) +
+                                  " s exceeds scene.prep_max_s = " + formatNumber(sp.prep_max_s) +
+                                  " s (the longest relaxation); allowed [0, " +
+                                  formatNumber(sp.prep_max_s) + "] s");
+
   // Remeshing thresholds: a split halves a triangle, so the halves must stay above A_m.
   const double amin = spec.numerics.remesh_min_area_factor;
   const double amax = spec.numerics.remesh_max_area_factor;
@@ -804,7 +816,31 @@ std::vector<SpecError> silentlyWrong(const SceneSpec& spec) {
                        " would not touch unless motility brings them together; allowed [0, " +
                        formatNumber(h0) + ") µm, or leave it unset (default min(0.05, 0.8 h0) = " +
                        formatNumber(defaultGapUm(r.cells)) + " µm)"});
+  // Weak adhesion: the radius of gyration stands still long before the junctions have opened,
+  // so the compaction criterion alone would start the fusion from point contacts.
+  const SceneParams& sp = r.scene_params;
+  if (spec.scene == SceneKind::Fusion && sp.prep_max_s > 0 && !sp.allow_uncompacted &&
+      r.cells.alpha >= kWeakAdhesionAlpha) {
+    const double need = weakAdhesionPrepMinS(r.cells.alpha);
+    if (sp.prep_min_s < need)
+      out.push_back(
+          {"scene.prep_min_s",
+           formatNumber(sp.prep_min_s) +
+               " s lets a spheroid at cells.alpha = " + formatNumber(r.cells.alpha) +
+               " count as compact before its junctions have opened (weak adhesion: the surface "
+               "contact angle still rises long after the radius of gyration stands still; "
+               "docs/validation.md); allowed: at least 300/(1 - cells.alpha) = " +
+               formatNumber(need) + " s at cells.alpha >= " + formatNumber(kWeakAdhesionAlpha) +
+               (need > sp.prep_max_s ? ", with scene.prep_max_s (now " +
+                                           formatNumber(sp.prep_max_s) + " s) at least as long"
+                                     : "")});
+  }
   return out;
+}
+
+double weakAdhesionPrepMinS(double alpha) {
+  // Whole seconds; the tolerance keeps 300/(1 − 0.9) at 3000, not 3001.
+  return alpha >= kWeakAdhesionAlpha ? std::ceil(300 / (1 - alpha) - 1e-6) : 0;
 }
 
 std::string formatNumber(double v) {
