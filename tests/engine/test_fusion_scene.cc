@@ -180,9 +180,8 @@ TEST(FusionScene, PrepMinHoldsCompactionBackAndWeakAdhesionAsksForIt) {
   weak.scene_params.prep_min_s = 3000;
   EXPECT_TRUE(silentlyWrong(weak).empty());
   weak.scene_params.prep_min_s = 0;
-  weak.scene_params.allow_uncompacted = true;  // the user takes the spheroids as they are
-  EXPECT_TRUE(silentlyWrong(weak).empty());
-  weak.scene_params.allow_uncompacted = false;
+  weak.scene_params.allow_uncompacted = true;  // about prep_max_s running out, not this
+  EXPECT_EQ(silentlyWrong(weak).size(), 1u);
   weak.scene_params.prep_max_s = 0;  // the packed cells, no relaxation asked for
   EXPECT_TRUE(silentlyWrong(weak).empty());
   EXPECT_TRUE(silentlyWrong(SceneSpec{}).empty());  // the defaults (α = 0.4375)

@@ -819,8 +819,8 @@ std::vector<SpecError> silentlyWrong(const SceneSpec& spec) {
   // Weak adhesion: the radius of gyration stands still long before the junctions have opened,
   // so the compaction criterion alone would start the fusion from point contacts.
   const SceneParams& sp = r.scene_params;
-  if (spec.scene == SceneKind::Fusion && sp.prep_max_s > 0 && !sp.allow_uncompacted &&
-      r.cells.alpha >= kWeakAdhesionAlpha) {
+  // allow_uncompacted does not lift it: it is about prep_max_s running out, not this.
+  if (spec.scene == SceneKind::Fusion && sp.prep_max_s > 0 && r.cells.alpha >= kWeakAdhesionAlpha) {
     const double need = weakAdhesionPrepMinS(r.cells.alpha);
     if (sp.prep_min_s < need)
       out.push_back(
