@@ -287,6 +287,7 @@ double initialGapUm(const SceneSpec& spec);
 // α = 0.75 and ~2000–3000 s at α = 0.9 (motile / passive) while the radius of gyration stands
 // still from the start. The shortest relaxation asked of such a fusion: 300/(1 − α) s (0 below).
 inline constexpr double kWeakAdhesionAlpha = 0.8;
+inline constexpr double kWeakAdhesionOpenS = 300;  // × 1/(1 − α)
 double weakAdhesionPrepMinS(double alpha);
 // Settings that run but are known to give a wrong answer without failing: an initial gap of
 // doublet or fusion at or beyond the adhesion range (the cells or spheroids never touch); a

@@ -78,6 +78,14 @@ CellSet placeholderCells(const SceneSpec& spec) {
   return cells;
 }
 
+// The aggregate's surface contact angle and GSI = cos θ_c (spheroid and fusion samples).
+void addSurfaceAngle(const Simulation& sim, std::vector<std::pair<std::string, double>>& out) {
+  const SurfaceContactAngle sca = surfaceContactAngle(sim.cells(), sim.contacts());
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  out.emplace_back("surface_contact_angle_deg", sca.ok ? sca.theta_deg : nan);
+  out.emplace_back("gsi", sca.ok ? sca.gsi : nan);
+}
+
 // The scene's observables, aligned with sampleColumns() after the common columns.
 std::vector<std::pair<std::string, double>> sceneObservables(const Simulation& sim,
                                                              const FusionState* fusion) {
@@ -104,10 +112,7 @@ std::vector<std::pair<std::string, double>> sceneObservables(const Simulation& s
                        radiusOfGyration(sim.cells(), g.cell_volume, g.cell_centroid));
       out.emplace_back("shape_index_mean", meanShapeIndex(g));
       out.emplace_back("contact_pairs", static_cast<double>(sim.contacts().pairs.size()));
-      const SurfaceContactAngle sca = surfaceContactAngle(sim.cells(), sim.contacts());
-      const double nan = std::numeric_limits<double>::quiet_NaN();
-      out.emplace_back("surface_contact_angle_deg", sca.ok ? sca.theta_deg : nan);
-      out.emplace_back("gsi", sca.ok ? sca.gsi : nan);
+      addSurfaceAngle(sim, out);
       break;
     }
     case SceneKind::Fusion: {
@@ -119,9 +124,7 @@ std::vector<std::pair<std::string, double>> sceneObservables(const Simulation& s
       out.emplace_back("distance_um", fa.ok ? fa.distance_um : nan);
       out.emplace_back("shape_index_mean", meanShapeIndex(sim.geometry()));
       out.emplace_back("unique_contacts_norm", fusion ? fusion->contacts.normalized() : nan);
-      const SurfaceContactAngle sca = surfaceContactAngle(sim.cells(), sim.contacts());
-      out.emplace_back("surface_contact_angle_deg", sca.ok ? sca.theta_deg : nan);
-      out.emplace_back("gsi", sca.ok ? sca.gsi : nan);
+      addSurfaceAngle(sim, out);
       out.emplace_back("contact_pairs", static_cast<double>(sim.contacts().pairs.size()));
       out.emplace_back("contact_area_ab_um2", spheroidContactArea(sim.cells(), sim.contacts()));
       break;

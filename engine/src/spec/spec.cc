@@ -829,8 +829,9 @@ std::vector<SpecError> silentlyWrong(const SceneSpec& spec) {
                " s lets a spheroid at cells.alpha = " + formatNumber(r.cells.alpha) +
                " count as compact before its junctions have opened (weak adhesion: the surface "
                "contact angle still rises long after the radius of gyration stands still; "
-               "docs/validation.md); allowed: at least 300/(1 - cells.alpha) = " +
-               formatNumber(need) + " s at cells.alpha >= " + formatNumber(kWeakAdhesionAlpha) +
+               "docs/validation.md); allowed: at least " +
+               formatNumber(kWeakAdhesionOpenS) + "/(1 - cells.alpha) = " + formatNumber(need) +
+               " s at cells.alpha >= " + formatNumber(kWeakAdhesionAlpha) +
                (need > sp.prep_max_s ? ", with scene.prep_max_s (now " +
                                            formatNumber(sp.prep_max_s) + " s) at least as long"
                                      : "")});
@@ -840,7 +841,7 @@ std::vector<SpecError> silentlyWrong(const SceneSpec& spec) {
 
 double weakAdhesionPrepMinS(double alpha) {
   // Whole seconds; the tolerance keeps 300/(1 − 0.9) at 3000, not 3001.
-  return alpha >= kWeakAdhesionAlpha ? std::ceil(300 / (1 - alpha) - 1e-6) : 0;
+  return alpha >= kWeakAdhesionAlpha ? std::ceil(kWeakAdhesionOpenS / (1 - alpha) - 1e-6) : 0;
 }
 
 std::string formatNumber(double v) {
