@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""The stability map as a chart (PNG, gnuplot): one panel per integrator, every run of
+"""The stability map as a chart (PNG, gnuplot): one panel per integrator and step kind (fixed or
+adaptive Δt), every run of
 study_stability_map's stability-map.csv as a point at (k_AB factor, Δt), its marker the outcome
 (stable, or the failure kind that ended it), the largest stable Δt per motility joined by a line.
 
@@ -33,7 +34,9 @@ def main():
     src, png = sys.argv[1], sys.argv[2]
     with open(src) as f:
         rows = list(csv.DictReader(f))
-    integrators = list(dict.fromkeys(r["integrator"] for r in rows))
+    for r in rows:  # maps before the adaptive ladders had fixed steps only
+        r.setdefault("adaptive", "0")
+    panels = list(dict.fromkeys((r["integrator"], r["adaptive"]) for r in rows))
     motilities = sorted({float(r["pa_reduced"]) for r in rows})
     if len(motilities) > len(MOTILITY_OFFSET):
         sys.exit("plot_stability_map.py: more motilities than offsets")
@@ -43,24 +46,24 @@ def main():
 
     with tempfile.TemporaryDirectory() as tmp:
         script = [
-            "set terminal pngcairo size 1300,700 enhanced font 'DejaVu Sans,11'",
+            "set terminal pngcairo size 1500,1100 enhanced font 'DejaVu Sans,11'",
             f"set output '{png}'",
-            "set multiplot layout 1,2 title 'Stability map of the doublet (200 s per run): "
+            f"set multiplot layout 2,{(len(panels) + 1) // 2} title 'Stability map of the doublet (200 s per run): "
             "outcome of every run, largest stable Δt per motility joined' noenhanced",
             "set logscale xy",
-            "set xrange [0.15:6]",
-            "set xtics ('0.25' 0.25, '1' 1, '4' 4)",
-            "set xlabel 'contact stiffness k_AB (× 71.1 nN/µm³); in each group p_a r/2γ = 0, 0.33, 1' "
-            "noenhanced",
+            "set xrange [0.01:6]",
+            "set xtics ('1/64' 0.015625, '1/16' 0.0625, '1/4' 0.25, '1' 1, '4' 4)",
+            "set xlabel 'k_AB × 71.1 nN/µm³ (p_a r/2γ = 0, 0.33, 1 left to right)' noenhanced",
             "set ylabel 'Δt (s)'",
             "set grid",
             "set key below maxrows 4 font ',9' noenhanced",
         ]
-        for integ in integrators:
-            mine = [r for r in rows if r["integrator"] == integ]
+        for integ, adaptive in panels:
+            mine = [r for r in rows if r["integrator"] == integ and r["adaptive"] == adaptive]
+            tag = f"{integ}-{adaptive}"
             plots = []
             for outcome in dict.fromkeys(r["outcome"] for r in mine):
-                name = f"{tmp}/{integ}-{outcome}.dat"
+                name = f"{tmp}/{tag}-{outcome}.dat"
                 with open(name, "w") as out:
                     for r in mine:
                         if r["outcome"] == outcome:
@@ -69,7 +72,7 @@ def main():
                 plots.append(f"'{name}' using 1:2 with points pt {pt} ps 1.5 lc rgb '{colour}' "
                              f"title '{outcome}'")
             for i, pa in enumerate(motilities):
-                name = f"{tmp}/{integ}-limit-{i}.dat"
+                name = f"{tmp}/{tag}-limit-{i}.dat"
                 with open(name, "w") as out:
                     for k in sorted({float(r["k_factor"]) for r in mine}):
                         rungs = sorted((float(r["dt_s"]), r["outcome"]) for r in mine
@@ -84,7 +87,8 @@ def main():
                             out.write(f"{k * MOTILITY_OFFSET[i]} {best}\n")
                 plots.append(f"'{name}' using 1:2 with lines lw 1.5 dt {MOTILITY_DASH[i]} "
                              f"lc rgb '#444444' title 'largest stable, p_a r/2γ = {pa:g}'")
-            script.append(f"set title '{integ}' noenhanced")
+            kind = "adaptive Δt (stable = finished)" if adaptive == "1" else "fixed Δt"
+            script.append(f"set title '{integ}, {kind}' noenhanced")
             script.append("plot " + ", \\\n     ".join(plots))
         script.append("unset multiplot")
         with open(f"{tmp}/plot.gp", "w") as out:

@@ -2,13 +2,16 @@
 // of the contact stiffness k_AB and of the motility p_a r/2γ, with the failure kind that ends the
 // next larger Δt (blow-up, CG stall, inverted triangles, volume drift, contact oscillation,
 // interpenetration, or `separated`: the cells ended out of contact range).
+// Issues 14 and 15 added ros2, softer contacts (k_AB × 1/16, 1/64) and the adaptive step: the
+// fixed-Δt ladders measure where a step fails; the adaptive ladders (numerics.adaptive = true,
+// the default) where a run still finishes, at what mean Δt, with how many rejected tries.
 //
 // A cell of the map: the α = 0.4375 doublet from a gap of min(50 nm, 0.8 h0), equal radii, run for
 // max(1000 steps, `duration` s of simulated time) at each Δt of the integrator's ladder; "stable"
 // = no failure detected. The largest stable Δt is the largest rung below which every rung was
 // stable. Each run is forked (a blow-up cannot take the study down).
 //
-// Run on the 2-core machine (about 20 minutes):
+// Run on the 2-core machine (about 30 minutes):
 //   OMP_NUM_THREADS=1 build/release/bench/study_stability_map docs/study [duration_s]
 // Writes DIR/stability-map.csv (every run) and DIR/stability-map.md.
 #include <algorithm>
@@ -33,14 +36,15 @@ namespace {
 struct Outcome {
   char failure[64] = "";
   double t_end = 0, wall = 0;
-  long long steps = 0;
+  long long steps = 0, rejected = 0;
 };
 
-SceneSpec mapSpec(IntegratorKind integrator, double dt, double k_factor, double pa_reduced) {
+SceneSpec mapSpec(IntegratorKind integrator, double dt, double k_factor, double pa_reduced,
+                  bool adaptive) {
   NumericsParams n;
   n.integrator = integrator;
   n.dt_s = dt;
-  n.adaptive = false;  // the map measures where a fixed Δt fails
+  n.adaptive = adaptive;  // fixed: where a step fails; adaptive: where a run still finishes
   return doubletStudySpec(n, pa_reduced, k_factor);
 }
 
@@ -63,6 +67,7 @@ Outcome runOne(const SceneSpec& s, double duration) {
     std::snprintf(o.failure, sizeof o.failure, "separated");
   o.t_end = sim.time();
   o.steps = sim.steps();
+  o.rejected = sim.stepsRejected();
   return o;
 }
 
@@ -83,23 +88,31 @@ int main(int argc, char** argv) {
   const std::filesystem::path dir = argv[1];
   const double duration = argc > 2 ? std::atof(argv[2]) : 200;
   std::filesystem::create_directories(dir);
-  const std::vector<double> k_factors = {0.25, 1, 4};
+  const std::vector<double> k_factors = {1.0 / 64, 1.0 / 16, 0.25, 1, 4};
   const std::vector<double> pas = {0, 0.33, 1};
   struct Ladder {
     IntegratorKind integrator;
+    bool adaptive;
     std::vector<double> dts;
   };
+  // The explicit spring's limit scales like 1/k_AB: soft contacts need the longer rungs.
+  const std::vector<double> implicit = {0.1, 0.25, 0.5, 1, 2, 4};
   const std::vector<Ladder> ladders = {
-      {IntegratorKind::SemiImplicit, {0.0025, 0.005, 0.01, 0.02, 0.04}},
-      {IntegratorKind::ContactImplicit, {0.1, 0.25, 0.5, 1, 2, 4}},
-      {IntegratorKind::Ros2, {0.1, 0.25, 0.5, 1, 2, 4}}};
+      {IntegratorKind::SemiImplicit, false, {0.0025, 0.005, 0.01, 0.02, 0.04, 0.08, 0.16, 0.32}},
+      {IntegratorKind::ContactImplicit, false, implicit},
+      {IntegratorKind::Ros2, false, implicit},
+      {IntegratorKind::ContactImplicit, true, implicit},
+      {IntegratorKind::Ros2, true, implicit}};
 
   std::ofstream csv(dir / "stability-map.csv");
-  csv << "integrator,k_factor,k_contact,pa_reduced,dt_s,outcome,t_end_s,steps,wall_s\n";
+  csv << "integrator,adaptive,k_factor,k_contact,pa_reduced,dt_s,outcome,t_end_s,steps,"
+         "steps_rejected,wall_s\n";
   struct Cell {
     double largest = 0;
     std::string next_failure;
     double next_dt = 0;
+    double mean_dt = 0;  // adaptive: simulated time per accepted step at `largest`
+    long long rejected = 0;
   };
   std::vector<std::vector<std::vector<Cell>>> map(
       ladders.size(),
@@ -111,18 +124,24 @@ int main(int argc, char** argv) {
         int failures = 0;
         bool all_stable = true;
         for (double dt : ladders[li].dts) {
-          const SceneSpec s = mapSpec(ladders[li].integrator, dt, k_factors[ki], pas[pi]);
+          const SceneSpec s =
+              mapSpec(ladders[li].integrator, dt, k_factors[ki], pas[pi], ladders[li].adaptive);
           const Outcome o = runIsolated(s, duration);
           const bool ok = o.failure[0] == '\0';
-          csv << toString(ladders[li].integrator) << ',' << k_factors[ki] << ','
-              << s.cells.k_contact << ',' << pas[pi] << ',' << dt << ','
-              << (ok ? "stable" : o.failure) << ',' << o.t_end << ',' << o.steps << ',' << o.wall
-              << '\n';
+          csv << toString(ladders[li].integrator) << ',' << ladders[li].adaptive << ','
+              << k_factors[ki] << ',' << s.cells.k_contact << ',' << pas[pi] << ',' << dt << ','
+              << (ok ? "stable" : o.failure) << ',' << o.t_end << ',' << o.steps << ','
+              << o.rejected << ',' << o.wall << '\n';
           csv.flush();
-          std::fprintf(stderr, "%s k×%g pa %g dt %g: %s (t = %g s, %.1f s)\n",
-                       std::string(toString(ladders[li].integrator)).c_str(), k_factors[ki],
-                       pas[pi], dt, ok ? "stable" : o.failure, o.t_end, o.wall);
-          if (ok && all_stable) cell.largest = dt;
+          std::fprintf(stderr, "%s%s k×%g pa %g dt %g: %s (t = %g s, %lld rejected, %.1f s)\n",
+                       std::string(toString(ladders[li].integrator)).c_str(),
+                       ladders[li].adaptive ? " adaptive" : "", k_factors[ki], pas[pi], dt,
+                       ok ? "stable" : o.failure, o.t_end, o.rejected, o.wall);
+          if (ok && all_stable) {
+            cell.largest = dt;
+            cell.mean_dt = o.steps > 0 ? o.t_end / static_cast<double>(o.steps) : 0;
+            cell.rejected = o.rejected;
+          }
           if (!ok && all_stable) {
             cell.next_failure = o.failure;
             cell.next_dt = dt;
@@ -145,9 +164,15 @@ int main(int argc, char** argv) {
         "ended the next rung. k_AB in units of the default "
      << d.k_contact << " nN/µm³; motility as p_a r/2γ (0.33 is the supplement's).\n\n"
      << "Generated by `OMP_NUM_THREADS=1 build/release/bench/study_stability_map " << dir.string()
-     << " " << duration << "`; every run in stability-map.csv.\n\n";
+     << " " << duration << "`; every run in stability-map.csv.\n\n"
+     << "Fixed Δt (`numerics.adaptive = false`): the largest Δt at which a step never failed. "
+        "Adaptive (the default): a failing try is undone and retried at half the step (down to "
+        "Δt/64), so the run finishes where a fixed step fails; its entry is the largest asked Δt "
+        "whose run (and every smaller rung's) finished, with the mean step it took (simulated "
+        "time / accepted steps) and its rejected tries.\n\n";
   for (std::size_t li = 0; li < ladders.size(); ++li) {
-    md << "## " << toString(ladders[li].integrator) << " (ladder:";
+    md << "## " << toString(ladders[li].integrator)
+       << (ladders[li].adaptive ? ", adaptive" : ", fixed Δt") << " (ladder:";
     for (double dt : ladders[li].dts) md << ' ' << dt;
     md << " s)\n\n| k_AB × | ";
     for (double pa : pas) md << "p_a r/2γ = " << pa << " | ";
@@ -155,10 +180,19 @@ int main(int argc, char** argv) {
     for (std::size_t pi = 0; pi < pas.size(); ++pi) md << "---|";
     md << '\n';
     for (std::size_t ki = 0; ki < k_factors.size(); ++ki) {
-      md << "| " << k_factors[ki] << " | ";
+      char k_label[32];
+      if (k_factors[ki] < 0.2)
+        std::snprintf(k_label, sizeof k_label, "1/%ld", std::lround(1 / k_factors[ki]));
+      else
+        std::snprintf(k_label, sizeof k_label, "%g", k_factors[ki]);
+      md << "| " << k_label << " | ";
       for (std::size_t pi = 0; pi < pas.size(); ++pi) {
         const Cell& c = map[li][ki][pi];
-        if (c.largest > 0)
+        if (c.largest > 0 && ladders[li].adaptive) {
+          char mean[32];
+          std::snprintf(mean, sizeof mean, "%.3g", c.mean_dt);
+          md << c.largest << " s (mean " << mean << " s, " << c.rejected << " rejected)";
+        } else if (c.largest > 0)
           md << c.largest << " s";
         else
           md << "< " << ladders[li].dts.front() << " s";

@@ -567,6 +567,22 @@ TEST(SpecPresets, MeasuredUnstableSettingsNameTheTimeStepAndItsLimit) {
   s.cells.p_a = 0;
   s.numerics.triangles_per_cell = 320;
   EXPECT_TRUE(measuredUnstable(s).empty());
+  // ros2 has its own measured limit: 2 s ran everywhere in the map, 4 s drifted out of volume.
+  s.cells.p_a = CellParams{}.p_a;
+  s.numerics.integrator = IntegratorKind::Ros2;
+  s.numerics.dt_s = 2;
+  EXPECT_TRUE(measuredUnstable(s).empty());
+  s.numerics.dt_s = 4;
+  e = measuredUnstable(s);
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_NE(e[0].message.find("allowed (0, 4) s"), std::string::npos) << e[0].message;
+  // With the adaptive step (the default) the refusal says what it would do instead.
+  EXPECT_NE(e[0].message.find("adaptive step would run it"), std::string::npos) << e[0].message;
+  s.numerics.adaptive = false;
+  EXPECT_EQ(measuredUnstable(s)[0].message.find("adaptive"), std::string::npos);
+  s.numerics.triangles_per_cell = 80;  // the 80-triangle motile limit holds for ros2 too
+  s.numerics.dt_s = 0.5;
+  EXPECT_EQ(measuredUnstable(s).size(), 1u);
   s.scene = SceneKind::Cell;  // no contacts: none of these limits
   s.numerics.dt_s = 5;
   EXPECT_TRUE(measuredUnstable(s).empty());
