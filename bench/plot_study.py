@@ -15,7 +15,7 @@ import tempfile
 
 COLOURS = {"standard": "#000000", "preset": "#000000", "dt": "#1f77b4", "mesh": "#d62728", "cg_tol": "#2ca02c",
            "preconditioner": "#9467bd", "quadrature": "#8c564b", "remesh": "#e377c2",
-           "integrator": "#ff7f0e", "combined": "#7f7f7f"}
+           "integrator": "#ff7f0e", "combined": "#7f7f7f", "k_AB": "#17becf", "draft": "#000000"}
 
 
 def label(r):
@@ -35,7 +35,15 @@ def label(r):
     if k == "remesh":
         return f"τ_r ×{r['remesh_factor']}"
     if k == "integrator":
-        return f"semi Δt {r['dt_s']}"
+        short = {"semi-implicit": "semi", "contact-implicit": "CI"}.get(r["integrator"], r["integrator"])
+        fine = f", {r['triangles']} tri" if r.get("triangles", "320") != "320" else ""
+        return f"{short} Δt {r['dt_s']}{fine}"
+    if k == "k_AB":
+        f = float(r["k_factor"])
+        name = f"k_AB ×{f:g}" if f >= 0.2 else f"k_AB ×1/{round(1 / f)}"
+        return f"{name}, Δt {r['dt_s']}"
+    if k == "draft":
+        return "draft"
     if k == "combined":
         return f"{r['triangles']}/{r['dt_s']}/{r['cg_tol']}"
     return k

@@ -13,7 +13,7 @@
 //
 // Run on the 2-core machine:
 //   OMP_NUM_THREADS=1 build/release/bench/study_accuracy docs/study [--quick] [duration_s]
-// (about 30 minutes; --quick about 3)
+// (about 10 minutes on the 2-core host of 2026-11-24, 30 on the older one; --quick about 3)
 //   python3 bench/plot_study.py docs/study/doublet.csv docs/study/doublet-pareto.png
 // Writes DIR/doublet.csv (one row per configuration) and DIR/doublet.md (the table, the Pareto
 // front marked).
@@ -45,6 +45,7 @@ struct Config {
   PreconditionerKind pre = PreconditionerKind::Jacobi;
   ContactQuadrature quad = ContactQuadrature::Exact;
   double remesh_factor = 1;  // × the default τ_r
+  double k_factor = 1;       // × the default contact stiffness k_AB (issue 15: an accuracy knob?)
 };
 
 // What a child process sends back through its pipe (plain data).
@@ -75,7 +76,7 @@ Outcome runConfig(const Config& c, double duration) {
   // Each row measures its scheme at its fixed Δt: a failing step ends the row, as before the
   // adaptive step (docs/study/adaptive-fusion.md measures what rollback adds).
   n.adaptive = false;
-  SceneSpec s = doubletStudySpec(n);
+  SceneSpec s = doubletStudySpec(n, 0, c.k_factor);
   if (c.remesh_factor != 1) {
     s.numerics.remesh_every_s = *s.numerics.remesh_every_s * c.remesh_factor;
     s = resolve(s);
@@ -110,6 +111,11 @@ std::string fmt(double v, const char* f = "%g") {
   char b[64];
   std::snprintf(b, sizeof b, f, v);
   return b;
+}
+
+// 1/16 rather than 0.0625.
+std::string kLabel(double k) {
+  return k < 0.2 ? "1/" + std::to_string(std::lround(1 / k)) : fmt(k);
 }
 
 }  // namespace
@@ -185,6 +191,24 @@ int main(int argc, char** argv) {
       c.dt = dt;
       configs.push_back(c);
     }
+  // Softer contact springs (issue 15 item 1): k_AB × 1/4, 1/16, 1/64 lengthen the adhesion range
+  // h0 = √(w/k_AB) 2, 4, 8× — at `standard`'s Δt and at `draft`'s, where they cut CG iterations.
+  for (double dt : {0.1, 0.5})
+    for (double k : {0.25, 1.0 / 16, 1.0 / 64}) {
+      Config c = std_cfg;
+      c.knob = "k_AB";
+      c.dt = dt;
+      c.k_factor = k;
+      configs.push_back(c);
+    }
+  // The `draft` preset as it ships (Δt 0.5 s, ε_CG 1e-2).
+  {
+    Config c = std_cfg;
+    c.knob = "draft";
+    c.dt = 0.5;
+    c.cg_tol = 1e-2;
+    configs.push_back(c);
+  }
   // The combinations that matter: a coarse mesh with a large step, a loose or tight tolerance.
   for (int tris : quick ? std::vector<int>{80} : std::vector<int>{80, 1280})
     for (double dt : {0.5, 1.0})
@@ -203,10 +227,10 @@ int main(int argc, char** argv) {
     const Row& r = rows.back();
     std::fprintf(
         stderr,
-        "%-14s %-16s dt=%-6g tris=%-5d tol=%-6g %-12s %-9s remesh×%g: θ_c=%.3f° %s %.1f s\n",
+        "%-14s %-16s dt=%-6g tris=%-5d tol=%-6g %-12s %-9s remesh×%g k×%g: θ_c=%.3f° %s %.1f s\n",
         c.knob.c_str(), std::string(toString(c.integrator)).c_str(), c.dt, c.tris, c.cg_tol,
         std::string(toString(c.pre)).c_str(), std::string(toString(c.quad)).c_str(),
-        c.remesh_factor, r.o.theta, r.o.failure, r.o.wall);
+        c.remesh_factor, c.k_factor, r.o.theta, r.o.failure, r.o.wall);
   }
   const double theta_ref = rows.front().o.theta;
   const double arccos_alpha = std::acos(CellParams{}.alpha) * 180 / M_PI;
@@ -242,15 +266,16 @@ int main(int argc, char** argv) {
   }
 
   std::ofstream csv(dir / "doublet.csv");
-  csv << "knob,integrator,dt_s,triangles,cg_tol,preconditioner,quadrature,remesh_factor,outcome,"
+  csv << "knob,integrator,dt_s,triangles,cg_tol,preconditioner,quadrature,remesh_factor,k_factor,"
+         "outcome,"
          "theta_c_deg,theta_c_end_deg,theta_error_deg,theta_minus_arccos_alpha_deg,"
          "trajectory_rms_deg,trajectory_max_deg,"
          "volume_error_max,steps,cg_iters_mean,wall_s,wall_per_sim_hour_s,peak_rss_mb,pareto\n";
   for (const Row& r : rows) {
     csv << r.c.knob << ',' << toString(r.c.integrator) << ',' << r.c.dt << ',' << r.c.tris << ','
         << r.c.cg_tol << ',' << toString(r.c.pre) << ',' << toString(r.c.quad) << ','
-        << r.c.remesh_factor << ',' << (r.o.failure[0] ? r.o.failure : "ok") << ','
-        << fmt(r.o.theta, "%.4f") << ',' << fmt(r.o.theta_end, "%.4f") << ','
+        << r.c.remesh_factor << ',' << r.c.k_factor << ',' << (r.o.failure[0] ? r.o.failure : "ok")
+        << ',' << fmt(r.o.theta, "%.4f") << ',' << fmt(r.o.theta_end, "%.4f") << ','
         << fmt(error(r), "%.4f") << ',' << fmt(r.o.theta - arccos_alpha, "%.4f") << ','
         << fmt(trajectory(r, false), "%.4f") << ',' << fmt(trajectory(r, true), "%.4f") << ','
         << fmt(r.o.volume_error, "%.3g") << ',' << r.o.steps << ',' << fmt(r.o.cg_iters, "%.2f")
@@ -267,7 +292,8 @@ int main(int argc, char** argv) {
      << ref.dt << " s, ε_CG = " << ref.cg_tol << ", " << ref.tris
      << " triangles per cell: θ_c = " << fmt(theta_ref, "%.3f")
      << "°. `standard` is contact-implicit, Δt = 0.1 s, ε_CG = 1e-3, 320 triangles, Jacobi, "
-        "exact contact quadrature, τ_r = 5 τ_shell; each other row changes what its knob column "
+        "exact contact quadrature, τ_r = 5 τ_shell, the supplement's k_AB; each other row changes "
+        "what its knob column "
         "says. Errors against the reference: θ_c at equilibrium, and the θ_c(t) trajectory sampled "
         "every 5 s (RMS and max over the run). ★ = on the Pareto front of cost against the "
         "trajectory RMS error (no other row is both cheaper and more accurate). Cost is "
@@ -276,13 +302,14 @@ int main(int argc, char** argv) {
      << "Generated by `OMP_NUM_THREADS=1 build/release/bench/study_accuracy " << dir.string()
      << (quick ? " --quick" : "") << " " << duration << "`.\n\n"
      << "| knob | integrator | Δt (s) | triangles | ε_CG | preconditioner | quadrature | τ_r × | "
-        "outcome | θ_c (°) | error (°) | θ_c(t) RMS / max error (°) | volume error | CG it/step | "
+        "k_AB × | outcome | θ_c (°) | error (°) | θ_c(t) RMS / max error (°) | volume error | CG "
+        "it/step | "
         "wall per sim. h (s) | peak RSS (MB) |\n"
-     << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+     << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const Row& r : rows)
     md << "| " << r.c.knob << (r.pareto ? " ★" : "") << " | " << toString(r.c.integrator) << " | "
        << r.c.dt << " | " << r.c.tris << " | " << r.c.cg_tol << " | " << toString(r.c.pre) << " | "
-       << toString(r.c.quad) << " | " << r.c.remesh_factor << " | "
+       << toString(r.c.quad) << " | " << r.c.remesh_factor << " | " << kLabel(r.c.k_factor) << " | "
        << (r.o.failure[0] ? std::string("**") + r.o.failure + "**" : std::string("ok")) << " | "
        << fmt(r.o.theta, "%.2f") << " | "
        << (r.c.knob == "reference" ? std::string("—") : fmt(error(r), "%.2f")) << " | "
