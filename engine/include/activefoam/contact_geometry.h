@@ -27,7 +27,8 @@ struct ContactLaw {
 // polygon: the consistent stiffness of the spring field, ½ k ∫ δg² dS with δg = Σ λ^B u^B −
 // Σ λ^A u^A (normal parts). Exact for Exact and Dunavant7. Kept apart from TriangleContact: only
 // ros2 uses them, and in every pair they doubled the pair data that each detection copies and
-// the force terms read (448 instead of 232 bytes a pair).
+// the force terms read (448 instead of 232 bytes a pair then; 152 since the pair keeps only what
+// the step reads, PairContact).
 struct ContactMoments {
   std::array<double, 9> ab{}, aa{}, bb{};
 };

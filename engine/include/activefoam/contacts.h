@@ -13,9 +13,35 @@
 
 namespace activefoam {
 
+// What a step reads of a TriangleContact, kept per pair: 144 of its 224 bytes (the force, centroid
+// and centre of pressure are for tests of the contact geometry). The pair list of the 2 × 100
+// fusion is written once per detection and read by every contact term and guard: its size is
+// bandwidth (docs/benchmarks.md, "Where one thread's draft step goes").
+struct PairContact {
+  Vec3 normal = Vec3::Zero();
+  double area = 0;
+  std::array<double, 3> force_weight_a{0, 0, 0};
+  std::array<double, 3> force_weight_b{0, 0, 0};
+  std::array<double, 3> bary_a{0, 0, 0};
+  std::array<double, 3> bary_b{0, 0, 0};
+  double energy = 0;
+  double mean_gap = 0;
+  PairContact() = default;
+  // Implicit: a pair is made from the narrow phase's result as it is.
+  PairContact(const TriangleContact& t)  // NOLINT(google-explicit-constructor)
+      : normal(t.normal),
+        area(t.area),
+        force_weight_a(t.force_weight_a),
+        force_weight_b(t.force_weight_b),
+        bary_a(t.bary_a),
+        bary_b(t.bary_b),
+        energy(t.energy),
+        mean_gap(t.mean_gap) {}
+};
+
 struct ContactPair {
   int ta, tb;  // triangles of different cells; ta < tb
-  TriangleContact c;
+  PairContact c;
 };
 
 // The contact pairs split among threads that each own a range of whole cells: a thread walks,
@@ -50,9 +76,10 @@ struct ContactList {
   // hand has none (num_pairs differs), or one for another thread count, and the terms build one
   // for themselves.
   ContactPartition partition;
-  // detectContacts' buffers for the narrow phase's chunks, kept so that the next detection
-  // reuses their memory: allocated afresh, the ~60 MB of pairs of the 2 × 100-cell fusion cost
-  // page faults at every detection. Not part of the contact set.
+  // detectContacts' buffers for the narrow phase's per-thread ranges after the first (which
+  // writes into `pairs`), kept so that the next detection reuses their memory: allocated afresh,
+  // the pairs of the 2 × 100-cell fusion cost page faults at every detection. Not part of the
+  // contact set.
   struct NarrowChunk {
     std::vector<ContactPair> pairs;
     std::vector<ContactMoments> moments;
