@@ -80,11 +80,11 @@ struct ContactList {
   // writes into `pairs`), kept so that the next detection reuses their memory: allocated afresh,
   // the pairs of the 2 × 100-cell fusion cost page faults at every detection. Not part of the
   // contact set.
-  struct NarrowChunk {
+  struct NarrowBuffer {
     std::vector<ContactPair> pairs;
     std::vector<ContactMoments> moments;
   };
-  std::vector<NarrowChunk> narrow_chunks;
+  std::vector<NarrowBuffer> narrow_buffers;
   std::vector<TriangleFrame> tri_frames;  // per triangle, for the narrow phase
 };
 

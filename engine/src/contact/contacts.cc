@@ -183,12 +183,12 @@ void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw&
     // (The 64-candidate chunks on a dynamic schedule this replaces balanced no better on the
     // 2 × 100 fusion — its contacts phase on two threads is as fast — and their join copied
     // every pair once more.)
-    auto& found = out.narrow_chunks;
+    auto& found = out.narrow_buffers;
     if (found.size() < static_cast<std::size_t>(R)) found.resize(static_cast<std::size_t>(R));
     const auto range = [&](int r) { return nc * r / R; };
 #pragma omp parallel for schedule(static, 1) num_threads(R)
     for (int r = 0; r < R; ++r) {
-      ContactList::NarrowChunk& buf = found[r];
+      ContactList::NarrowBuffer& buf = found[r];
       buf.pairs.clear();
       buf.moments.clear();
       narrow(range(r), range(r + 1), r == 0 ? out.pairs : buf.pairs,
