@@ -10,6 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include "activefoam/cellset.h"
+#include "activefoam/geometry.h"
 #include "activefoam/remesh.h"
 
 using namespace activefoam;
@@ -422,4 +424,44 @@ TEST(Remesh, SmoothingOpensACapTriangleAndKeepsTheVolume) {
   EXPECT_GT(minAngle(m), 10.0) << "was " << before;
   EXPECT_NEAR(meshVolume(m), vol, 1e-10 * vol);
   EXPECT_TRUE(checkClosedManifold(m).empty());
+}
+
+// After a remesh of some cells, the edge lists of the others are shifted rather than sorted
+// again: the result must be the edge list built from scratch, for a cell that grew (its
+// successors' offsets move up), one that shrank (down) and the cells between.
+TEST(Remesh, EdgesOfCellsNotRemeshedAreShiftedToTheFullRebuild) {
+  CellSet cells;
+  for (int c = 0; c < 4; ++c) cells.addCell(sphere(Vec3(20.0 * c, 0, 0)), kRadius);
+  Topology topo;
+  ASSERT_TRUE(updateTopology(cells, topo));
+  std::vector<TriMesh> meshes;
+  for (int c = 0; c < 4; ++c) meshes.push_back(cells.cellMesh(c));
+  RemeshParams grow = defaultParams();
+  grow.max_area = 0.5 * kMeanArea;  // forces splits
+  RemeshParams shrink = defaultParams();
+  shrink.min_area = 2.0 * kMeanArea;  // forces collapses
+  ASSERT_GT(remesh(meshes[1], grow).operations(), 0);
+  ASSERT_GT(remesh(meshes[2], shrink).operations(), 0);
+  const int old_begin3 = cells.cell_vertex_begin[3];
+  cells.setCellMeshes(meshes);
+  ASSERT_NE(cells.cell_vertex_begin[3], old_begin3);  // cell 3 moved: its edges need a shift
+  const std::vector<char> same = {1, 0, 0, 1};
+  ASSERT_TRUE(updateTopology(cells, topo, &same));
+  Topology fresh;
+  ASSERT_TRUE(updateTopology(cells, fresh));
+  ASSERT_EQ(topo.edges.size(), fresh.edges.size());
+  for (std::size_t e = 0; e < fresh.edges.size(); ++e) {
+    const Edge &a = topo.edges[e], &b = fresh.edges[e];
+    ASSERT_TRUE(a.i == b.i && a.j == b.j && a.ta == b.ta && a.tb == b.tb)
+        << "edge " << e << ": (" << a.i << ", " << a.j << ", " << a.ta << ", " << a.tb
+        << ") against (" << b.i << ", " << b.j << ", " << b.ta << ", " << b.tb << ")";
+  }
+  // The flags are what is trusted: an edge of cell 0 marked wrong in the old list comes through
+  // (shifted), which shows the shift, not a rebuild, produced the cells flagged the same.
+  std::swap(topo.edges[0].ta, topo.edges[0].tb);
+  cells.setCellMeshes(meshes);  // a new topology version, the same meshes
+  const std::vector<char> all(4, 1);
+  ASSERT_TRUE(updateTopology(cells, topo, &all));
+  EXPECT_EQ(topo.edges[0].ta, fresh.edges[0].tb);
+  EXPECT_EQ(topo.edges[0].tb, fresh.edges[0].ta);
 }

@@ -351,8 +351,13 @@ StepReport Simulation::remeshCells(const std::vector<char>& which) {
           rep.remesh_volume_jump, std::abs(st.volume_after - st.volume_before) / st.volume_before);
   }
   if (ops > 0) {
+    // The cells not asked to remesh keep their meshes: their edges are shifted, not rebuilt
+    // (if the edge list is that of the meshes before this remesh).
+    const bool current = topo_.version == cells_.topology_version;
+    std::vector<char> same(which.size());
+    for (std::size_t c = 0; c < which.size(); ++c) same[c] = !which[c];
     cells_.setCellMeshes(meshes);
-    updateTopology(cells_, topo_);
+    updateTopology(cells_, topo_, current ? &same : nullptr);
     computeGeometry(cells_, geo_);
     detect();
   }

@@ -51,7 +51,7 @@ void computeGeometry(const CellSet& cells, Geometry& geo) {
   }
 }
 
-bool updateTopology(const CellSet& cells, Topology& topo) {
+bool updateTopology(const CellSet& cells, Topology& topo, const std::vector<char>* same_mesh) {
   if (topo.version == cells.topology_version) return false;
   // Each undirected edge appears as i→j in one triangle and j→i in the other. A cell's triangles
   // use only its own vertices, and cells hold increasing vertex ranges: sorting each cell's
@@ -59,6 +59,10 @@ bool updateTopology(const CellSet& cells, Topology& topo) {
   // global sort of the 2 × 100-cell fusion's ~190 000 half-edges took ~11 ms after every remesh),
   // and the cells can be sorted in parallel.
   const int nc = cells.numCells();
+  const bool reuse = same_mesh && static_cast<int>(same_mesh->size()) == nc &&
+                     static_cast<int>(topo.cell_tri_begin.size()) == nc + 1;
+  if (reuse) topo.previous.swap(topo.edges);
+  const std::vector<Edge>& old = topo.previous;
   std::vector<std::size_t> edge_begin(static_cast<std::size_t>(nc) + 1, 0);
   for (int c = 0; c < nc; ++c)
     edge_begin[c + 1] =
@@ -70,8 +74,22 @@ bool updateTopology(const CellSet& cells, Topology& topo) {
     std::vector<std::tuple<int, int, int>> half;  // (min, max, triangle), triangle sign by side
 #pragma omp for schedule(dynamic, 8)
     for (int c = 0; c < nc; ++c) {
+      Edge* out = topo.edges.data() + edge_begin[c];
+      const int vb = cells.cell_vertex_begin[c], t0 = cells.cell_tri_begin[c];
+      if (reuse && (*same_mesh)[c] &&
+          topo.cell_tri_begin[c + 1] - topo.cell_tri_begin[c] == cells.cell_tri_begin[c + 1] - t0 &&
+          topo.cell_vertex_begin[c + 1] - topo.cell_vertex_begin[c] ==
+              cells.cell_vertex_begin[c + 1] - vb) {
+        // The same mesh at other offsets: the same edges in the same order, indices shifted.
+        const int dv = vb - topo.cell_vertex_begin[c], dt = t0 - topo.cell_tri_begin[c];
+        for (std::size_t e = topo.cell_edge_begin[c]; e < topo.cell_edge_begin[c + 1]; ++e) {
+          const Edge& o = old[e];
+          *out++ = {o.i + dv, o.j + dv, o.ta + dt, o.tb + dt};
+        }
+        continue;
+      }
       half.clear();
-      for (int t = cells.cell_tri_begin[c]; t < cells.cell_tri_begin[c + 1]; ++t) {
+      for (int t = t0; t < cells.cell_tri_begin[c + 1]; ++t) {
         const Tri& f = cells.tri[t];
         for (int k = 0; k < 3; ++k) {
           const int a = f[k], b = f[(k + 1) % 3];
@@ -80,7 +98,6 @@ bool updateTopology(const CellSet& cells, Topology& topo) {
         }
       }
       std::sort(half.begin(), half.end());
-      Edge* out = topo.edges.data() + edge_begin[c];
       for (size_t k = 0; k + 1 < half.size(); k += 2) {
         const auto& [i, j, s0] = half[k];
         const int s1 = std::get<2>(half[k + 1]);
@@ -90,6 +107,9 @@ bool updateTopology(const CellSet& cells, Topology& topo) {
       }
     }
   }
+  topo.cell_edge_begin = std::move(edge_begin);
+  topo.cell_vertex_begin = cells.cell_vertex_begin;
+  topo.cell_tri_begin = cells.cell_tri_begin;
   topo.version = cells.topology_version;
   return true;
 }
