@@ -41,10 +41,20 @@ TEST(StabilityMap, StableCellsRunAThousandStepsWithoutFailure) {
   // (integrator, k factor, p_a) → the fixed-Δt ladder in file order: (Δt, stable?)
   std::map<std::tuple<std::string, double, double>, std::vector<std::pair<double, bool>>> cells;
   std::set<std::string> integrators;
+  // Adaptive runs at the default k_AB that the map says finished at the top of the ladder: the
+  // refusals tell users the adaptive step would run such a Δt, so it must.
+  std::vector<std::tuple<std::string, double, double>> adaptive_finished;
+  double top_dt = 0;
   while (std::getline(in, line)) {
     const std::vector<std::string> f = split(line);
     ASSERT_EQ(f.size(), header.size()) << line;
-    if (f[c_adaptive] != "0") continue;
+    if (f[c_adaptive] != "0") {
+      const double dt = std::stod(f[c_dt]);
+      if (dt > top_dt) adaptive_finished.clear(), top_dt = dt;
+      if (dt == top_dt && std::stod(f[c_k]) == 1 && f[c_out] == "stable")
+        adaptive_finished.emplace_back(f[c_int], std::stod(f[c_pa]), dt);
+      continue;
+    }
     integrators.insert(f[c_int]);
     cells[{f[c_int], std::stod(f[c_k]), std::stod(f[c_pa])}].emplace_back(std::stod(f[c_dt]),
                                                                           f[c_out] == "stable");
@@ -75,4 +85,17 @@ TEST(StabilityMap, StableCellsRunAThousandStepsWithoutFailure) {
     ++checked;
   }
   EXPECT_GE(checked, 6);
+  ASSERT_FALSE(adaptive_finished.empty()) << "no adaptive rows at the default k_AB";
+  for (const auto& [integrator, pa, dt] : adaptive_finished) {
+    NumericsParams n;
+    n.dt_s = dt;
+    n.adaptive = true;
+    n.integrator = integrator == "ros2" ? IntegratorKind::Ros2 : IntegratorKind::ContactImplicit;
+    Simulation sim(doubletStudySpec(n, pa, 1));
+    StepReport r;
+    for (int k = 0; k < 1000 && r.ok(); ++k) r = sim.step();
+    EXPECT_TRUE(r.ok()) << integrator << " adaptive, p_a r/2γ " << pa << " Δt " << dt << ": "
+                        << r.reason;
+    EXPECT_GT(sim.stepsRejected(), 0) << integrator << " at " << dt << " s rejected nothing";
+  }
 }
