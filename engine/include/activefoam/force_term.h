@@ -47,12 +47,15 @@ class ForceTerm {
   // Adds this term's nodal forces (nN) to f (3 × numVertices). Returns the term's energy (nN·µm)
   // for conservative terms, 0 otherwise.
   virtual double addForces(const StepContext& /*ctx*/, Eigen::Matrix3Xd& /*f*/) const { return 0; }
-  // Adds this term's friction blocks (nN·s/µm) to Γ.
+  // Adds this term's friction blocks (nN·s/µm) to Γ. A step's Γ holds diagonal blocks only:
+  // a term that couples vertices (mesh edges, contacts) has a product, below, and its
+  // addFriction assembles the same couplings for tests and tools (Simulation::assembleFriction).
   virtual void addFriction(const StepContext& /*ctx*/, BlockMatrix& /*gamma*/) const {}
-  // Terms that couple vertices of different cells (contact friction) are applied without
-  // assembling those couplings: a step adds only their diagonal blocks to Γ
-  // (addFrictionDiagonal) and the rest as a product, y += C v (addCouplingProduct), between
-  // the two calls the contacts do not change. Diagonal + product = what addFriction assembles.
+  // Terms that couple vertices (cortex viscosity along mesh edges, contact friction) are
+  // applied without assembling those couplings: a step adds only their diagonal blocks to Γ
+  // (addFrictionDiagonal) and the rest as a product, y += C v (addCouplingProduct); between
+  // the two calls the geometry and contacts do not change. Diagonal + product = what
+  // addFriction assembles.
   virtual bool hasCouplingProduct() const { return false; }
   virtual void addFrictionDiagonal(const StepContext& /*ctx*/, BlockMatrix& /*gamma*/) const {}
   virtual void addCouplingProduct(const double* /*v*/, double* /*y*/) const {}

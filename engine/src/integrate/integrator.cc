@@ -311,12 +311,9 @@ double Integrator::computeForces(const StepContext& ctx, const Terms& terms,
 
 void Integrator::prepareFriction(const StepContext& ctx, const Terms& terms) {
   if (pattern_version_ != ctx.cells.topology_version) {
-    // Only the cells' own couplings (mesh edges): contact couplings are applied as a product,
-    // so contacts coming and going never force a rebuild.
-    std::vector<std::pair<int, int>> couplings;
-    couplings.reserve(ctx.topo.edges.size());
-    for (const Edge& e : ctx.topo.edges) couplings.emplace_back(e.i, e.j);
-    gamma_.setPattern(ctx.cells.numVertices(), std::move(couplings));
+    // Diagonal blocks only: every coupling (mesh edges, contacts) is applied as a product, so
+    // neither remeshing nor contacts coming and going change more than the number of blocks.
+    gamma_.setPattern(ctx.cells.numVertices(), {});
     pattern_version_ = ctx.cells.topology_version;
   } else {
     gamma_.setZero();

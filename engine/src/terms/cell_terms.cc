@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 #include "activefoam/contacts.h"
@@ -83,41 +84,87 @@ void MediumDrag::addFriction(const StepContext& ctx, BlockMatrix& gamma) const {
   }
 }
 
-void CortexViscosity::addFriction(const StepContext& ctx, BlockMatrix& gamma) const {
-  const double g = eta_ / std::sqrt(3.0);
-  const CellSet& cells = ctx.cells;
+namespace {
+
+// The first edge of each cell, and the end: edges are sorted by their first vertex and a cell's
+// vertices are contiguous, so each cell's edges are one range that couples only its own vertices.
+std::vector<int> cellEdgeRanges(const StepContext& ctx) {
   const auto& edges = ctx.topo.edges;
-  const int nc = cells.numCells();
-  // Edges are sorted by their first vertex and a cell's vertices are contiguous, so each cell's
-  // edges are one contiguous range that couples only its own vertices: threads own whole cells
-  // and add their edges in list order.
-  auto firstEdge = [&](int c) {
-    const int v = cells.cell_vertex_begin[c];
-    return static_cast<int>(
-        std::lower_bound(edges.begin(), edges.end(), v,
+  const int nc = ctx.cells.numCells();
+  std::vector<int> begin(nc + 1);
+  for (int c = 0; c < nc; ++c)
+    begin[c] = static_cast<int>(
+        std::lower_bound(edges.begin(), edges.end(), ctx.cells.cell_vertex_begin[c],
                          [](const Edge& e, int vertex) { return e.i < vertex; }) -
         edges.begin());
-  };
+  begin[nc] = static_cast<int>(edges.size());
+  return begin;
+}
+
+}  // namespace
+
+Vec3 CortexViscosity::bisector(const StepContext& ctx, const Edge& e) {
+  const Vec3 n = (ctx.cells.x.col(e.j) - ctx.cells.x.col(e.i)).normalized();
+  Vec3 b = ctx.geo.tri_normal[e.ta] + ctx.geo.tri_normal[e.tb];
+  b -= b.dot(n) * n;  // exactly orthogonal to the edge (both normals are, up to roundoff)
+  const double bn = b.norm();
+  // A fully folded edge has no defined bisector: isotropic coupling (b = 0 below), still SPD.
+  if (bn < 1e-12) return Vec3::Zero();
+  return b / bn;
+}
+
+Eigen::Matrix3d CortexViscosity::edgeMatrix(const Vec3& b) const {
+  // (n̂, t̂ = b̂ × n̂, b̂) is orthonormal: n̂n̂ᵀ + t̂t̂ᵀ + ε b̂b̂ᵀ = I − (1 − ε) b̂b̂ᵀ.
+  return g_ * (Eigen::Matrix3d::Identity() - (1 - eps_n_) * b * b.transpose());
+}
+
+void CortexViscosity::addFriction(const StepContext& ctx, BlockMatrix& gamma) const {
+  for (const Edge& e : ctx.topo.edges) gamma.addCoupling(e.i, e.j, edgeMatrix(bisector(ctx, e)));
+}
+
+void CortexViscosity::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& gamma) const {
+  const auto& edges = ctx.topo.edges;
+  cell_edges_ = cellEdgeRanges(ctx);
+  ops_.resize(edges.size());
+  const int nc = ctx.cells.numCells();
+  // Threads own whole cells and add their edges in list order: each diagonal block gets the sums
+  // addCoupling would add, in the same order.
 #pragma omp parallel for schedule(static) if (static_cast <int>(edges.size()) > grain().min_items)
   for (int c = 0; c < nc; ++c)
-    for (int k = firstEdge(c), end = c + 1 < nc ? firstEdge(c + 1) : static_cast<int>(edges.size());
-         k < end; ++k) {
+    for (int k = cell_edges_[c]; k < cell_edges_[c + 1]; ++k) {
       const Edge& e = edges[k];
-      const Vec3 n = (ctx.cells.x.col(e.j) - ctx.cells.x.col(e.i)).normalized();
-      Vec3 b = ctx.geo.tri_normal[e.ta] + ctx.geo.tri_normal[e.tb];
-      b -= b.dot(n) * n;  // exactly orthogonal to the edge (both normals are, up to roundoff)
-      const double bn = b.norm();
-      // A fully folded edge has no defined bisector: fall back to isotropic coupling, still SPD.
-      if (bn < 1e-12) {
-        gamma.addCoupling(e.i, e.j, g * Eigen::Matrix3d::Identity());
-        continue;
-      }
-      b /= bn;
-      // (n̂, t̂ = b̂ × n̂, b̂) is orthonormal: n̂n̂ᵀ + t̂t̂ᵀ + ε b̂b̂ᵀ = I − (1 − ε) b̂b̂ᵀ.
-      const Eigen::Matrix3d m =
-          g * (Eigen::Matrix3d::Identity() - (1 - eps_n_) * b * b.transpose());
-      gamma.addCoupling(e.i, e.j, m);
+      const Vec3 b = bisector(ctx, e);
+      ops_[k] = {e.i, e.j, {b.x(), b.y(), b.z()}};
+      const Eigen::Matrix3d m = edgeMatrix(b);
+      gamma.addDiagonal(e.i, m);
+      gamma.addDiagonal(e.j, m);
     }
+}
+
+void CortexViscosity::addCouplingProduct(const double* v, double* y) const {
+  // The off-diagonal blocks −G_ij: y_i −= G v_j, y_j −= G v_i with G v = g (v − (1 − ε) b (b·v)).
+  const int nc = static_cast<int>(cell_edges_.size()) - 1;
+  const double c = 1 - eps_n_;
+#pragma omp parallel for schedule(static) if (static_cast <int>(ops_.size()) > grain().min_items)
+  for (int cell = 0; cell < nc; ++cell)
+    for (int k = cell_edges_[cell]; k < cell_edges_[cell + 1]; ++k) {
+      const EdgeOp& op = ops_[k];
+      const double* vi = v + 3 * static_cast<std::int64_t>(op.i);
+      const double* vj = v + 3 * static_cast<std::int64_t>(op.j);
+      double* yi = y + 3 * static_cast<std::int64_t>(op.i);
+      double* yj = y + 3 * static_cast<std::int64_t>(op.j);
+      const double bi = c * (op.b[0] * vi[0] + op.b[1] * vi[1] + op.b[2] * vi[2]);
+      const double bj = c * (op.b[0] * vj[0] + op.b[1] * vj[1] + op.b[2] * vj[2]);
+      for (int d = 0; d < 3; ++d) {
+        yi[d] -= g_ * (vj[d] - bj * op.b[d]);
+        yj[d] -= g_ * (vi[d] - bi * op.b[d]);
+      }
+    }
+}
+
+void CortexViscosity::forEachCouplingBlock(const BlockSink& sink) const {
+  for (const EdgeOp& op : ops_)
+    sink(op.i, op.j, -edgeMatrix(Vec3(op.b[0], op.b[1], op.b[2])));
 }
 
 }  // namespace activefoam
