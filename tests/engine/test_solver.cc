@@ -62,6 +62,19 @@ TEST(FrictionMatrix, IsSymmetricPositiveDefinite) {
     const double smin_area =
         *std::min_element(sim.geometry().vertex_area.begin(), sim.geometry().vertex_area.end());
     EXPECT_GE(es.eigenvalues().minCoeff(), 0.99 * drag * smin_area);
+    // A step's Γ: the diagonal blocks assembled, the mesh edges' couplings applied edge by edge
+    // (CortexViscosity's product); together the same operator.
+    sim.prepareFriction();
+    Rng rng(3, tris);
+    Eigen::VectorXd v(a.rows()), y(a.rows());
+    for (Eigen::Index k = 0; k < v.size(); ++k) v[k] = rng.uniform() - 0.5;
+    sim.applyFriction(v.data(), y.data());
+    EXPECT_LT((y - a * v).norm(), 1e-13 * (a * v).norm()) << tris << " triangles";
+    EXPECT_EQ(sim.frictionMatrix().matrix().nonZeros(), 9 * sim.cells().numVertices());
+    for (int i = 0; i < sim.cells().numVertices(); ++i)
+      ASSERT_LT((sim.frictionMatrix().diagonalBlock(i) - a.block<3, 3>(3 * i, 3 * i)).norm(),
+                1e-13 * a.norm())
+          << "vertex " << i;
   }
 }
 

@@ -53,8 +53,7 @@ class MediumDrag : public ForceTerm {
 // fusion, which every CG iteration streamed (docs/benchmarks.md, "Cell couplings as a product").
 class CortexViscosity : public ForceTerm {
  public:
-  explicit CortexViscosity(const CellParams& p)
-      : eps_n_(p.eps_n), g_(p.eta / std::sqrt(3.0)) {}
+  explicit CortexViscosity(const CellParams& p) : eps_n_(p.eps_n), g_(p.eta / std::sqrt(3.0)) {}
   std::string_view name() const override { return "cortex_viscosity"; }
   void addFriction(const StepContext& ctx, BlockMatrix& gamma) const override;
   bool hasCouplingProduct() const override { return true; }
@@ -71,7 +70,7 @@ class CortexViscosity : public ForceTerm {
     double b[3];
   };
   double eps_n_, g_;
-  mutable std::vector<EdgeOp> ops_;       // the edges of the last addFrictionDiagonal
+  mutable std::vector<EdgeOp> ops_;      // the edges of the last addFrictionDiagonal
   mutable std::vector<int> cell_edges_;  // cell c's edges: ops_[cell_edges_[c] .. [c + 1])
 };
 

@@ -163,8 +163,7 @@ void CortexViscosity::addCouplingProduct(const double* v, double* y) const {
 }
 
 void CortexViscosity::forEachCouplingBlock(const BlockSink& sink) const {
-  for (const EdgeOp& op : ops_)
-    sink(op.i, op.j, -edgeMatrix(Vec3(op.b[0], op.b[1], op.b[2])));
+  for (const EdgeOp& op : ops_) sink(op.i, op.j, -edgeMatrix(Vec3(op.b[0], op.b[1], op.b[2])));
 }
 
 }  // namespace activefoam
