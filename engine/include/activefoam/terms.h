@@ -50,7 +50,8 @@ class MediumDrag : public ForceTerm {
 // S13: per edge ij, G = (η/√3)(n̂n̂ᵀ + t̂t̂ᵀ + ε_n b̂b̂ᵀ) as a coupling between i and j.
 // A step adds the diagonal blocks to Γ and applies the couplings as a product, edge by edge
 // (32 bytes an edge): assembled, the couplings were ~85 % of Γ's 2 M non-zeros on the 2 × 100
-// fusion, which every CG iteration streamed (docs/benchmarks.md, "Cell couplings as a product").
+// fusion, which every CG iteration streamed (docs/benchmarks.md, "The cortex viscosity's
+// couplings as a product").
 class CortexViscosity : public ForceTerm {
  public:
   explicit CortexViscosity(const CellParams& p) : eps_n_(p.eps_n), g_(p.eta / std::sqrt(3.0)) {}
