@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cmath>
+#include <cstddef>
 #include <vector>
 
 #include "activefoam/force_term.h"
@@ -71,8 +72,8 @@ class CortexViscosity : public ForceTerm {
     double b[3];
   };
   double eps_n_, g_;
-  mutable std::vector<EdgeOp> ops_;      // the edges of the last addFrictionDiagonal
-  mutable std::vector<int> cell_edges_;  // cell c's edges: ops_[cell_edges_[c] .. [c + 1])
+  mutable std::vector<EdgeOp> ops_;              // the edges of the last addFrictionDiagonal
+  mutable std::vector<std::size_t> cell_edges_;  // cell c's edges: ops_[cell_edges_[c] .. [c + 1])
 };
 
 }  // namespace activefoam

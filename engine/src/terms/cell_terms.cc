@@ -84,25 +84,6 @@ void MediumDrag::addFriction(const StepContext& ctx, BlockMatrix& gamma) const {
   }
 }
 
-namespace {
-
-// The first edge of each cell, and the end: edges are sorted by their first vertex and a cell's
-// vertices are contiguous, so each cell's edges are one range that couples only its own vertices.
-std::vector<int> cellEdgeRanges(const StepContext& ctx) {
-  const auto& edges = ctx.topo.edges;
-  const int nc = ctx.cells.numCells();
-  std::vector<int> begin(nc + 1);
-  for (int c = 0; c < nc; ++c)
-    begin[c] = static_cast<int>(
-        std::lower_bound(edges.begin(), edges.end(), ctx.cells.cell_vertex_begin[c],
-                         [](const Edge& e, int vertex) { return e.i < vertex; }) -
-        edges.begin());
-  begin[nc] = static_cast<int>(edges.size());
-  return begin;
-}
-
-}  // namespace
-
 Vec3 CortexViscosity::bisector(const StepContext& ctx, const Edge& e) {
   const Vec3 n = (ctx.cells.x.col(e.j) - ctx.cells.x.col(e.i)).normalized();
   Vec3 b = ctx.geo.tri_normal[e.ta] + ctx.geo.tri_normal[e.tb];
@@ -124,14 +105,15 @@ void CortexViscosity::addFriction(const StepContext& ctx, BlockMatrix& gamma) co
 
 void CortexViscosity::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& gamma) const {
   const auto& edges = ctx.topo.edges;
-  cell_edges_ = cellEdgeRanges(ctx);
+  // A cell's edges are one range that couples only its own vertices (updateTopology).
+  cell_edges_ = ctx.topo.cell_edge_begin;
   ops_.resize(edges.size());
   const int nc = ctx.cells.numCells();
   // Threads own whole cells and add their edges in list order: each diagonal block gets the sums
   // addCoupling would add, in the same order.
 #pragma omp parallel for schedule(static) if (static_cast <int>(edges.size()) > grain().min_items)
   for (int c = 0; c < nc; ++c)
-    for (int k = cell_edges_[c]; k < cell_edges_[c + 1]; ++k) {
+    for (std::size_t k = cell_edges_[c]; k < cell_edges_[c + 1]; ++k) {
       const Edge& e = edges[k];
       const Vec3 b = bisector(ctx, e);
       ops_[k] = {e.i, e.j, {b.x(), b.y(), b.z()}};
@@ -147,7 +129,7 @@ void CortexViscosity::addCouplingProduct(const double* v, double* y) const {
   const double c = 1 - eps_n_;
 #pragma omp parallel for schedule(static) if (static_cast <int>(ops_.size()) > grain().min_items)
   for (int cell = 0; cell < nc; ++cell)
-    for (int k = cell_edges_[cell]; k < cell_edges_[cell + 1]; ++k) {
+    for (std::size_t k = cell_edges_[cell]; k < cell_edges_[cell + 1]; ++k) {
       const EdgeOp& op = ops_[k];
       const double* vi = v + 3 * static_cast<std::int64_t>(op.i);
       const double* vj = v + 3 * static_cast<std::int64_t>(op.j);
