@@ -6,6 +6,7 @@
 #include <cmath>
 #include <map>
 #include <random>
+#include <tuple>
 
 #include <gtest/gtest.h>
 #ifdef _OPENMP
@@ -224,7 +225,13 @@ TEST(ContactBroadPhase, EqualsBruteForceOnRandomIcosphereCells) {
     const auto brute = findContactCandidatesBruteForce(s.x, s.tri, s.tri_cell, margin);
     EXPECT_GT(brute.size(), 0u) << "configuration " << config << " has no contacts";
     EXPECT_EQ(fast, brute) << "configuration " << config;
-    EXPECT_TRUE(std::is_sorted(fast.begin(), fast.end()));
+    // In the documented order: by the pair of cells, then by the triangles.
+    auto key = [&](const std::pair<int, int>& pq) {
+      const int c = s.tri_cell[pq.first], e = s.tri_cell[pq.second];
+      return std::tuple(std::min(c, e), std::max(c, e), pq.first, pq.second);
+    };
+    EXPECT_TRUE(std::is_sorted(fast.begin(), fast.end(),
+                               [&](const auto& p, const auto& q) { return key(p) < key(q); }));
     for (const auto& [p, q] : fast) {
       ASSERT_LT(p, q);
       EXPECT_NE(s.tri_cell[p], s.tri_cell[q]);

@@ -82,8 +82,10 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
 
 // Broad phase: all pairs (tA, tB), tA < tB, of triangles of different cells whose axis-aligned
 // bounding boxes, inflated by `margin`, overlap and whose normals face (n̂_A·n̂_B < 0).
-// Sorted ascending. `tri_cell[t]` is the cell of triangle t (any int ids; same size as `tri`,
-// else std::invalid_argument).
+// Ordered by the pair of cells (lower id, higher id), then by (tA, tB): each pair of cells' list
+// is sorted on its own (CandidateCache sorts its stored lists once, when it builds them), and no
+// sort of the whole list is needed. `tri_cell[t]` is the cell of triangle t (any int ids; same
+// size as `tri`, else std::invalid_argument).
 // Each box is inflated by `margin` on every side, so boxes up to 2·margin apart qualify:
 // two points at gap g (along n̂_AB) are |g| apart, so margin = h0/2 catches every pair with a
 // contact point at |g| ≤ h0 (a pair interpenetrating by more than 2·margin everywhere is not

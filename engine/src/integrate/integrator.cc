@@ -208,8 +208,11 @@ std::string interpenetration(const CellSet& cells, const ContactList& contacts, 
     scratch.push_back({(static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b),
                        p.c.mean_gap * p.c.area, p.c.area});
   }
-  std::sort(scratch.begin(), scratch.end(),
-            [](const auto& x, const auto& y) { return x.key < y.key; });
+  // detectContacts lists the pairs grouped by pair of cells already (the broad phase's order):
+  // the sort is then skipped.
+  const auto by_key = [](const auto& x, const auto& y) { return x.key < y.key; };
+  if (!std::is_sorted(scratch.begin(), scratch.end(), by_key))
+    std::sort(scratch.begin(), scratch.end(), by_key);
   for (std::size_t i = 0; i < scratch.size();) {
     double gs = 0, area = 0;
     std::size_t j = i;
