@@ -104,6 +104,7 @@ void BlockMatrix::setPattern(int num_blocks, std::vector<std::pair<int, int>> co
 #pragma omp parallel for schedule(static) if (parallel)
   for (int i = 0; i < n_; ++i)
     for (int k = row_begin_[i]; k < row_begin_[i + 1]; ++k) transpose_[k] = findBlock(cols_[k], i);
+  diagonal_only_ = static_cast<int>(cols_.size()) == n_;
   setZero();
 }
 
@@ -119,6 +120,18 @@ void BlockMatrix::setZero() {
 
 void BlockMatrix::multiply(const double* x, double* y) const {
   const double* v = a_.valuePtr();
+  if (diagonal_only_) {  // the general loop's sums, in its order
+#pragma omp parallel for schedule(static) if (n_ > grain().min_items)
+    for (int i = 0; i < n_; ++i) {
+      const double* b = v + 9 * static_cast<std::ptrdiff_t>(i);
+      const double* xi = x + 3 * static_cast<std::ptrdiff_t>(i);
+      double* yi = y + 3 * static_cast<std::ptrdiff_t>(i);
+      yi[0] = b[0] * xi[0] + b[1] * xi[1] + b[2] * xi[2];
+      yi[1] = b[3] * xi[0] + b[4] * xi[1] + b[5] * xi[2];
+      yi[2] = b[6] * xi[0] + b[7] * xi[1] + b[8] * xi[2];
+    }
+    return;
+  }
   // Rows are independent and each is summed in its own fixed order: any split gives the same
   // bits.
 #pragma omp parallel for schedule(static) if (n_ > grain().min_items)
@@ -177,6 +190,10 @@ inline void addTo(double* row0, int width, const Eigen::Matrix3d& m) {
 }  // namespace
 
 void BlockMatrix::addDiagonal(int i, const Eigen::Matrix3d& m) {
+  if (diagonal_only_) {
+    addTo<1>(a_.valuePtr() + 9 * static_cast<std::ptrdiff_t>(i), 3, m);
+    return;
+  }
   const int k = diag_[i];
   addTo<1>(blockValues(k), width_[k], m);
 }
