@@ -189,11 +189,7 @@ inline void addTo(double* row0, int width, const Eigen::Matrix3d& m) {
 }
 }  // namespace
 
-void BlockMatrix::addDiagonal(int i, const Eigen::Matrix3d& m) {
-  if (diagonal_only_) {
-    addTo<1>(a_.valuePtr() + 9 * static_cast<std::ptrdiff_t>(i), 3, m);
-    return;
-  }
+void BlockMatrix::addDiagonalInPattern(int i, const Eigen::Matrix3d& m) {
   const int k = diag_[i];
   addTo<1>(blockValues(k), width_[k], m);
 }
