@@ -95,6 +95,10 @@ TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
   other.numerics.preconditioner = PreconditionerKind::BlockJacobi;
   other.numerics.contact_quadrature = ContactQuadrature::Centroid;
   EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
+  // The preparation's preconditioner is its own, Jacobi, whatever the run's and the presets'
+  // (block-Jacobi since 2026-11-24): caches prepared before that stay valid.
+  EXPECT_EQ(prep.numerics.preconditioner, PreconditionerKind::Jacobi);
+  EXPECT_EQ(spheroidPrepSpec(other, 3, 11).numerics.preconditioner, PreconditionerKind::Jacobi);
   other.numerics.triangles_per_cell = s.numerics.triangles_per_cell == 80 ? 320 : 80;
   EXPECT_NE(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
 

@@ -64,7 +64,7 @@ struct NumericsParams {
   IntegratorKind integrator = IntegratorKind::ContactImplicit;
   double cg_tol = 1e-3;
   std::int64_t cg_max_iter = 1000;
-  PreconditionerKind preconditioner = PreconditionerKind::Jacobi;
+  PreconditionerKind preconditioner = PreconditionerKind::BlockJacobi;
   std::int64_t triangles_per_cell = 320;      // 80 | 320 | 1280
   std::optional<double> remesh_every_s;       // τ_r, default 5 τ_shell; 0 disables remeshing
   double remesh_min_area_factor = 1.0 / 3.0;  // A_m = factor · A_Δ
