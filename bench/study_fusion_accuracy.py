@@ -78,6 +78,14 @@ CONFIGS = [
                                "numerics.preconditioner": "incomplete-cholesky"}),
     ("ros2-dt-1-ic", "integrator", {"numerics.integrator": "ros2", "numerics.dt_s": 1.0,
                                     "numerics.preconditioner": "incomplete-cholesky"}),
+    # Issue 15, 2026-11-24: the 3×3 block-Jacobi preconditioner at today's `draft` (ε_CG 1e-2) and
+    # at `standard`, beside today's `draft` run by the same engine (same ε_CG: the same residual).
+    ("standard-jacobi", "preconditioner", {"numerics.dt_s": 0.1}),
+    ("draft-cg-1e-2", "cg_tol", {"numerics.cg_tol": 1e-2}),
+    ("draft-cg-1e-2-block-jacobi", "preconditioner", {"numerics.cg_tol": 1e-2,
+                                                      "numerics.preconditioner": "block-jacobi"}),
+    ("standard-block-jacobi", "preconditioner", {"numerics.dt_s": 0.1,
+                                                 "numerics.preconditioner": "block-jacobi"}),
 ]
 
 
