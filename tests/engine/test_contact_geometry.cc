@@ -826,5 +826,44 @@ TEST(ContactNarrowPhase, FrictionBarycentricsAreAConvexCombinationGivingTheCentr
   EXPECT_GT(checked, 200);
 }
 
+// detectContacts asks only for what a ContactPair keeps: those fields must be the full
+// computation's, bit for bit, for every quadrature and with moments, active or not.
+TEST(ContactNarrowPhase, PairOnlyOutputsAreTheFullComputationsBits) {
+  std::mt19937 rng(5);
+  const ContactLaw law;
+  int active = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    const Pair pr = randomFacingPair(rng, -0.1, 0.1, 0.3);
+    const TriangleFrame fa = triangleFrame(pr.a), fb = triangleFrame(pr.b);
+    for (const ContactQuadrature q : kAllQuadratures) {
+      ContactMoments m_all, m_pair;
+      const TriangleContact all = computeTriangleContact(pr.a, pr.b, fa, fb, law, q, &m_all);
+      const TriangleContact pair =
+          computeTriangleContact(pr.a, pr.b, fa, fb, law, q, &m_pair, ContactOutputs::PairOnly);
+      ASSERT_EQ(pair.active, all.active);
+      active += all.active;
+      EXPECT_EQ(pair.normal, all.normal);
+      EXPECT_EQ(pair.area, all.area);
+      EXPECT_EQ(pair.force, all.force);
+      EXPECT_EQ(pair.force_weight_a, all.force_weight_a);
+      EXPECT_EQ(pair.force_weight_b, all.force_weight_b);
+      EXPECT_EQ(pair.bary_a, all.bary_a);
+      EXPECT_EQ(pair.bary_b, all.bary_b);
+      EXPECT_EQ(pair.energy, all.energy);
+      EXPECT_EQ(pair.mean_gap, all.mean_gap);
+      EXPECT_EQ(m_pair.ab, m_all.ab);
+      EXPECT_EQ(m_pair.aa, m_all.aa);
+      EXPECT_EQ(m_pair.bb, m_all.bb);
+      EXPECT_EQ(pair.centroid, Vec3::Zero());
+      EXPECT_EQ(pair.center_of_pressure, Vec3::Zero());
+      // The full computation's centroid is not zero where the pair is active.
+      if (all.active) {
+        EXPECT_GT(all.centroid.norm(), 0);
+      }
+    }
+  }
+  EXPECT_GT(active, 300);
+}
+
 }  // namespace
 }  // namespace activefoam

@@ -29,31 +29,38 @@ inline double cross2(const Vec2& u, const Vec2& v) {
   return u.x() * v.y() - u.y() * v.x();
 }
 
-// Convex polygon with at most 3 + 3 + 1 vertices (triangle clipped by 3 edges and one line).
+// Convex polygon with at most 3 + 3 + 1 vertices (triangle clipped by 3 edges and one line). The
+// storage is twice that: a clip writes each candidate vertex before it knows whether to keep it.
+constexpr int kMaxPolygon = 8;
 struct Polygon {
-  std::array<Vec2, 8> v;
+  std::array<Vec2, 2 * kMaxPolygon> v;
   int n = 0;
 };
 
-// Sutherland–Hodgman step: keep the part of `in` where the affine function d(y) ≥ 0.
-// `d` holds d at each vertex of `in`; intersections use the linear interpolation of d.
+// Sutherland–Hodgman step: keep the part of `in` where the affine function d(y) ≥ 0, into `out`.
+// Intersections use the linear interpolation of d. Without data-dependent branches: whether a
+// vertex is kept, and whether an edge crosses, is a coin flip for the branch predictor on the
+// contacts of a packed tissue (the branchy loop was about half of an active pair's cost). Every
+// vertex and crossing is written, and the count advances over those kept: the polygon is the
+// branchy loop's, bit for bit, including its cap of kMaxPolygon vertices (which a convex input
+// never reaches).
 template <class F>
-Polygon clipHalfPlane(const Polygon& in, F&& dist) {
-  Polygon out;
-  if (in.n == 0) return out;
-  std::array<double, 8> d;
-  for (int i = 0; i < in.n; ++i) d[i] = dist(in.v[i]);
-  for (int i = 0; i < in.n; ++i) {
-    const int j = i + 1 == in.n ? 0 : i + 1;  // not %: an integer division per vertex
+void clipHalfPlane(const Polygon& in, Polygon& out, F&& dist) {
+  const int n = in.n;
+  std::array<double, kMaxPolygon> d;
+  for (int i = 0; i < n; ++i) d[i] = dist(in.v[i]);
+  int m = 0;
+  for (int i = 0; i < n; ++i) {
+    const int j = i + 1 == n ? 0 : i + 1;  // not %: an integer division per vertex
     const double dc = d[i], dn = d[j];
-    if (dc >= 0) out.v[out.n++] = in.v[i];
+    if (dc >= 0) out.v[m++] = in.v[i];
     if ((dc > 0 && dn < 0) || (dc < 0 && dn > 0)) {
       const double t = dc / (dc - dn);
-      out.v[out.n++] = in.v[i] + t * (in.v[j] - in.v[i]);
+      out.v[m++] = in.v[i] + t * (in.v[j] - in.v[i]);
     }
-    if (out.n >= 8) break;  // cannot happen for convex input; guards the fixed storage
+    if (m >= kMaxPolygon) break;
   }
-  return out;
+  out.n = m;
 }
 
 // Barycentric coordinates of y in the 2D triangle p (any orientation), as ratios of signed
@@ -247,7 +254,7 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
 TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::array<Vec3, 3>& b,
                                        const TriangleFrame& fa, const TriangleFrame& fb,
                                        const ContactLaw& law, ContactQuadrature quadrature,
-                                       ContactMoments* moments) {
+                                       ContactMoments* moments, ContactOutputs outputs) {
   TriangleContact out;
   if (moments) *moments = ContactMoments{};
   if (!fa.ok || !fb.ok) return out;
@@ -321,16 +328,18 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
   if (gap(pb[0]) >= law.h0 && gap(pb[1]) >= law.h0 && gap(pb[2]) >= law.h0) return out;
 
   // Clip projected A (counter-clockwise) by projected B (clockwise; walked reversed) ...
-  Polygon poly;
-  poly.n = 3;
-  for (int i = 0; i < 3; ++i) poly.v[i] = pa[i];
+  Polygon buf[2];
+  buf[0].n = 3;
+  for (int i = 0; i < 3; ++i) buf[0].v[i] = pa[i];
   const std::array<Vec2, 3> qb{pb[0], pb[2], pb[1]};
-  for (int k = 0; k < 3 && poly.n > 0; ++k) {
-    const Vec2 q0 = qb[k], edge = qb[(k + 1) % 3] - qb[k];
-    poly = clipHalfPlane(poly, [&](const Vec2& y) { return cross2(edge, y - q0); });
+  int cur = 0;
+  for (int k = 0; k < 3 && buf[cur].n > 0; ++k, cur ^= 1) {
+    const Vec2 q0 = qb[k], edge = qb[k == 2 ? 0 : k + 1] - qb[k];
+    clipHalfPlane(buf[cur], buf[cur ^ 1], [&](const Vec2& y) { return cross2(edge, y - q0); });
   }
   // ... and by the range of the law, g < h0.
-  poly = clipHalfPlane(poly, [&](const Vec2& y) { return law.h0 - gap(y); });
+  clipHalfPlane(buf[cur], buf[cur ^ 1], [&](const Vec2& y) { return law.h0 - gap(y); });
+  const Polygon& poly = buf[cur ^ 1];
   if (poly.n < 3) return out;
 
   double poly_area = 0;
@@ -369,11 +378,13 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
     out.force_weight_b[i] = k * I.gb[i];
   }
   const Vec2 centroid2 = I.y / I.area;
-  out.centroid = toMidSurface(centroid2);
-  double g_max = 0;
-  for (int i = 0; i < poly.n; ++i) g_max = std::max(g_max, std::abs(gap(poly.v[i])));
-  const bool loaded = std::abs(I.g) > kZeroLoadRel * I.area * g_max;
-  out.center_of_pressure = loaded ? toMidSurface(I.gy / I.g) : out.centroid;
+  if (outputs == ContactOutputs::All) {
+    out.centroid = toMidSurface(centroid2);
+    double g_max = 0;
+    for (int i = 0; i < poly.n; ++i) g_max = std::max(g_max, std::abs(gap(poly.v[i])));
+    const bool loaded = std::abs(I.g) > kZeroLoadRel * I.area * g_max;
+    out.center_of_pressure = loaded ? toMidSurface(I.gy / I.g) : out.centroid;
+  }
   out.bary_a = clampBarycentric(lam_a(centroid2));
   out.bary_b = clampBarycentric(lam_b(centroid2));
   // (w λ_i) λ_j and (w λ_j) λ_i round differently: mirror, so that K is exactly symmetric.

@@ -166,7 +166,7 @@ void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw&
       const auto [ta, tb] = candidates[i];
       const TriangleContact c =
           computeTriangleContact(corners(ta), corners(tb), frame[ta], frame[tb], law, quadrature,
-                                 law.stiffness_moments ? &m : nullptr);
+                                 law.stiffness_moments ? &m : nullptr, ContactOutputs::PairOnly);
       if (!c.active) continue;
       pairs.push_back({ta, tb, c});
       if (law.stiffness_moments) moments.push_back(m);
