@@ -161,24 +161,28 @@ class ContactFriction : public ForceTerm {
   void forEachCouplingBlock(const BlockSink& sink) const override;
 
  private:
-  // One contact pair as the product needs it: G = s I + d n̂n̂ᵀ, barycentric weights.
+  // One contact pair as the product needs it: vertices, barycentric weights, area and normal
+  // (G = area (ξ_t I + d_factor_ n̂n̂ᵀ)). 104 bytes: the product streams them every CG iteration.
   struct PairOp {
+    PairOp() {}  // left uninitialised: every one is written before use, and resize must not zero
+                 // the list's ~13 MB every step
     int a[3], b[3];
     double wa[3], wb[3];
-    double s, d;
+    double area;
     double n[3];
-    double ks;  // factor of the consistent stiffness (0 unless consistent_stiffness)
   };
   // The consistent stiffness' moments per pair (ros2 only): m_ab (9), then the off-diagonal
   // m_aa (01, 02, 12) and m_bb (01, 02, 12). Copied from the contacts so that a product streams
-  // 120 bytes per pair, not the whole TriangleContact (reading those doubled the time per CG
+  // 104 bytes per pair, not the whole TriangleContact (reading those doubled the time per CG
   // iteration), and kept apart so that contact-implicit's pair ops stay as small as they were.
   using Moments = std::array<double, 15>;
   mutable std::vector<Moments> moments_;
   // Its friction block, with the stiffness factor of the step (StepContext).
   Eigen::Matrix3d pairMatrix(const ContactPair& p, double stiffness_dt) const;
   double xi_n_, xi_t_, k_;
-  mutable std::vector<PairOp> ops_;     // the pairs of the last addFrictionDiagonal
+  mutable std::vector<PairOp> ops_;  // the pairs of the last addFrictionDiagonal
+  mutable double d_factor_ = 0;  // theirs: ξ_n + Δt k − ξ_t (contact-implicit), ξ_n − ξ_t
+  mutable double ks_ = 0;        // factor of the consistent stiffness (0 unless used)
   mutable ContactPartition partition_;  // theirs, when the contact list came without one
   mutable const ContactPartition* part_ = nullptr;
 };

@@ -159,51 +159,84 @@ void detectContacts(const CellSet& cells, const Geometry& geo, const ContactLaw&
   for (int t = 0; t < nt; ++t) frame[t] = triangleFrame(corners(t));
   // Narrow phase: the active pairs in candidate order — the same list for any thread count.
   const auto nc = static_cast<std::int64_t>(candidates.size());
-  auto narrow = [&](std::int64_t begin, std::int64_t end, std::vector<ContactPair>& pairs,
-                    std::vector<ContactMoments>& moments) {
+  // keep(pair, moments) for each active candidate of [begin, end), in order.
+  auto narrow = [&](std::int64_t begin, std::int64_t end, auto&& keep) {
     ContactMoments m;
     for (std::int64_t i = begin; i < end; ++i) {
       const auto [ta, tb] = candidates[i];
       const TriangleContact c =
           computeTriangleContact(corners(ta), corners(tb), frame[ta], frame[tb], law, quadrature,
                                  law.stiffness_moments ? &m : nullptr, ContactOutputs::PairOnly);
-      if (!c.active) continue;
-      pairs.push_back({ta, tb, c});
-      if (law.stiffness_moments) moments.push_back(m);
+      if (c.active) keep(ContactPair{ta, tb, c}, m);
     }
   };
-  out.pairs.clear();
-  out.moments.clear();
+  if (!law.stiffness_moments) out.moments.clear();
   const int R = nc > grain().min_items ? threads() : 1;
   if (R == 1) {
-    narrow(0, nc, out.pairs, out.moments);
+    out.pairs.clear();
+    out.moments.clear();
+    narrow(0, nc, [&](const ContactPair& p, const ContactMoments& m) {
+      out.pairs.push_back(p);
+      if (law.stiffness_moments) out.moments.push_back(m);
+    });
   } else {
-    // One range of candidates per thread, the first written straight into the list (which keeps
-    // its capacity between detections), the others into kept buffers appended in range order.
+    // One range of candidates per thread, the first written straight into the list over the last
+    // detection's pairs (which are not cleared: growing the list again would zero its new
+    // elements first), the others into kept buffers, then copied after the first range's pairs
+    // by all threads together. (The join was a quarter of the contacts phase's time on two
+    // threads of the 2 × 100 fusion when one thread zeroed and copied half the pairs.)
     // (The 64-candidate chunks on a dynamic schedule this replaces balanced no better on the
     // 2 × 100 fusion — its contacts phase on two threads is as fast — and their join copied
     // every pair once more.)
     auto& found = out.narrow_buffers;
     if (found.size() < static_cast<std::size_t>(R)) found.resize(static_cast<std::size_t>(R));
     const auto range = [&](int r) { return nc * r / R; };
+    std::size_t first = 0;  // pairs of the first range
 #pragma omp parallel for schedule(static, 1) num_threads(R)
     for (int r = 0; r < R; ++r) {
+      if (r == 0) {
+        narrow(range(0), range(1), [&](const ContactPair& p, const ContactMoments& m) {
+          if (first < out.pairs.size())
+            out.pairs[first] = p;
+          else
+            out.pairs.push_back(p);
+          if (law.stiffness_moments) {
+            if (first < out.moments.size())
+              out.moments[first] = m;
+            else
+              out.moments.push_back(m);
+          }
+          ++first;
+        });
+        continue;
+      }
       ContactList::NarrowBuffer& buf = found[r];
       buf.pairs.clear();
       buf.moments.clear();
-      narrow(range(r), range(r + 1), r == 0 ? out.pairs : buf.pairs,
-             r == 0 ? out.moments : buf.moments);
+      narrow(range(r), range(r + 1), [&](const ContactPair& p, const ContactMoments& m) {
+        buf.pairs.push_back(p);
+        if (law.stiffness_moments) buf.moments.push_back(m);
+      });
     }
     std::vector<std::size_t> at(static_cast<std::size_t>(R) + 1, 0);
-    at[1] = out.pairs.size();
+    at[1] = first;
     for (int r = 1; r < R; ++r) at[r + 1] = at[r] + found[r].pairs.size();
     out.pairs.resize(at[R]);
     out.moments.resize(law.stiffness_moments ? at[R] : 0);
+    // Each thread copies an equal share of [at[1], at[R]), whichever buffers it falls in.
+    const std::size_t copied = at[R] - at[1];
 #pragma omp parallel for schedule(static, 1) num_threads(R)
-    for (int r = 1; r < R; ++r) {
-      std::copy(found[r].pairs.begin(), found[r].pairs.end(), out.pairs.begin() + at[r]);
-      if (law.stiffness_moments)
-        std::copy(found[r].moments.begin(), found[r].moments.end(), out.moments.begin() + at[r]);
+    for (int j = 0; j < R; ++j) {
+      const std::size_t lo = at[1] + copied * j / R, hi = at[1] + copied * (j + 1) / R;
+      for (int r = 1; r < R; ++r) {
+        const std::size_t b = std::max(lo, at[r]), e = std::min(hi, at[r + 1]);
+        if (b >= e) continue;
+        std::copy(found[r].pairs.begin() + (b - at[r]), found[r].pairs.begin() + (e - at[r]),
+                  out.pairs.begin() + b);
+        if (law.stiffness_moments)
+          std::copy(found[r].moments.begin() + (b - at[r]), found[r].moments.begin() + (e - at[r]),
+                    out.moments.begin() + b);
+      }
     }
   }
   const std::size_t total = out.pairs.size();
@@ -265,11 +298,13 @@ void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& g
   const ContactList& con = *ctx.contacts;
   checkMoments(con, ks);
   part_ = &partitionOf(con, ctx.cells, partition_);
-  const auto np = static_cast<std::int64_t>(con.pairs.size());
   ops_.resize(con.pairs.size());
   moments_.resize(ks > 0 ? con.pairs.size() : 0);
-#pragma omp parallel for schedule(static) if (np > grain().min_items)
-  for (std::int64_t q = 0; q < np; ++q) {
+  ks_ = ks;
+  d_factor_ = xi_n_ + spring_dt * k_ - xi_t_;
+  // The product's copy of a pair, made in the one visit that owns its A side (one pass over the
+  // pairs instead of two: each pair is ~170 bytes, and ~130 000 of them outgrow the caches).
+  auto makeOp = [&](std::size_t q) {
     const ContactPair& p = con.pairs[q];
     const Tri& a = ctx.cells.tri[p.ta];
     const Tri& b = ctx.cells.tri[p.tb];
@@ -280,9 +315,7 @@ void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& g
       op.wa[i] = p.c.bary_a[i];
       op.wb[i] = p.c.bary_b[i];
     }
-    op.s = p.c.area * xi_t_;
-    op.d = p.c.area * (xi_n_ + spring_dt * k_ - xi_t_);
-    op.ks = ks;
+    op.area = p.c.area;
     if (ks > 0) {
       Moments& m = moments_[q];
       const ContactMoments& mo = con.moments[q];
@@ -291,9 +324,10 @@ void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& g
       m[12] = mo.bb[1], m[13] = mo.bb[2], m[14] = mo.bb[5];
     }
     for (int k = 0; k < 3; ++k) op.n[k] = p.c.normal[k];
-  }
+  };
   // Σ_k w_ik G = λ_i^A (Σ_k λ_k^B) G on vertex i of A, and the same for B.
   forEachOwnedSide(*part_, [&](std::size_t q, bool own_a, bool own_b) {
+    if (own_a) makeOp(q);
     const ContactPair& p = con.pairs[q];
     const Eigen::Matrix3d g = pairMatrix(p, spring_dt);
     const Eigen::Matrix3d nn = p.c.normal * p.c.normal.transpose();
@@ -321,6 +355,8 @@ void ContactFriction::addCouplingProduct(const double* v, double* y) const {
     constexpr bool consistent = decltype(consistent_kind)::value;
     forEachOwnedSide(*part_, [&](std::size_t q, bool own_a, bool own_b) {
       const PairOp& op = ops_[q];
+      // G = s I + d n̂n̂ᵀ: s and d as addFrictionDiagonal's G has them, the same bits.
+      const double s = op.area * xi_t_, d = op.area * d_factor_;
       double ua[3] = {0, 0, 0}, ub[3] = {0, 0, 0};
       for (int i = 0; i < 3; ++i)
         for (int c = 0; c < 3; ++c) {
@@ -331,8 +367,8 @@ void ContactFriction::addCouplingProduct(const double* v, double* y) const {
       const double nb = op.n[0] * ub[0] + op.n[1] * ub[1] + op.n[2] * ub[2];
       double ga[3], gb[3];  // G u_A (what B's vertices get), G u_B (what A's vertices get)
       for (int c = 0; c < 3; ++c) {
-        gb[c] = op.s * ub[c] + op.d * nb * op.n[c];
-        ga[c] = op.s * ua[c] + op.d * na * op.n[c];
+        gb[c] = s * ub[c] + d * nb * op.n[c];
+        ga[c] = s * ua[c] + d * na * op.n[c];
       }
       // The consistent stiffness' normal forces on A's and B's vertices (its off-diagonal part).
       double fa[3] = {0, 0, 0}, fb[3] = {0, 0, 0};
@@ -360,8 +396,8 @@ void ContactFriction::addCouplingProduct(const double* v, double* y) const {
             sa -= m[3 * i + j] * bn[j];
             sb -= m[3 * j + i] * an[j];
           }
-          fa[i] = op.ks * sa;
-          fb[i] = op.ks * sb;
+          fa[i] = ks_ * sa;
+          fb[i] = ks_ * sb;
         }
       }
       auto side = [&](const int* t, const double* w, const double* g, const double* fn) {
@@ -376,7 +412,7 @@ void ContactFriction::addCouplingProduct(const double* v, double* y) const {
       if (own_b) side(op.b, op.wb, ga, fb);
     });
   };
-  if (ops_[0].ks > 0)
+  if (ks_ > 0)
     product(std::true_type{});
   else
     product(std::false_type{});
@@ -385,24 +421,25 @@ void ContactFriction::addCouplingProduct(const double* v, double* y) const {
 void ContactFriction::forEachCouplingBlock(const BlockSink& sink) const {
   // The off-diagonal blocks that addCouplingProduct applies: −w_ik G across the pair, and for
   // the consistent stiffness −k m_ab n̂n̂ᵀ across, +k m_aa n̂n̂ᵀ within each triangle.
-  const bool consistent = !ops_.empty() && ops_[0].ks > 0;
+  const bool consistent = !ops_.empty() && ks_ > 0;
   for (std::size_t q = 0; q < ops_.size(); ++q) {
     const PairOp& op = ops_[q];
     const Vec3 n(op.n[0], op.n[1], op.n[2]);
     const Eigen::Matrix3d nn = n * n.transpose();
-    const Eigen::Matrix3d g = op.s * Eigen::Matrix3d::Identity() + op.d * nn;
+    const Eigen::Matrix3d g =
+        (op.area * xi_t_) * Eigen::Matrix3d::Identity() + (op.area * d_factor_) * nn;
     for (int i = 0; i < 3; ++i)
       for (int k = 0; k < 3; ++k) {
         Eigen::Matrix3d m = -(op.wa[i] * op.wb[k]) * g;
-        if (consistent) m -= (op.ks * moments_[q][3 * i + k]) * nn;
+        if (consistent) m -= (ks_ * moments_[q][3 * i + k]) * nn;
         sink(op.a[i], op.b[k], m);
       }
     if (!consistent) continue;
     const Moments& mo = moments_[q];
     for (int i = 0; i < 3; ++i)
       for (int j = i + 1; j < 3; ++j) {
-        sink(op.a[i], op.a[j], (op.ks * mo[9 + i + j - 1]) * nn);
-        sink(op.b[i], op.b[j], (op.ks * mo[12 + i + j - 1]) * nn);
+        sink(op.a[i], op.a[j], (ks_ * mo[9 + i + j - 1]) * nn);
+        sink(op.b[i], op.b[j], (ks_ * mo[12 + i + j - 1]) * nn);
       }
   }
 }
