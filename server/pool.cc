@@ -251,7 +251,7 @@ void Pool::runJob(const Claimed& claimed, Running& flag) {
   const auto& results = flat.values;
   if (summary.ok()) {
     store_.finish(id, v1::JOB_STATE_SUCCEEDED, "", "", results, summary.t_s, summary.steps,
-                  flat.outcome);
+                  flat.outcome, flat.curves);
     ++stats_.jobs_succeeded;
     spdlog::info("job {}: succeeded ({} steps, {:.2f} s wall)", id, summary.steps, summary.wall_s);
   } else if (summary.failure == FailureKind::Cancelled) {
@@ -262,7 +262,7 @@ void Pool::runJob(const Claimed& claimed, Running& flag) {
     spdlog::info("job {}: cancelled at t = {} s", id, summary.t_s);
   } else {
     store_.finish(id, v1::JOB_STATE_FAILED, std::string(toString(summary.failure)), summary.reason,
-                  results, summary.t_s, summary.steps, flat.outcome);
+                  results, summary.t_s, summary.steps, flat.outcome, flat.curves);
     ++stats_.jobs_failed;
     spdlog::warn("job {}: failed: {}: {}", id, toString(summary.failure), summary.reason);
   }

@@ -452,14 +452,14 @@ bool SlurmExecutor::taskFinished(const v1::Job& job, const v1::ReportTaskRequest
   const bool engine_failed = summary.contains("failure") && !ok;
   bool ended = false;
   if (rc == 0 && ok) {
-    if ((ended =
-             store_.finish(id, v1::JOB_STATE_SUCCEEDED, "", "", results, t, steps, flat.outcome)))
+    if ((ended = store_.finish(id, v1::JOB_STATE_SUCCEEDED, "", "", results, t, steps, flat.outcome,
+                               flat.curves)))
       ++stats_.jobs_succeeded;
     spdlog::info("job {}: succeeded on Slurm ({})", id, report.attempt());
   } else if (engine_failed) {
     if ((ended = store_.finish(
              id, v1::JOB_STATE_FAILED, summary.value("failure", std::string("failed")),
-             summary.value("reason", std::string()), results, t, steps, flat.outcome)))
+             summary.value("reason", std::string()), results, t, steps, flat.outcome, flat.curves)))
       ++stats_.jobs_failed;
     spdlog::warn("job {}: failed on Slurm ({}): {}", id, report.attempt(),
                  summary.value("reason", std::string()));

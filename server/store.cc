@@ -547,7 +547,8 @@ v1::Job Store::cancel(const std::string& id, const std::string& reason) {
 bool Store::finish(const std::string& id, v1::JobState state, const std::string& failure_kind,
                    const std::string& reason,
                    const std::vector<std::pair<std::string, double>>& results, double t_s,
-                   std::int64_t steps, const std::string& outcome) {
+                   std::int64_t steps, const std::string& outcome,
+                   const std::vector<FlatCurve>& curves) {
   return write([&](Tx& tx) {
     if (!isTerminal(state))
       throw std::logic_error("store: finish(" + id + ") with " + v1::JobState_Name(state) +
@@ -572,6 +573,12 @@ bool Store::finish(const std::string& id, v1::JobState state, const std::string&
     for (const auto& [name, value] : results) {
       Stmt ins(tx.db, "INSERT OR REPLACE INTO results(job_id, name, value) VALUES (?,?,?)");
       ins.bind(1, id).bind(2, name).bind(3, value).run();
+    }
+    Stmt delc(tx.db, "DELETE FROM curves WHERE job_id = ?");
+    delc.bind(1, id).run();
+    for (const FlatCurve& c : curves) {
+      Stmt ins(tx.db, "INSERT OR REPLACE INTO curves(job_id, name, x, y) VALUES (?,?,?,?)");
+      ins.bind(1, id).bind(2, c.name).blob(3, packDoubles(c.x)).blob(4, packDoubles(c.y)).run();
     }
     Stmt ck(tx.db, "DELETE FROM checkpoints WHERE job_id = ?");
     ck.bind(1, id).run();
@@ -613,8 +620,10 @@ void Store::resetOutputs(const std::string& id, std::optional<double> keep_until
       Stmt del(tx.db, std::string("DELETE FROM ") + table + " WHERE job_id = ? AND t_s > ?");
       del.bind(1, id).bind(2, t).run();
     }
-    Stmt r(tx.db, "DELETE FROM results WHERE job_id = ?");
-    r.bind(1, id).run();
+    for (const char* table : {"results", "curves"}) {
+      Stmt r(tx.db, std::string("DELETE FROM ") + table + " WHERE job_id = ?");
+      r.bind(1, id).run();
+    }
   });
 }
 

@@ -24,6 +24,7 @@
 #include <thread>
 #include <vector>
 
+#include "activefoam/run_output.h"
 #include "activefoam/spec.h"
 #include "activefoam/v1/job.pb.h"
 #include "activefoam/v1/service.pb.h"
@@ -33,7 +34,7 @@ struct sqlite3;
 
 namespace activefoam::server {
 
-inline constexpr int kSchemaVersion = 4;
+inline constexpr int kSchemaVersion = 5;
 
 // A request that cannot be served as asked (bad filter, unknown id, key reuse): the service
 // maps these to gRPC codes.
@@ -126,11 +127,12 @@ class Store {
                     const std::optional<v1::Progress>& progress);
   // Queued → cancelled at once; running: returns the job unchanged (the pool stops it).
   v1::Job cancel(const std::string& id, const std::string& reason);
-  // Final state of a running job, with its results (name, value). False (nothing written) when
-  // the job is not running any more: it ended already.
+  // Final state of a running job, with its results (name, value) and curves (fusion: MSRD).
+  // False (nothing written) when the job is not running any more: it ended already.
   bool finish(const std::string& id, v1::JobState state, const std::string& failure_kind,
               const std::string& reason, const std::vector<std::pair<std::string, double>>& results,
-              double t_s, std::int64_t steps, const std::string& outcome = {});
+              double t_s, std::int64_t steps, const std::string& outcome = {},
+              const std::vector<FlatCurve>& curves = {});
   // Running → queued (shutdown or restart), with the reason; false when it was not running.
   bool requeue(const std::string& id, const std::string& reason);
   // At startup: every job left running by a previous process → queued. Returns how many.

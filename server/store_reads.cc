@@ -119,6 +119,16 @@ v1::JobResults Store::results(const std::string& id, bool with_samples) {
     if (q.step())
       for (const auto& c : nlohmann::json::parse(q.text(0))) out.add_columns(c.get<std::string>());
   }
+  {
+    Stmt q(rdb_, "SELECT name, x, y FROM curves WHERE job_id = ? ORDER BY name");
+    q.bind(1, id);
+    while (q.step()) {
+      auto* c = out.add_curves();
+      c->set_name(q.text(0));
+      for (double v : unpackDoubles(q.text(1))) c->add_x(v);
+      for (double v : unpackDoubles(q.text(2))) c->add_y(v);
+    }
+  }
   if (with_samples) {
     Stmt q(rdb_, "SELECT t_s, vals FROM samples WHERE job_id = ? ORDER BY idx");
     q.bind(1, id);

@@ -72,6 +72,11 @@ CREATE INDEX jobs_outcome ON jobs(outcome);
     R"sql(
 ALTER TABLE sweeps ADD COLUMN keys_json TEXT NOT NULL DEFAULT '[]';
 )sql",
+    // 4 → 5: curves a run ends with (fusion: the MSRD against the lag), packed doubles.
+    R"sql(
+CREATE TABLE curves(job_id TEXT NOT NULL, name TEXT NOT NULL, x BLOB NOT NULL, y BLOB NOT NULL,
+  PRIMARY KEY(job_id, name));
+)sql",
 };
 
 void migrateSchema(sqlite3* db) {

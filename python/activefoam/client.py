@@ -287,6 +287,15 @@ class Job:
         """Result name → value (fits with their *_se standard errors; NaN where undefined)."""
         return {x.name: x.value for x in self._results(False).results}
 
+    def curve(self, name: str = "msrd") -> pd.DataFrame:
+        """A curve the finished run ended with, as columns x, y: "msrd" (fusion) is the MSRD
+        (µm², y) against the lag (s, x). LookupError when the run has none (not finished, not a
+        fusion, or run by a foamd older than the curves)."""
+        for c in self._results(False).curves:
+            if c.name == name:
+                return pd.DataFrame({"x": list(c.x), "y": list(c.y)})
+        raise LookupError(f"job {self.id} has no curve {name!r}")
+
     def export(self, directory: Union[str, os.PathLike]) -> List[Path]:
         """Writes the snapshots as VTK PolyData (snap_NNNNNN.vtp) and series.pvd, as
         `foam export` does; returns the files written."""

@@ -198,6 +198,18 @@ FlatResults flattenSummary(const nlohmann::json& j) {
   }
   if (j.contains("outcome") && j["outcome"].is_string())
     out.outcome = j["outcome"].get<std::string>();
+  if (j.contains("msrd") && j["msrd"].is_object()) {
+    const auto& m = j["msrd"];
+    FlatCurve c{"msrd", {}, {}};
+    if (m.contains("lag_s") && m.contains("msrd_um2") && m["lag_s"].is_array() &&
+        m["msrd_um2"].is_array() && m["lag_s"].size() == m["msrd_um2"].size()) {
+      for (std::size_t k = 0; k < m["lag_s"].size(); ++k) {
+        c.x.push_back(num(m["lag_s"][k]));
+        c.y.push_back(num(m["msrd_um2"][k]));
+      }
+      out.curves.push_back(std::move(c));
+    }
+  }
   return out;
 }
 

@@ -671,6 +671,44 @@ TEST(Store, PriorityThenAgeAndRequeueAfterRestart) {
   fs::remove_all(db.parent_path());
 }
 
+// A finished run's curves (fusion: the MSRD against the lag) come back with its results, bit
+// for bit and NaN included, and a restart from scratch drops them with the results.
+TEST(Store, CurvesOfAFinishedRunComeBackWithItsResults) {
+  const fs::path db = tempDb();
+  Store s(db.string());
+  NewJob j;
+  j.spec.scene = SceneKind::Cell;
+  j.spec = resolve(j.spec);
+  j.spec_json = "{}";
+  const std::string id = s.submit(j).first;
+  ASSERT_EQ(s.claimNext()->job.id(), id);
+  const FlatCurve msrd{"msrd", {30, 60, 90.5}, {0.25, 1.0 / 3.0, std::nan("")}};
+  ASSERT_TRUE(s.finish(id, v1::JOB_STATE_SUCCEEDED, "", "", {{"x", 1.0}}, 90, 9, "", {msrd}));
+  const v1::JobResults r = s.results(id, false);
+  ASSERT_EQ(r.curves_size(), 1);
+  EXPECT_EQ(r.curves(0).name(), "msrd");
+  ASSERT_EQ(r.curves(0).x_size(), 3);
+  ASSERT_EQ(r.curves(0).y_size(), 3);
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(r.curves(0).x(k), msrd.x[static_cast<size_t>(k)]);
+  EXPECT_EQ(r.curves(0).y(1), 1.0 / 3.0);
+  EXPECT_TRUE(std::isnan(r.curves(0).y(2)));
+  s.resetOutputs(id, std::nullopt);
+  EXPECT_EQ(s.results(id, false).curves_size(), 0);
+  fs::remove_all(db.parent_path());
+}
+
+// flattenSummary carries summary.json's MSRD curve (foam-run's, and a Slurm task's report).
+TEST(Store, FlattenSummaryCarriesTheMsrdCurve) {
+  const auto flat = flattenSummary(nlohmann::json::parse(
+      R"({"t_s": 60, "msrd": {"lag_s": [30, 60], "msrd_um2": [0.5, null]}})"));
+  ASSERT_EQ(flat.curves.size(), 1u);
+  EXPECT_EQ(flat.curves[0].name, "msrd");
+  EXPECT_EQ(flat.curves[0].x, (std::vector<double>{30, 60}));
+  EXPECT_EQ(flat.curves[0].y[0], 0.5);
+  EXPECT_TRUE(std::isnan(flat.curves[0].y[1]));
+  EXPECT_TRUE(flattenSummary(nlohmann::json::parse(R"({"t_s": 1})")).curves.empty());
+}
+
 // The lifecycle table (job_states.h): exactly these six changes, nothing out of an end state.
 TEST(JobStates, OnlyTheLifecycleTransitionsAreAllowed) {
   using S = v1::JobState;

@@ -56,9 +56,14 @@ nlohmann::json summaryToJson(const RunSummary& summary, const SceneSpec& resolve
 // with "<name>_se"; null reads as NaN. One definition for the pool (its own summary) and the
 // Slurm executor (a task's file), so the two cannot drift apart. Throws nlohmann::json's
 // exceptions on a summary that is not an object.
+struct FlatCurve {
+  std::string name;  // "msrd": x lag (s), y MSRD (µm²)
+  std::vector<double> x, y;
+};
 struct FlatResults {
   std::vector<std::pair<std::string, double>> values;
   std::string outcome;  // fusion: fused | arrested | separated | no-contact; else empty
+  std::vector<FlatCurve> curves;
 };
 FlatResults flattenSummary(const nlohmann::json& summary);
 
