@@ -1,0 +1,986 @@
+"""Studies as files: a TOML study (base spec, grids, seeds, preset) run through foamd, resumably,
+and reported from the store alone (docs/science/README.md has the format and the commands).
+
+    python3 -m activefoam.study run studies/fig14-reduced.toml      # submit what is missing, wait
+    python3 -m activefoam.study report studies/fig14-reduced.toml   # figure + tables from the store
+    python3 -m activefoam.study report FILE --from-data DIR          # ... from committed data
+
+A run of a study is one (grid point, seed). Its jobs carry the tag `study:NAME`; a job belongs to
+a run when every key the study sets (its [spec] table, the point's keys, the seed, the preset)
+has that value in the job's resolved spec, so rerunning `run` submits only the runs that have no
+job yet, or whose job was cancelled or failed for a reason other than the simulation itself (an
+engine error, a lost worker). A run that failed in the simulation (non-finite, volume drift,
+interpenetration, ...) is a result — the supplement's hatched cells — and is not run again unless
+`--retry-failed`. Exit codes: 0 done, 1 some runs failed, 2 bad study file or spec, 3 foamd
+unreachable, 4 token refused, 130 interrupted (the jobs go on in foamd; rerun to follow them).
+"""
+
+from __future__ import annotations
+
+import argparse
+import difflib
+import gzip
+import hashlib
+import io
+import json
+import math
+import os
+import re
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+
+try:
+    import tomllib  # Python ≥ 3.11
+except ModuleNotFoundError:  # pragma: no cover - Python 3.9/3.10 with tomli installed
+    import tomli as tomllib  # type: ignore
+
+from activefoam import trends
+
+# Failure kinds of the simulation itself (engine/include/activefoam/run.h): deterministic for a
+# (spec, seed), so a result, not something to run again.
+SIMULATION_FAILURES = {"non-finite", "cg-not-converged", "inverted-triangle", "volume-drift",
+                       "interpenetration", "contact-oscillation", "preparation-failed",
+                       "step-error"}
+MAX_RUNS = 2000          # runs (points × seeds) one study may hold
+MAX_ATTEMPTS = 5         # jobs per run before a run counts as failed for good
+
+STUDY_KEYS = {"name", "title", "figure", "base", "preset", "seeds", "x", "x_label", "x_log",
+              "by", "by_label", "priority", "description", "scale"}
+FITNESS_KEYS = {"key", "reference", "metrics"}
+TOP_KEYS = {"study", "spec", "grid", "fitness"}
+PRESETS = {"draft", "standard", "reference"}
+
+# Per-run metrics of a fusion study: name → (label, where it comes from).
+METRICS = {
+    "theta_end_deg": "θ at the end (°)",
+    "theta_eq_deg": "θ_eq, Eq. 1 (°)",
+    "tau_f_s": "τ_f, Eq. 1 (s)",
+    "tau_f_over_tau_p": "τ_f / τ_p",
+    "shape_index_end": "shape index at the end",
+    "msrd_end_over_r2": "MSRD at the end / r²",
+    "unique_contacts_end": "unique contacts (normalised)",
+    "mixing_time_s": "mixing time (s, capped at the run)",
+}
+FITNESS_METRICS = ["theta_end_deg", "shape_index_end", "msrd_end_over_r2",
+                   "unique_contacts_end", "theta_eq_deg", "tau_f_s"]
+SAMPLE_COLUMNS = ["theta_deg", "shape_index_mean", "unique_contacts_norm", "neck_radius_um"]
+
+
+class StudyError(ValueError):
+    """A bad study file: names the key and what is allowed."""
+
+
+# ---- the study file ----------------------------------------------------------------------------
+
+def _flatten(table: Dict[str, Any], prefix: str = "") -> Dict[str, Any]:
+    out: Dict[str, Any] = {}
+    for k, v in table.items():
+        name = f"{prefix}{k}"
+        if isinstance(v, dict):
+            out.update(_flatten(v, name + "."))
+        else:
+            out[name] = v
+    return out
+
+
+def _closest(word: str, known: Sequence[str]) -> str:
+    m = difflib.get_close_matches(word, list(known), n=1)
+    return f" (did you mean {m[0]!r}?)" if m else ""
+
+
+def _unknown(keys, known, where: str) -> None:
+    for k in keys:
+        if k not in known:
+            raise StudyError(f"{where}{k}: unknown key{_closest(k, sorted(known))}; known: "
+                             f"{', '.join(sorted(known))}")
+
+
+def _scalar(key: str, v: Any) -> Any:
+    if isinstance(v, (bool, int, float, str)):
+        if isinstance(v, float) and not math.isfinite(v):
+            raise StudyError(f"{key}: {v} is not a finite number")
+        return v
+    raise StudyError(f"{key}: a number, string or boolean, not {type(v).__name__}")
+
+
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, bool) or isinstance(b, bool):
+        return a == b
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)):
+        return a == b or abs(a - b) <= 1e-9 * max(abs(a), abs(b))
+    return str(a) == str(b)
+
+
+@dataclass
+class Run:
+    point: Dict[str, Any]
+    seed: int
+
+    def label(self) -> str:
+        return ", ".join(f"{k}={v}" for k, v in self.point.items()) + f", seed {self.seed}"
+
+
+@dataclass
+class Study:
+    path: Path
+    name: str
+    title: str
+    seeds: List[int]
+    grids: List[Dict[str, List[Any]]]
+    spec: Dict[str, Any] = field(default_factory=dict)      # flat keys on top of the base file
+    base: Optional[Path] = None
+    base_text: str = ""
+    preset: str = ""
+    x: str = ""
+    x_label: str = ""
+    x_log: bool = False
+    by: str = ""
+    by_label: str = ""
+    priority: int = 0
+    description: str = ""
+    scale: str = ""
+    fitness: Optional[Dict[str, Any]] = None
+
+    @property
+    def tag(self) -> str:
+        return f"study:{self.name}"
+
+    def points(self) -> List[Dict[str, Any]]:
+        """The union of the grids' cartesian products, in file order, without repeats."""
+        out: List[Dict[str, Any]] = []
+        seen = set()
+        for g in self.grids:
+            keys = list(g)
+            combos: List[Dict[str, Any]] = [{}]
+            for k in keys:
+                combos = [{**c, k: v} for c in combos for v in g[k]]
+            for c in combos:
+                ident = json.dumps(c, sort_keys=True)
+                if ident not in seen:
+                    seen.add(ident)
+                    out.append(c)
+        return out
+
+    def runs(self) -> List[Run]:
+        """Seed by seed: a study cut short holds every point at its first seeds."""
+        return [Run(p, s) for s in self.seeds for p in self.points()]
+
+    def settings(self, run: Run) -> Dict[str, Any]:
+        """Every key this study sets for a run, in the order they apply (later wins)."""
+        out: Dict[str, Any] = {}
+        if self.preset:
+            out["numerics.preset"] = self.preset
+        out.update(self.spec)
+        out.update(run.point)
+        out["seed"] = run.seed
+        return out
+
+    def run_id(self, run: Run) -> str:
+        text = json.dumps({"base": self.base_text, "settings": self.settings(run)},
+                          sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+    def swept_keys(self) -> List[str]:
+        keys: List[str] = []
+        for g in self.grids:
+            keys += [k for k in g if k not in keys]
+        return keys
+
+
+def load(path: os.PathLike) -> Study:
+    """Reads and checks a study file; StudyError names the key."""
+    p = Path(path)
+    if not p.is_file():
+        raise StudyError(f"study: no such file {str(p)!r}")
+    if p.stat().st_size > 1 << 20:
+        raise StudyError(f"study: {str(p)!r} is larger than 1 MiB")
+    try:
+        doc = tomllib.loads(p.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise StudyError(f"study: {p}: not TOML: {e}") from None
+    _unknown(doc, TOP_KEYS, "")
+    st = doc.get("study")
+    if not isinstance(st, dict):
+        raise StudyError("study: the file needs a [study] table (name, seeds, ...)")
+    _unknown(st, STUDY_KEYS, "study.")
+    name = st.get("name")
+    if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9._-]{1,64}", name):
+        raise StudyError("study.name: 1 to 64 characters of A-Z a-z 0-9 . _ - (the jobs' tag is "
+                         f"study:NAME), got {name!r}")
+    seeds = st.get("seeds")
+    if (not isinstance(seeds, list) or not seeds or len(seeds) > 1000 or
+            not all(isinstance(s, int) and not isinstance(s, bool) and 0 <= s < 2**31
+                    for s in seeds)):
+        raise StudyError(f"study.seeds: a list of 1 to 1000 integers in [0, 2^31), got {seeds!r}")
+    if len(set(seeds)) != len(seeds):
+        raise StudyError(f"study.seeds: repeated seeds in {seeds!r}")
+    preset = st.get("preset", "")
+    if preset and preset not in PRESETS:
+        raise StudyError(f"study.preset: one of {', '.join(sorted(PRESETS))}, got {preset!r}")
+    study = Study(path=p, name=name, title=str(st.get("title", name)), seeds=list(seeds),
+                  grids=[], preset=preset, description=str(st.get("description", "")),
+                  scale=str(st.get("scale", "")))
+    for key in ("x", "by", "x_label", "by_label"):
+        v = st.get(key, "")
+        if not isinstance(v, str):
+            raise StudyError(f"study.{key}: a string, got {v!r}")
+        setattr(study, key, v)
+    if not isinstance(st.get("x_log", False), bool):
+        raise StudyError(f"study.x_log: true or false, got {st.get('x_log')!r}")
+    study.x_log = st.get("x_log", False)
+    prio = st.get("priority", 0)
+    if not isinstance(prio, int) or isinstance(prio, bool) or not -1000 <= prio <= 1000:
+        raise StudyError(f"study.priority: an integer in [-1000, 1000], got {prio!r}")
+    study.priority = prio
+    if "base" in st:
+        if not isinstance(st["base"], str):
+            raise StudyError(f"study.base: the path of a spec file, got {st['base']!r}")
+        base = (p.parent / st["base"]).resolve()
+        if not base.is_file():
+            raise StudyError(f"study.base: no such spec file {str(base)!r} (relative to the "
+                             "study file)")
+        study.base, study.base_text = base, base.read_text()
+    spec = doc.get("spec", {})
+    if not isinstance(spec, dict):
+        raise StudyError("spec: a table of spec keys")
+    study.spec = {k: _scalar(f"spec.{k}", v) for k, v in _flatten(spec).items()}
+    if "seed" in study.spec:
+        raise StudyError("spec.seed: seeds belong in study.seeds")
+    if not study.base_text and "scene" not in study.spec:
+        raise StudyError("spec.scene: a study needs study.base (a spec file) or spec.scene")
+    grids = doc.get("grid", [])
+    if isinstance(grids, dict):
+        grids = [grids]
+    if not isinstance(grids, list) or not grids:
+        raise StudyError("grid: at least one [[grid]] table of KEY = [values]")
+    for i, g in enumerate(grids):
+        if not isinstance(g, dict) or not g:
+            raise StudyError(f"grid[{i}]: a table of KEY = [values], got {g!r}")
+        flat = _flatten(g)
+        for k, vs in flat.items():
+            if k == "seed":
+                raise StudyError(f"grid[{i}].seed: seeds belong in study.seeds")
+            if not isinstance(vs, list) or not vs:
+                raise StudyError(f"grid[{i}].{k}: a non-empty list of values, got {vs!r}")
+            flat[k] = [_scalar(f"grid[{i}].{k}", v) for v in vs]
+        study.grids.append(flat)
+    swept = study.swept_keys()
+    for key in ("x", "by"):
+        v = getattr(study, key)
+        if v and v not in swept:
+            raise StudyError(f"study.{key}: {v!r} is not a grid key{_closest(v, swept)}; grid "
+                             f"keys: {', '.join(swept)}")
+    n = len(study.runs())
+    if n > MAX_RUNS:
+        raise StudyError(f"grid: {n} runs (points × seeds), more than the {MAX_RUNS} a study may "
+                         "hold: split it")
+    if "fitness" in doc:
+        f = doc["fitness"]
+        if not isinstance(f, dict):
+            raise StudyError("fitness: a table (key, reference, metrics)")
+        _unknown(f, FITNESS_KEYS, "fitness.")
+        if f.get("key") not in swept:
+            raise StudyError(f"fitness.key: a grid key (the setting compared), got "
+                             f"{f.get('key')!r}; grid keys: {', '.join(swept)}")
+        values = [v for g in study.grids for v in g.get(f["key"], [])]
+        if "reference" not in f or not any(_same(f["reference"], v) for v in values):
+            raise StudyError(f"fitness.reference: one of the values of {f['key']} "
+                             f"({values}), got {f.get('reference')!r}")
+        metrics = f.get("metrics", FITNESS_METRICS)
+        if not isinstance(metrics, list) or not all(m in METRICS for m in metrics):
+            bad = [m for m in metrics if m not in METRICS] if isinstance(metrics, list) else []
+            raise StudyError(f"fitness.metrics: names among {', '.join(METRICS)}"
+                             + (f"; unknown {bad[0]!r}{_closest(bad[0], list(METRICS))}"
+                                if bad else ""))
+        study.fitness = {"key": f["key"], "reference": f["reference"], "metrics": metrics}
+    return study
+
+
+# ---- matching jobs to runs -------------------------------------------------------------------
+
+def _spec_value(spec: Dict[str, Any], key: str) -> Any:
+    value: Any = spec
+    for part in key.split("."):
+        if not isinstance(value, dict) or part not in value:
+            return None
+        value = value[part]
+    return value
+
+
+def _matches(study: Study, run: Run, spec: Dict[str, Any]) -> bool:
+    for k, v in study.settings(run).items():
+        got = _spec_value(spec, k)
+        if got is None:
+            if k in run.point or k == "seed":
+                return False
+            continue  # a key the resolved spec does not echo (e.g. an alias): cannot check
+        if not _same(got, v):
+            return False
+    return True
+
+
+def _jobs_by_run(study: Study, jobs: Sequence[Any]) -> Tuple[Dict[int, List[Any]], List[Any]]:
+    """Run index → its jobs, oldest first; and the study's jobs that match no run (stale: an
+    earlier version of the file)."""
+    runs = study.runs()
+    by_seed: Dict[int, List[int]] = {}
+    for i, r in enumerate(runs):
+        by_seed.setdefault(r.seed, []).append(i)
+    found: Dict[int, List[Any]] = {}
+    stale: List[Any] = []
+    for j in sorted(jobs, key=lambda j: (j.created_utc, j.id)):
+        spec = json.loads(j.spec_json) if j.spec_json else {}
+        hit = next((i for i in by_seed.get(int(j.seed), [])
+                    if _matches(study, runs[i], spec)), None)
+        if hit is None:
+            stale.append(j)
+        else:
+            found.setdefault(hit, []).append(j)
+    return found, stale
+
+
+def _needs_job(jobs: List[Any], retry_failed: bool) -> bool:
+    from activefoam.client import _state_name
+    if not jobs:
+        return True
+    last = jobs[-1]
+    state = _state_name(last.state)
+    if state == "cancelled":
+        return True
+    if state == "failed":
+        return retry_failed or last.failure_kind not in SIMULATION_FAILURES
+    return False
+
+
+# ---- run -----------------------------------------------------------------------------------------
+
+def submit_missing(study: Study, client: Any, retry_failed: bool = False,
+                   out=sys.stderr) -> Tuple[int, int]:
+    """Submits every run that has no live or finished job; returns (submitted, already held).
+    Nothing is submitted twice: each job carries an idempotency key made of the run and its
+    attempt number. A spec foamd refuses stops the submission and cancels what this call
+    submitted (a study is submitted whole or not at all), then raises StudyError."""
+    from activefoam.client import _setting
+    jobs = client._list(tag=study.tag)
+    found, _ = _jobs_by_run(study, jobs)
+    runs = study.runs()
+    submitted: List[str] = []
+    held = 0
+    from activefoam.v1 import service_pb2
+    for i, run in enumerate(runs):
+        have = found.get(i, [])
+        if not _needs_job(have, retry_failed):
+            held += 1
+            continue
+        if len(have) >= MAX_ATTEMPTS:
+            print(f"study {study.name}: {run.label()}: {len(have)} attempts failed; not "
+                  "submitted again", file=out)
+            held += 1
+            continue
+        settings = [_setting(k, v) for k, v in study.settings(run).items()]
+        # The scene first, as the client does: its table's defaults apply before the others.
+        settings.sort(key=lambda s: not s.startswith("scene="))
+        req = service_pb2.SubmitJobRequest(
+            spec_text=study.base_text, settings=settings, tag=study.tag,
+            priority=study.priority,
+            idempotency_key=f"{study.tag}:{study.run_id(run)}:{len(have)}")
+        try:
+            resp = client._call("SubmitJob", req, f"submit {run.label()}")
+        except ValueError as e:
+            for jid in submitted:
+                try:
+                    client.cancel(jid, f"study {study.name}: submission aborted ({run.label()} "
+                                       "was refused)")
+                except Exception:  # noqa: BLE001 - best effort; the error below matters
+                    pass
+            raise StudyError(f"{study.path}: {run.label()}: {e}") from None
+        if resp.created:
+            submitted.append(resp.job_id)
+        else:
+            held += 1
+    return len(submitted), held
+
+
+def _progress(study: Study, client: Any) -> Tuple[Dict[str, int], float, List[Any]]:
+    from activefoam.client import _state_name
+    jobs = client._list(tag=study.tag)
+    found, _ = _jobs_by_run(study, jobs)
+    counts: Dict[str, int] = {}
+    done_fraction = 0.0
+    latest = []
+    for i in range(len(study.runs())):
+        have = found.get(i, [])
+        if not have:
+            counts["missing"] = counts.get("missing", 0) + 1
+            continue
+        j = have[-1]
+        latest.append(j)
+        s = _state_name(j.state)
+        counts[s] = counts.get(s, 0) + 1
+        done_fraction += 1.0 if s in ("succeeded", "failed", "cancelled") else j.progress
+    return counts, done_fraction, latest
+
+
+def wait(study: Study, client: Any, poll_s: float = 2.0, progress: bool = True,
+         timeout_s: Optional[float] = None) -> Dict[str, int]:
+    """Waits until every run's job has ended; a progress line on stderr (tqdm where installed)."""
+    n = len(study.runs())
+    start = time.monotonic()
+    first_fraction = None
+    bar = None
+    if progress:
+        try:
+            from tqdm import tqdm  # Debian's python3-tqdm, where installed
+            bar = tqdm(total=n, unit="run", desc=f"study {study.name}", file=sys.stderr)
+        except ImportError:
+            bar = None
+    try:
+        while True:
+            counts, frac, _ = _progress(study, client)
+            ended = sum(counts.get(s, 0) for s in ("succeeded", "failed", "cancelled"))
+            if first_fraction is None:
+                first_fraction = frac
+            if progress:
+                parts = ", ".join(f"{c} {s}" for s, c in sorted(counts.items()))
+                elapsed = time.monotonic() - start
+                eta = ""
+                if frac > first_fraction + 1e-6 and frac < n:
+                    eta = f", ETA {_hms((n - frac) * elapsed / (frac - first_fraction))}"
+                if bar is not None:
+                    bar.n = round(frac, 2)
+                    bar.set_postfix_str(parts)
+                    bar.refresh()
+                else:
+                    width = 24
+                    filled = int(width * frac / n) if n else width
+                    print(f"\rstudy {study.name}: [{'#' * filled}{'.' * (width - filled)}] "
+                          f"{ended}/{n} ended ({parts}){eta}   ", end="", file=sys.stderr,
+                          flush=True)
+            if ended + counts.get("missing", 0) >= n:
+                return counts
+            if timeout_s is not None and time.monotonic() - start > timeout_s:
+                raise TimeoutError(f"study {study.name}: {ended} of {n} runs ended after "
+                                   f"{timeout_s} s")
+            time.sleep(poll_s)
+    finally:
+        if bar is not None:
+            bar.close()
+        elif progress:
+            print(file=sys.stderr)
+
+
+def _hms(s: float) -> str:
+    s = int(max(0, s))
+    return f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}"
+
+
+# ---- data: the store's per-run results, samples and MSRD curves --------------------------------
+
+def collect(study: Study, client: Any, out_dir: os.PathLike) -> Path:
+    """Writes the study's data from the store into out_dir: runs.csv (one row per run: state,
+    failure, outcome, seed, the swept keys, every result), samples.csv.gz (the sample columns
+    the figures need) and msrd.csv.gz (each run's MSRD curve). Returns out_dir."""
+    import pandas as pd
+    from activefoam.client import _state_name
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    jobs = client._list(tag=study.tag)
+    found, stale = _jobs_by_run(study, jobs)
+    rows, samples, curves = [], [], []
+    for i, run in enumerate(study.runs()):
+        row: Dict[str, Any] = {"run": i, **run.point, "seed": run.seed}
+        have = found.get(i, [])
+        if not have:
+            row.update(state="missing", attempts=0)
+            rows.append(row)
+            continue
+        j = have[-1]
+        row.update(job_id=j.id, state=_state_name(j.state), failure_kind=j.failure_kind,
+                   reason=j.reason, outcome=j.outcome, attempts=len(have), t_end_s=j.t_s)
+        if row["state"] in ("succeeded", "failed"):
+            job = client.job(j.id)
+            r = job._results(True)
+            row.update({x.name: x.value for x in r.results})
+            cols = list(r.columns)
+            keep = [c for c in SAMPLE_COLUMNS if c in cols]
+            idx = [cols.index(c) for c in keep]
+            for s in r.samples:
+                samples.append([j.id, s.t_s] + [s.values[k] for k in idx])
+            for c in getattr(r, "curves", []):
+                if c.name == "msrd":
+                    curves += [[j.id, x, y] for x, y in zip(c.x, c.y)]
+        rows.append(row)
+    pd.DataFrame(rows).to_csv(out / "runs.csv", index=False)
+    pd.DataFrame(samples, columns=["job_id", "t_s"] + SAMPLE_COLUMNS[:len(samples[0]) - 2]
+                 if samples else ["job_id", "t_s"]).to_csv(out / "samples.csv.gz", index=False)
+    pd.DataFrame(curves, columns=["job_id", "lag_s", "msrd_um2"]).to_csv(
+        out / "msrd.csv.gz", index=False)
+    meta = {"study": study.name, "file": str(study.path), "tag": study.tag,
+            "collected_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            "runs": len(rows), "stale_jobs": [j.id for j in stale]}
+    (out / "collected.json").write_text(json.dumps(meta, indent=1) + "\n")
+    return out
+
+
+@dataclass
+class Data:
+    runs: Any       # DataFrame, one row per run, with the derived metrics of METRICS
+    samples: Any    # DataFrame job_id, t_s, sample columns
+    msrd: Any       # DataFrame job_id, lag_s, msrd_um2
+
+
+def load_data(study: Study, data_dir: os.PathLike) -> Data:
+    import pandas as pd
+    d = Path(data_dir)
+    for f in ("runs.csv", "samples.csv.gz", "msrd.csv.gz"):
+        if not (d / f).is_file():
+            raise StudyError(f"data: {d / f} is missing (collect it with `report` against foamd)")
+    runs = pd.read_csv(d / "runs.csv")
+    samples = pd.read_csv(d / "samples.csv.gz")
+    msrd = pd.read_csv(d / "msrd.csv.gz")
+    runs = derive_metrics(study, runs, samples, msrd)
+    return Data(runs, samples, msrd)
+
+
+def derive_metrics(study: Study, runs: Any, samples: Any, msrd: Any) -> Any:
+    """Adds the per-run metrics of METRICS (NaN where a run has none: not finished, a fit that
+    did not converge). θ, shape index and unique contacts at the end are the last finite sample;
+    MSRD at the end is the curve's longest lag, over r²."""
+    import numpy as np
+    runs = runs.copy()
+    last = {}
+    if len(samples):
+        for jid, g in samples.groupby("job_id"):
+            g = g.sort_values("t_s")
+            vals = {}
+            for col, name in (("theta_deg", "theta_end_deg"),
+                              ("shape_index_mean", "shape_index_end"),
+                              ("unique_contacts_norm", "unique_contacts_end")):
+                if col in g:
+                    v = g[col].to_numpy(dtype=float)
+                    v = v[np.isfinite(v)]
+                    vals[name] = v[-1] if len(v) else math.nan
+            last[jid] = vals
+    mend = {}
+    if len(msrd):
+        for jid, g in msrd.groupby("job_id"):
+            g = g.sort_values("lag_s")
+            v = g["msrd_um2"].to_numpy(dtype=float)
+            v = v[np.isfinite(v)]
+            mend[jid] = v[-1] if len(v) else math.nan
+    ok = runs["state"] == "succeeded" if "state" in runs else None
+    for name in ("theta_end_deg", "shape_index_end", "unique_contacts_end"):
+        runs[name] = [last.get(j, {}).get(name, math.nan) if s == "succeeded" else math.nan
+                      for j, s in zip(runs.get("job_id", [None] * len(runs)), runs["state"])]
+    r = study_radius(study)
+    runs["msrd_end_over_r2"] = [mend.get(j, math.nan) / r**2 if s == "succeeded" else math.nan
+                                for j, s in zip(runs.get("job_id", [None] * len(runs)),
+                                                runs["state"])]
+    fit_ok = runs["eq1_ok"] == 1 if "eq1_ok" in runs else np.zeros(len(runs), bool)
+    for name in ("theta_eq_deg", "tau_f_s"):
+        src = runs[name] if name in runs else np.full(len(runs), math.nan)
+        runs[name] = np.where(fit_ok & ok, src, math.nan)
+    tau_p = runs["cells.tau_p_s"] if "cells.tau_p_s" in runs else float(
+        study.spec.get("cells.tau_p_s", 600.0))
+    runs["tau_f_over_tau_p"] = runs["tau_f_s"] / tau_p
+    if "mixing_time_s" not in runs:
+        runs["mixing_time_s"] = math.nan
+    runs["mixing_time_s"] = np.where(ok, runs["mixing_time_s"], math.nan)
+    return runs
+
+
+def study_radius(study: Study) -> float:
+    return float(study.spec.get("cells.radius_mean_um", 8.88))
+
+
+# ---- report: tables and figures --------------------------------------------------------------
+
+def _group_keys(study: Study) -> List[str]:
+    keys = study.swept_keys()
+    return keys
+
+
+def summary_table(study: Study, runs: Any, metrics: Sequence[str] = tuple(METRICS)) -> Any:
+    """Per grid point: runs, succeeded, failed (with their failure kinds), and per metric n,
+    median, q25, q75 over seeds."""
+    import pandas as pd
+    keys = _group_keys(study)
+    out = []
+    for point in study.points():
+        sel = runs
+        for k, v in point.items():
+            sel = sel[[_same(x, v) for x in sel[k]]]
+        row: Dict[str, Any] = dict(point)
+        row["runs"] = len(sel)
+        row["succeeded"] = int((sel["state"] == "succeeded").sum())
+        failed = sel[sel["state"] == "failed"]
+        row["failed"] = len(failed)
+        row["failures"] = ",".join(sorted(set(failed.get("failure_kind", pd.Series(dtype=str))
+                                              .dropna().astype(str))))
+        row["missing"] = int(sel["state"].isin(["missing", "queued", "running",
+                                                "cancelled"]).sum())
+        for m in metrics:
+            v = trends.finite(sel[m]) if m in sel else []
+            row[f"{m}_n"] = len(v)
+            row[f"{m}_median"] = trends.median(v)
+            row[f"{m}_q25"] = float(pd.Series(v).quantile(0.25)) if len(v) else math.nan
+            row[f"{m}_q75"] = float(pd.Series(v).quantile(0.75)) if len(v) else math.nan
+        out.append(row)
+    return pd.DataFrame(out, columns=list(out[0].keys()) if out else keys)
+
+
+def summary_markdown(study: Study, table: Any) -> str:
+    """The summary as a readable table: per point, runs (succeeded / failed, with the failure
+    kinds) and each metric as median [q25, q75] over its n runs."""
+    keys = study.swept_keys()
+    head = keys + ["runs", "ok", "failed"] + [METRICS[m] for m in METRICS]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for _, r in table.iterrows():
+        cells = [str(r[k]) for k in keys]
+        cells += [str(r["runs"]), str(r["succeeded"]),
+                  f"{r['failed']}" + (f" ({r['failures']})" if r["failed"] else "")]
+        for m in METRICS:
+            med = r[f"{m}_median"]
+            cells.append("—" if math.isnan(med) else
+                         f"{med:.3g} [{r[f'{m}_q25']:.3g}, {r[f'{m}_q75']:.3g}] ({r[f'{m}_n']})")
+        lines.append("| " + " | ".join(cells) + " |")
+    return ("Median [q25, q75] (n runs) over seeds; mixing time is capped at the run's length "
+            "where MSRD never reached r².\n\n" + "\n".join(lines) + "\n")
+
+
+def _markdown(df: Any, floatfmt: str = ".3g") -> str:
+    cols = list(df.columns)
+    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    for _, r in df.iterrows():
+        cells = []
+        for c in cols:
+            v = r[c]
+            if isinstance(v, float):
+                cells.append("—" if math.isnan(v) else format(v, floatfmt))
+            else:
+                cells.append(str(v))
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _label(study: Study, key: str) -> str:
+    if key == study.x and study.x_label:
+        return study.x_label
+    if key == study.by and study.by_label:
+        return study.by_label
+    return key
+
+
+def _series(study: Study, data: Data, sel: Any, col: str) -> Tuple[Any, Any, Any, Any]:
+    """Median and IQR of a sample column over the selected runs, on the common sample times."""
+    import numpy as np
+    ids = [j for j, s in zip(sel.get("job_id", []), sel["state"]) if s == "succeeded"]
+    g = data.samples[data.samples["job_id"].isin(ids)]
+    if not len(g) or col not in g:
+        return (np.array([]),) * 4
+    piv = g.pivot_table(index="t_s", columns="job_id", values=col)
+    t = piv.index.to_numpy(dtype=float)
+    a = piv.to_numpy(dtype=float)
+    with np.errstate(all="ignore"):
+        import warnings
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            med = np.nanmedian(a, axis=1)
+            q25 = np.nanpercentile(a, 25, axis=1)
+            q75 = np.nanpercentile(a, 75, axis=1)
+    return t, med, q25, q75
+
+
+def _msrd_series(data: Data, sel: Any) -> Tuple[Any, Any]:
+    import numpy as np
+    ids = [j for j, s in zip(sel.get("job_id", []), sel["state"]) if s == "succeeded"]
+    g = data.msrd[data.msrd["job_id"].isin(ids)]
+    if not len(g):
+        return np.array([]), np.array([])
+    piv = g.pivot_table(index="lag_s", columns="job_id", values="msrd_um2")
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return piv.index.to_numpy(dtype=float), np.nanmedian(piv.to_numpy(dtype=float), axis=1)
+
+
+def render(study: Study, data: Data, out_dir: os.PathLike) -> List[Path]:
+    """The study's figure(s) and tables from its data: NAME-curves.png (θ(t) with the Eq. 1 fit
+    of the median parameters, and MSRD(t) on log–log axes with the r² line, per value of `by`),
+    NAME-trends.png (θ_eq, τ_f/τ_p, shape index, MSRD at the end, unique contacts, mixing time
+    against x, one line per `by`, median and IQR over seeds, failed runs marked), summary.csv,
+    summary.md, and for a fitness study fitness.csv / fitness.md."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written: List[Path] = []
+    runs = data.runs
+    table = summary_table(study, runs)
+    table.to_csv(out / "summary.csv", index=False)
+    (out / "summary.md").write_text(summary_markdown(study, table))
+    written += [out / "summary.csv", out / "summary.md"]
+
+    x = study.x or study.swept_keys()[0]
+    by = study.by
+    by_values = list(dict.fromkeys(v for p in study.points() for k, v in p.items() if k == by)) \
+        if by else [None]
+    x_values = list(dict.fromkeys(p[x] for p in study.points() if x in p))
+    r = study_radius(study)
+    colors = plt.cm.viridis(np.linspace(0, 0.9, max(len(x_values), 1)))
+
+    # θ(t) and MSRD(t), one row per value of `by`.
+    fig, axes = plt.subplots(len(by_values), 2, figsize=(10, 3.2 * len(by_values)),
+                             squeeze=False)
+    for row, bv in enumerate(by_values):
+        ax_t, ax_m = axes[row]
+        for c, xv in zip(colors, x_values):
+            sel = runs[[_same(v, xv) for v in runs[x]]]
+            if by:
+                sel = sel[[_same(v, bv) for v in sel[by]]]
+            t, med, q25, q75 = _series(study, data, sel, "theta_deg")
+            if len(t):
+                h = t / 3600
+                ax_t.plot(h, med, color=c, label=f"{_label(study, x)} = {xv}")
+                ax_t.fill_between(h, q25, q75, color=c, alpha=0.2, lw=0)
+                ok = sel[np.isfinite(sel["theta_eq_deg"])] if "theta_eq_deg" in sel else sel[:0]
+                if len(ok) and "theta0_deg" in ok:  # Eq. 1's θ0 (Eq. 2's is eq2_…)
+                    te = np.median(ok["theta_eq_deg"])
+                    t0 = np.median(ok["theta0_deg"])
+                    tf = np.median(ok["tau_f_s"])
+                    ax_t.plot(h, te + (t0 - te) * np.exp(-t / tf), color=c, ls="--", lw=1)
+            lag, m = _msrd_series(data, sel)
+            keep = (lag > 0) & np.isfinite(m) & (m > 0)
+            if keep.any():
+                ax_m.loglog(lag[keep] / 3600, m[keep] / r**2, color=c)
+        ax_m.axhline(1.0, color="k", ls=":", lw=1, label="r²")
+        title = f"{_label(study, by)} = {bv}" if by else ""
+        ax_t.set(xlabel="t (h)", ylabel="θ (°)", title=title)
+        ax_m.set(xlabel="lag (h)", ylabel="MSRD / r²", title=title)
+        if row == 0:
+            ax_t.legend(fontsize=7)
+            ax_m.legend(fontsize=7)
+    fig.suptitle(f"{study.title}: θ(t) (median, IQR; dashed: Eq. 1 with the median fit) and MSRD",
+                 fontsize=9)
+    fig.tight_layout()
+    fig.savefig(out / f"{study.name}-curves.png", dpi=110)
+    plt.close(fig)
+    written.append(out / f"{study.name}-curves.png")
+
+    # Panels against x, one line per `by`.
+    panels = ["theta_eq_deg", "tau_f_over_tau_p", "shape_index_end", "msrd_end_over_r2",
+              "unique_contacts_end", "mixing_time_s"]
+    fig, axes = plt.subplots(2, 3, figsize=(12, 6.5))
+    markers = "osD^v<>"
+    numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in x_values)
+    where = {str(v): i for i, v in enumerate(x_values)}  # a categorical x: evenly spaced
+    for ax, m in zip(axes.flat, panels):
+        for k, bv in enumerate(by_values):
+            rows = table if not by else table[[_same(v, bv) for v in table[by]]]
+            xs = np.array([float(v) if numeric else where[str(v)] for v in rows[x]])
+            med = rows[f"{m}_median"].to_numpy(dtype=float)
+            lo = med - rows[f"{m}_q25"].to_numpy(dtype=float)
+            hi = rows[f"{m}_q75"].to_numpy(dtype=float) - med
+            lab = f"{_label(study, by)} = {bv}" if by else None
+            ax.errorbar(xs, med, yerr=[lo, hi], marker=markers[k % len(markers)], capsize=3,
+                        label=lab)
+            for xv, f, n in zip(xs, rows["failed"], rows["runs"]):
+                if f:
+                    ax.annotate(f"{f}/{n} failed", (xv, 0), xycoords=("data", "axes fraction"),
+                                fontsize=6, color="red", ha="center", va="bottom")
+        if study.x_log and numeric:
+            ax.set_xscale("log")
+        if not numeric:
+            ax.set_xticks(range(len(x_values)), [str(v) for v in x_values])
+            ax.set_xlim(-0.5, len(x_values) - 0.5)
+        ax.set(xlabel=_label(study, x), ylabel=METRICS[m])
+    if by:
+        axes.flat[0].legend(fontsize=7)
+    fig.suptitle(f"{study.title}: median and IQR over seeds", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(out / f"{study.name}-trends.png", dpi=110)
+    plt.close(fig)
+    written.append(out / f"{study.name}-trends.png")
+
+    if study.fitness:
+        written += render_fitness(study, data, out)
+    return written
+
+
+def fitness_table(study: Study, runs: Any) -> Any:
+    """Per candidate value of fitness.key (and per value of the other swept keys) and metric:
+    the difference of medians against the reference with its bootstrap 95 % interval, the
+    seed-to-seed IQR and the verdict (fit: |Δ| < IQR/2)."""
+    import pandas as pd
+    f = study.fitness or {}
+    key, ref = f["key"], f["reference"]
+    others = [k for k in study.swept_keys() if k != key]
+    rows = []
+    values = list(dict.fromkeys(p[key] for p in study.points() if key in p))
+    contexts = list(dict.fromkeys(tuple((k, p.get(k)) for k in others) for p in study.points()))
+    for ctx in contexts:
+        sel = runs
+        for k, v in ctx:
+            sel = sel[[_same(x, v) for x in sel[k]]]
+        ref_runs = sel[[_same(x, ref) for x in sel[key]]]
+        for cand in values:
+            if _same(cand, ref):
+                continue
+            cand_runs = sel[[_same(x, cand) for x in sel[key]]]
+            for m in f["metrics"]:
+                fit = trends.fitness(ref_runs[m], cand_runs[m])
+                row = dict(ctx)
+                row.update({key: cand, "reference": ref, "metric": m,
+                            "median_ref": trends.median(ref_runs[m]),
+                            "median": trends.median(cand_runs[m]), "diff": fit.diff.diff,
+                            "diff_lo95": fit.diff.lo, "diff_hi95": fit.diff.hi,
+                            "iqr": fit.iqr, "n_ref": fit.diff.n_a, "n": fit.diff.n_b,
+                            "fit": {True: "yes", False: "no", None: "—"}[fit.fit],
+                            "why": fit.why})
+                rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def render_fitness(study: Study, data: Data, out: Path) -> List[Path]:
+    import matplotlib.pyplot as plt
+    import numpy as np
+    f = study.fitness or {}
+    table = fitness_table(study, data.runs)
+    table.to_csv(out / "fitness.csv", index=False)
+    verdicts = []
+    for cand, g in table.groupby(f["key"], sort=False) if len(table) else []:
+        judged = g[g["fit"] != "—"]
+        if len(judged) < len(g):
+            verdicts.append(f"- `{f['key']} = {cand}`: not decided — "
+                            f"{len(g) - len(judged)} of {len(g)} metrics lack runs")
+        elif (judged["fit"] == "yes").all():
+            verdicts.append(f"- `{f['key']} = {cand}`: **fit** — every difference of medians "
+                            f"is below half the seed-to-seed IQR")
+        else:
+            bad = ", ".join(judged[judged["fit"] == "no"]["metric"])
+            verdicts.append(f"- `{f['key']} = {cand}`: **not fit** — {bad}")
+    show = table.drop(columns=["why"]) if len(table) else table
+    (out / "fitness.md").write_text(
+        f"# {study.title}: fitness against `{f['key']} = {f['reference']}`\n\n"
+        + "\n".join(verdicts) + "\n\n" + _markdown(show))
+    # θ(t) ensemble bands of each value of the key.
+    fig, ax = plt.subplots(figsize=(7, 4))
+    values = list(dict.fromkeys(p[f["key"]] for p in study.points()))
+    for c, v in zip(plt.cm.tab10(np.arange(len(values))), values):
+        sel = data.runs[[_same(x, v) for x in data.runs[f["key"]]]]
+        t, med, q25, q75 = _series(study, data, sel, "theta_deg")
+        if len(t):
+            ax.plot(t / 3600, med, color=c, label=f"{v} (median, IQR over "
+                    f"{int((sel['state'] == 'succeeded').sum())} seeds)")
+            ax.fill_between(t / 3600, q25, q75, color=c, alpha=0.25, lw=0)
+    ax.set(xlabel="t (h)", ylabel="θ (°)", title=f"{study.title}: θ(t) ensembles")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / f"{study.name}-theta-bands.png", dpi=110)
+    plt.close(fig)
+    return [out / "fitness.csv", out / "fitness.md", out / f"{study.name}-theta-bands.png"]
+
+
+# ---- command line ----------------------------------------------------------------------------
+
+def _client(args: Any) -> Any:
+    from activefoam.client import Client
+    return Client(args.server, token=_token(args), tls_ca=args.tls_ca)
+
+
+def _token(args: Any) -> Optional[str]:
+    if args.token_file:
+        return Path(args.token_file).read_text().strip()
+    return None
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="python3 -m activefoam.study",
+        description="Run a study file through foamd (resumable) and report it from the store.")
+    ap.add_argument("--server", default=None, help="foamd address (default FOAM_SERVER or "
+                    "127.0.0.1:50051)")
+    ap.add_argument("--token-file", default=None, help="bearer token file (default FOAM_TOKEN)")
+    ap.add_argument("--tls-ca", default=None, help="PEM of foamd's certificate or CA")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    p_run = sub.add_parser("run", help="submit the runs that are missing or failed, then wait")
+    p_run.add_argument("study")
+    p_run.add_argument("--no-wait", action="store_true", help="submit and return")
+    p_run.add_argument("--retry-failed", action="store_true",
+                       help="also rerun runs that failed in the simulation itself")
+    p_run.add_argument("--report", metavar="DIR", default=None,
+                       help="when every run has ended, collect and report into DIR")
+    p_run.add_argument("--poll", type=float, default=2.0, help=argparse.SUPPRESS)
+    p_rep = sub.add_parser("report", help="tables and figures from the store (or --from-data)")
+    p_rep.add_argument("study")
+    p_rep.add_argument("--out", default=None, help="output folder (default: next to the study "
+                       "file, NAME-report/)")
+    p_rep.add_argument("--from-data", default=None, metavar="DIR",
+                       help="render from a data folder written by an earlier report (runs.csv, "
+                            "samples.csv.gz, msrd.csv.gz) instead of the store")
+    p_chk = sub.add_parser("check", help="read the study file and list its runs")
+    p_chk.add_argument("study")
+    args = ap.parse_args(argv)
+    try:
+        study = load(args.study)
+        if args.cmd == "check":
+            runs = study.runs()
+            print(f"study {study.name}: {len(study.points())} points × {len(study.seeds)} seeds "
+                  f"= {len(runs)} runs, tag {study.tag}")
+            for p in study.points():
+                print("  " + ", ".join(f"{k}={v}" for k, v in p.items()))
+            return 0
+        if args.cmd == "run":
+            with _client(args) as c:
+                n_new, n_held = submit_missing(study, c, retry_failed=args.retry_failed)
+                print(f"study {study.name}: {n_new} runs submitted, {n_held} already in the "
+                      f"store (tag {study.tag})", file=sys.stderr)
+                if args.no_wait:
+                    return 0
+                counts = wait(study, c, poll_s=args.poll)
+                print(f"study {study.name}: " + ", ".join(f"{n} {s}" for s, n in
+                                                         sorted(counts.items())), file=sys.stderr)
+                if args.report:
+                    _report(study, c, Path(args.report))
+                return 1 if counts.get("failed", 0) or counts.get("cancelled", 0) else 0
+        out = Path(args.out) if args.out else study.path.parent / f"{study.name}-report"
+        if args.from_data:
+            data = load_data(study, args.from_data)
+            for f in render(study, data, out):
+                print(f)
+            return 0
+        with _client(args) as c:
+            _report(study, c, out)
+        return 0
+    except StudyError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except ValueError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except PermissionError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 4
+    except ConnectionError as e:
+        print(f"error: {e} (is foamd running? --server / FOAM_SERVER)", file=sys.stderr)
+        return 3
+    except KeyboardInterrupt:
+        print("\ninterrupted: the submitted jobs go on in foamd; run the same command again to "
+              "follow them (nothing is submitted twice)", file=sys.stderr)
+        return 130
+
+
+def _report(study: Study, client: Any, out: Path) -> None:
+    data_dir = collect(study, client, out / "data")
+    data = load_data(study, data_dir)
+    for f in render(study, data, out):
+        print(f)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

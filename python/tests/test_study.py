@@ -1,0 +1,271 @@
+"""Studies as files (activefoam.study) through a real foamd: run, interrupt, rerun, report; and
+bad study files."""
+
+import gzip
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from activefoam import study as st
+
+
+def _run(args, foamd=None, timeout=300, **kw):
+    env = dict(os.environ)
+    if foamd is not None:
+        env["FOAM_SERVER"] = foamd.address
+    return subprocess.run([sys.executable, "-m", "activefoam.study", *args], env=env,
+                          capture_output=True, text=True, timeout=timeout, **kw)
+
+
+BASE = """\
+scene = "fusion"
+sample_every_s = 30
+snapshot_every_s = 0
+[numerics]
+dt_s = 0.5
+[scene]
+n_cells = 4
+prep_max_s = 300
+allow_uncompacted = true
+"""
+
+
+def _study(tmp: Path, seeds, name="tiny", extra="") -> Path:
+    (tmp / "base.toml").write_text(BASE)
+    f = tmp / f"{name}-{len(seeds)}.toml"
+    f.write_text(textwrap.dedent(f"""\
+        [study]
+        name = "{name}"
+        title = "tiny fusion"
+        base = "base.toml"
+        seeds = {seeds}
+        x = "cells.alpha"
+        [spec]
+        duration_s = 240
+        [[grid]]
+        "cells.alpha" = [0.4375, 0.6]
+        [fitness]
+        key = "cells.alpha"
+        reference = 0.4375
+        """) + extra)
+    return f
+
+
+def test_run_interrupt_rerun_report(foamd, client, tmp_path):
+    one_seed = _study(tmp_path, [1])
+    two_seeds = _study(tmp_path, [1, 2])
+    # A first study run holds seed 1 only, and returns at once.
+    r = _run(["run", str(one_seed), "--no-wait"], foamd)
+    assert r.returncode == 0, r.stderr
+    assert "2 runs submitted, 0 already" in r.stderr
+    # The full study, interrupted while it waits: seed 1's runs are not submitted again.
+    env = dict(os.environ, FOAM_SERVER=foamd.address)
+    p = subprocess.Popen([sys.executable, "-m", "activefoam.study", "run", str(two_seeds)],
+                         env=env, stderr=subprocess.PIPE, text=True)
+    line = p.stderr.readline()
+    assert "2 runs submitted, 2 already" in line, line
+    time.sleep(1)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130, err
+    assert "nothing is submitted twice" in err
+    # One job is lost meanwhile (cancelled): the rerun submits it again, and nothing else.
+    jobs = client.jobs(tag="study:tiny")
+    assert len(jobs) == 4
+    victim = jobs[jobs["state"].isin(["queued", "running"])]["job_id"].iloc[0]
+    client.cancel(victim, "test: a lost run")
+    while client.job(victim).state() not in ("cancelled", "succeeded", "failed"):
+        time.sleep(0.2)
+    r = _run(["run", str(two_seeds)], foamd, timeout=600)
+    lost = client.job(victim).state() == "cancelled"
+    assert f"{1 if lost else 0} runs submitted, {3 if lost else 4} already" in r.stderr, r.stderr
+    assert r.returncode == 0, r.stderr
+    jobs = client.jobs(tag="study:tiny")
+    assert len(jobs) == (5 if lost else 4)
+    assert (jobs["state"] == "succeeded").sum() == 4
+    # Once more: everything is held, nothing is submitted.
+    r = _run(["run", str(two_seeds), "--no-wait"], foamd)
+    assert "0 runs submitted, 4 already" in r.stderr, r.stderr
+    assert len(client.jobs(tag="study:tiny")) == len(jobs)
+
+    # The report, from the store alone.
+    out = tmp_path / "report"
+    r = _run(["report", str(two_seeds), "--out", str(out)], foamd)
+    assert r.returncode == 0, r.stderr
+    for f in ("summary.csv", "summary.md", "tiny-curves.png", "tiny-trends.png", "fitness.csv",
+              "fitness.md", "tiny-theta-bands.png", "data/runs.csv", "data/samples.csv.gz",
+              "data/msrd.csv.gz"):
+        assert (out / f).is_file() and (out / f).stat().st_size > 0, f
+    runs = pd.read_csv(out / "data/runs.csv")
+    assert len(runs) == 4 and (runs["state"] == "succeeded").all()
+    assert sorted(runs["seed"]) == [1, 1, 2, 2]
+    samples = pd.read_csv(out / "data/samples.csv.gz")
+    assert set(samples["job_id"]) == set(runs["job_id"])
+    assert len(samples[samples["job_id"] == runs["job_id"][0]]) == 240 // 30 + 1
+    # The MSRD curves came through the store (GetResults curves), one per run.
+    msrd = pd.read_csv(out / "data/msrd.csv.gz")
+    assert set(msrd["job_id"]) == set(runs["job_id"])
+    curve = client.job(runs["job_id"][0]).curve("msrd")
+    assert len(curve) == len(msrd[msrd["job_id"] == runs["job_id"][0]])
+    summary = pd.read_csv(out / "summary.csv")
+    assert list(summary["runs"]) == [2, 2] and list(summary["succeeded"]) == [2, 2]
+    # θ at the end is the last sample's θ, per run, and its median per point.
+    last = samples.sort_values("t_s").groupby("job_id")["theta_deg"].last()
+    data = st.load_data(st.load(two_seeds), out / "data")
+    for jid, theta in last.items():
+        got = data.runs.loc[data.runs["job_id"] == jid, "theta_end_deg"].iloc[0]
+        assert got == pytest.approx(theta)
+    # Two seeds a point: the fitness table judges nothing (no verdict under 3 runs).
+    fit = pd.read_csv(out / "fitness.csv")
+    assert (fit["fit"] == "—").all()
+    assert "not decided" in (out / "fitness.md").read_text()
+    # The same tables again from the data folder alone (no foamd).
+    again = tmp_path / "again"
+    r = _run(["report", str(two_seeds), "--from-data", str(out / "data"), "--out", str(again)],
+             None)
+    assert r.returncode == 0, r.stderr
+    assert (again / "summary.csv").read_text() == (out / "summary.csv").read_text()
+
+
+BAD = [
+    ("[study]\nname = 'x'\nseed = [1]\n", "study.seed: unknown key (did you mean 'seeds'?)"),
+    ("[study]\nname = 'x'\nseeds = []\n", "study.seeds"),
+    ("[study]\nname = 'a b'\nseeds = [1]\n", "study.name"),
+    ("[study]\nname = 'x'\nseeds = [1]\npreset = 'fast'\n", "study.preset"),
+    ("[study]\nname = 'x'\nseeds = [1]\n[spec]\nscene = 'fusion'\n", "grid: at least one"),
+    ("[study]\nname = 'x'\nseeds = [1]\n[spec]\nscene = 'fusion'\n[[grid]]\n'cells.alpha' = []\n",
+     "grid[0].cells.alpha"),
+    ("[study]\nname = 'x'\nseeds = [1]\nx = 'cells.gamma'\n[spec]\nscene = 'fusion'\n"
+     "[[grid]]\n'cells.alpha' = [0.5]\n", "study.x"),
+    ("[study]\nname = 'x'\nseeds = [1]\n[spec]\nscene = 'fusion'\n[[grid]]\n"
+     "'cells.alpha' = [0.5]\n[fitness]\nkey = 'cells.alpha'\nreference = 0.7\n",
+     "fitness.reference"),
+    ("[study]\nname = 'x'\nseeds = [1]\n[[grid]]\n'cells.alpha' = [0.5]\n", "spec.scene"),
+    ("[study\nname = 'x'\n", "not TOML"),
+    ("[studdy]\n", "studdy: unknown key (did you mean 'study'?)"),
+]
+
+
+@pytest.mark.parametrize("text,message", BAD)
+def test_bad_study_files_exit_2_naming_the_key(tmp_path, text, message):
+    f = tmp_path / "bad.toml"
+    f.write_text(text)
+    r = _run(["check", str(f)])
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert message in r.stderr
+
+
+def test_a_spec_foamd_refuses_submits_nothing(foamd, client, tmp_path):
+    f = _study(tmp_path, [1], name="refused")
+    text = f.read_text().replace('"cells.alpha" = [0.4375, 0.6]', '"cells.alpha" = [0.5, 1.5]')
+    text = text.replace("reference = 0.4375", "reference = 0.5")
+    f.write_text(text)
+    r = _run(["run", str(f), "--no-wait"], foamd)
+    assert r.returncode == 2, r.stderr
+    assert "cells.alpha" in r.stderr
+    # The valid point went in first and was cancelled: the study is submitted whole or not at all.
+    jobs = client.jobs(tag="study:refused")
+    assert (jobs["state"] == "cancelled").all()
+
+
+def test_missing_data_folder_is_a_clear_error(tmp_path):
+    f = _study(tmp_path, [1])
+    r = _run(["report", str(f), "--from-data", str(tmp_path / "nowhere")])
+    assert r.returncode == 2 and "runs.csv is missing" in r.stderr
+
+
+def test_points_are_the_union_of_the_grids(tmp_path):
+    f = _study(tmp_path, [1, 2], extra='[[grid]]\n"cells.alpha" = [0.6, 0.75]\n')
+    s = st.load(f)
+    assert [p["cells.alpha"] for p in s.points()] == [0.4375, 0.6, 0.75]
+    assert len(s.runs()) == 6
+    # A run's identity does not depend on the other runs.
+    run = s.runs()[0]
+    assert st.load(_study(tmp_path, [1])).run_id(run) == s.run_id(run)
+
+
+def _synthetic(tmp: Path, shift_theta: float, failed_seed: int = 0):
+    """A preset-fitness study's data folder with known answers: θ(t) = 40 + 5 t/h + seed noise
+    (draft shifted by shift_theta), and one failed draft run."""
+    import numpy as np
+    f = tmp / "fit.toml"
+    f.write_text(textwrap.dedent("""\
+        [study]
+        name = "synthetic"
+        seeds = [1, 2, 3, 4, 5]
+        x = "numerics.preset"
+        [spec]
+        scene = "fusion"
+        duration_s = 7200
+        [[grid]]
+        "numerics.preset" = ["draft", "standard"]
+        [fitness]
+        key = "numerics.preset"
+        reference = "standard"
+        metrics = ["theta_end_deg", "shape_index_end", "msrd_end_over_r2"]
+        """))
+    d = tmp / "data"
+    d.mkdir()
+    rows, samples, msrd = [], [], []
+    noise = {1: -2.0, 2: -1.0, 3: 0.0, 4: 1.0, 5: 2.0}   # IQR of θ_end: 2
+    for seed in range(1, 6):
+        for preset in ("draft", "standard"):
+            jid = f"j-{preset}-{seed}"
+            failed = preset == "draft" and seed == failed_seed
+            rows.append({"run": len(rows), "numerics.preset": preset, "seed": seed,
+                         "job_id": jid, "state": "failed" if failed else "succeeded",
+                         "failure_kind": "volume-drift" if failed else "", "eq1_ok": 0,
+                         "mixing_time_s": 7200})
+            for t in range(0, 7201, 600):
+                theta = 40 + 5 * t / 3600 + noise[seed] + (shift_theta if preset == "draft"
+                                                           else 0)
+                samples.append([jid, t, theta, 5.3 + 0.01 * seed, 1.0 + 0.1 * seed, 3.0])
+            for lag in (60, 600, 3600, 7200):
+                # MSRD at the end / r²: 0.5 + 0.1·seed, draft 10 % higher (IQR 0.2, Δ ≈ 0.08).
+                end = (0.5 + 0.1 * seed) * (1.1 if preset == "draft" else 1.0) * 8.88**2
+                msrd.append([jid, lag, end * lag / 7200])
+    pd.DataFrame(rows).to_csv(d / "runs.csv", index=False)
+    pd.DataFrame(samples, columns=["job_id", "t_s"] + st.SAMPLE_COLUMNS).to_csv(
+        d / "samples.csv.gz", index=False)
+    pd.DataFrame(msrd, columns=["job_id", "lag_s", "msrd_um2"]).to_csv(d / "msrd.csv.gz",
+                                                                       index=False)
+    return f, d
+
+
+def test_fitness_report_on_synthetic_data_with_known_answers(tmp_path):
+    f, d = _synthetic(tmp_path, shift_theta=0.5)
+    out = tmp_path / "out"
+    r = _run(["report", str(f), "--from-data", str(d), "--out", str(out)])
+    assert r.returncode == 0, r.stderr
+    fit = pd.read_csv(out / "fitness.csv").set_index("metric")
+    # θ at the end: Δ = 0.5 against IQR 2 → fit; shape index: identical → fit.
+    assert fit.loc["theta_end_deg", "diff"] == pytest.approx(0.5)
+    assert fit.loc["theta_end_deg", "iqr"] == pytest.approx(2.0)
+    assert fit.loc["theta_end_deg", "fit"] == "yes"
+    assert fit.loc["shape_index_end", "diff"] == pytest.approx(0.0)
+    # MSRD/r² at the end: medians 0.8 and 0.88 (Δ 0.08), IQRs 0.2 and 0.22 → 0.08 < 0.105: fit.
+    assert fit.loc["msrd_end_over_r2", "diff"] == pytest.approx(0.08)
+    assert fit.loc["msrd_end_over_r2", "fit"] == "yes"
+    assert "**fit**" in (out / "fitness.md").read_text()
+    assert (out / "synthetic-trends.png").stat().st_size > 0  # a categorical x axis draws
+
+    f2, d2 = _synthetic(tmp_path / "b", shift_theta=1.5, failed_seed=3) if (
+        tmp_path / "b").mkdir() is None else None
+    out2 = tmp_path / "out2"
+    r = _run(["report", str(f2), "--from-data", str(d2), "--out", str(out2)])
+    assert r.returncode == 0, r.stderr
+    fit = pd.read_csv(out2 / "fitness.csv").set_index("metric")
+    # One draft run failed: 4 runs remain (seeds 1, 2, 4, 5: median θ_end shifts by 1.5).
+    assert fit.loc["theta_end_deg", "n"] == 4
+    assert fit.loc["theta_end_deg", "fit"] == "no"
+    assert "**not fit** — theta_end_deg" in (out2 / "fitness.md").read_text()
+    summary = pd.read_csv(out2 / "summary.csv").set_index("numerics.preset")
+    assert summary.loc["draft", "failed"] == 1
+    assert summary.loc["draft", "failures"] == "volume-drift"
