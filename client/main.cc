@@ -19,6 +19,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "activefoam/host_port.h"
 #include "activefoam/token_file.h"
 #include "activefoam/utf8.h"
 #include "commands.h"
@@ -79,6 +80,15 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? kOk : kUsage;
+  }
+  if (token_file.empty() && !conn.token.empty())
+    if (const std::string bad = activefoam::tokenError(conn.token); !bad.empty()) {
+      std::cerr << "foam: FOAM_TOKEN " << bad << "\n";
+      return kUsage;
+    }
+  if (const std::string bad = activefoam::hostPortError(conn.server); !bad.empty()) {
+    std::cerr << "foam: --server (or FOAM_SERVER): " << bad << "\n";
+    return kUsage;
   }
   try {
     if (!tls_ca_file.empty()) conn.tls_ca = readFile(tls_ca_file);

@@ -11,9 +11,10 @@
 // A non-loopback --listen needs --token-file (and with it TLS) unless --insecure-public; a
 // non-loopback --http always needs the token and TLS. The token guards every HTTP route but the
 // dashboard's page and /healthz (and /metrics with --metrics-public).
-// SIGTERM / SIGINT: stop accepting, stop the workers (their jobs go back to the queue and resume
-// from their last checkpoint on the next start), close the store. Exit 0; 2 on bad usage or
+// SIGTERM / SIGINT / SIGHUP: stop accepting, stop the workers (their jobs go back to the queue and
+// resume from their last checkpoint on the next start), close the store. Exit 0; 2 on bad usage or
 // when the server cannot start.
+#include <algorithm>
 #include <csignal>
 #include <cstdlib>
 #include <filesystem>
@@ -26,6 +27,7 @@
 #include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
 
+#include "activefoam/host_port.h"
 #include "activefoam/token_file.h"
 #include "http.h"
 #include "pool.h"
@@ -55,6 +57,38 @@ std::string readFile(const std::string& path, const char* what) {
   std::ostringstream s;
   s << in.rdbuf();
   return s.str();
+}
+
+// "INI was not able to parse token_file" → the key, what it is, and the closest known key.
+std::string configErrorMessage(const CLI::App& app, const std::string& what) {
+  const std::string prefix = "INI was not able to parse ";
+  if (what.rfind(prefix, 0) != 0) return what;
+  const std::string key = what.substr(prefix.size());
+  std::string best;
+  std::size_t best_d = std::string::npos;
+  std::vector<std::string> known;
+  for (const CLI::Option* o : app.get_options()) {
+    for (const std::string& name : o->get_lnames()) {
+      if (name == "config" || name == "help" || name == "version") continue;
+      known.push_back(name);
+      // Edit distance (small strings; case and '_' vs '-' count as one edit each).
+      std::vector<std::size_t> row(name.size() + 1);
+      for (std::size_t j = 0; j <= name.size(); ++j) row[j] = j;
+      for (std::size_t i = 1; i <= key.size(); ++i) {
+        std::size_t diag = row[0];
+        row[0] = i;
+        for (std::size_t j = 1; j <= name.size(); ++j) {
+          const std::size_t up = row[j];
+          row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (key[i - 1] != name[j - 1])});
+          diag = up;
+        }
+      }
+      if (row[name.size()] < best_d) best_d = row[name.size()], best = name;
+    }
+  }
+  std::string msg = "unknown key '" + key + "'";
+  if (best_d <= std::max<std::size_t>(2, key.size() / 3)) msg += " (did you mean '" + best + "'?)";
+  return msg + "; the keys are the long flag names without '--'";
 }
 
 }  // namespace
@@ -132,14 +166,30 @@ int main(int argc, char** argv) {
   app.add_option("--slurm-poll-s", slurm.poll_every_s, "slurm: seconds between squeue polls")
       ->check(CLI::Range(0.1, 3600.0))
       ->capture_default_str();
-  app.add_option("--log-level", log_level, "trace|debug|info|warn|error")->capture_default_str();
+  app.add_option("--log-level", log_level, "trace|debug|info|warn|error")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
+      ->capture_default_str();
   app.set_config("--config", "", "TOML config file (keys = long flag names)");
+  // A key the config file misspells must not be dropped: `token_file = ...` for `token-file`
+  // started foamd without its token (issue 39).
+  app.allow_config_extras(CLI::config_extras_mode::error);
   app.set_version_flag("--version", std::string("foamd ") + ACTIVEFOAM_VERSION);
   try {
     app.parse(argc, argv);
+  } catch (const CLI::ConfigError& e) {
+    std::cerr << "foamd: --config: " << configErrorMessage(app, e.what()) << "\n";
+    return 2;
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
   }
+  for (const auto& [flag, value] : {std::pair<const char*, const std::string*>{"--listen", &listen},
+                                    {"--http", &http},
+                                    {"--slurm-report-to", &slurm.report_to}})
+    if (!value->empty())
+      if (const std::string bad = activefoam::hostPortError(*value); !bad.empty()) {
+        std::cerr << "foamd: " << flag << ": " << bad << "\n";
+        return 2;
+      }
   spdlog::set_level(spdlog::level::from_str(log_level));
   spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
 
@@ -148,6 +198,7 @@ int main(int argc, char** argv) {
   sigemptyset(&sigs);
   sigaddset(&sigs, SIGTERM);
   sigaddset(&sigs, SIGINT);
+  sigaddset(&sigs, SIGHUP);  // the terminal closed: stop as for SIGTERM, with a log line
   pthread_sigmask(SIG_BLOCK, &sigs, nullptr);
 
   try {
@@ -232,7 +283,9 @@ int main(int argc, char** argv) {
 
     int sig = 0;
     sigwait(&sigs, &sig);
-    spdlog::info("foamd: {} received, shutting down", sig == SIGTERM ? "SIGTERM" : "SIGINT");
+    spdlog::info("foamd: {} received, shutting down", sig == SIGTERM  ? "SIGTERM"
+                                                      : sig == SIGHUP ? "SIGHUP"
+                                                                      : "SIGINT");
     server.shutdown();
     pool->stop(true);  // pool: running jobs → queued (resume from their checkpoints)
     endpoint.reset();

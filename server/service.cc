@@ -245,6 +245,19 @@ struct FailedStream : grpc::ServerWriteReactor<Message> {
   void OnDone() override { delete this; }
 };
 
+// The API's limits, the same on every RPC (issue 39: a 15 MiB cancel reason made every later
+// ListJobs exceed the client's message limit; a sweep took a 1 MiB tag).
+constexpr std::size_t kMaxKeyBytes = 256;      // tags, names, idempotency keys
+constexpr std::size_t kMaxReasonBytes = 1024;  // free text stored with a job
+constexpr std::size_t kMaxSweepJobs = 100000;
+
+Status capped(const char* field, const std::string& value, std::size_t max) {
+  if (value.size() <= max) return Status::OK;
+  return Status(StatusCode::INVALID_ARGUMENT, std::string(field) + ": at most " +
+                                                  std::to_string(max) + " bytes, got " +
+                                                  std::to_string(value.size()));
+}
+
 class FoamService final : public v1::Foam::CallbackService {
  public:
   FoamService(Store& store, Executor& pool) : store_(store), pool_(pool) {
@@ -257,10 +270,9 @@ class FoamService final : public v1::Foam::CallbackService {
     return done(
         ctx, guarded(*req, [&] {
           if (Status st = writable(); !st.ok()) return st;
-          if (req->idempotency_key().size() > 256)
-            return Status(StatusCode::INVALID_ARGUMENT, "idempotency_key: at most 256 bytes");
-          if (req->tag().size() > 256)
-            return Status(StatusCode::INVALID_ARGUMENT, "tag: at most 256 bytes");
+          if (Status st = capped("idempotency_key", req->idempotency_key(), kMaxKeyBytes); !st.ok())
+            return st;
+          if (Status st = capped("tag", req->tag(), kMaxKeyBytes); !st.ok()) return st;
           const std::vector<std::string> settings(req->settings().begin(), req->settings().end());
           ConvertResult conv = convertSpec(req->spec(), req->spec_text(), settings);
           if (!conv.ok()) return Status(StatusCode::INVALID_ARGUMENT, errorText(conv.errors));
@@ -308,6 +320,8 @@ class FoamService final : public v1::Foam::CallbackService {
                                 v1::Job* resp) override {
     return done(ctx, guarded(*req, [&] {
                   if (Status st = writable(); !st.ok()) return st;
+                  if (Status st = capped("reason", req->reason(), kMaxReasonBytes); !st.ok())
+                    return st;
                   const std::string reason =
                       req->reason().empty() ? "cancelled by request" : req->reason();
                   v1::Job j = store_.cancel(req->job_id(), reason);
@@ -398,6 +412,11 @@ class FoamService final : public v1::Foam::CallbackService {
   }
 
   Status sweep(const v1::SubmitSweepRequest& req, v1::SubmitSweepResponse* resp) {
+    for (const auto& [field, value] :
+         {std::pair<const char*, const std::string*>{"tag", &req.tag()},
+          {"name", &req.name()},
+          {"idempotency_key", &req.idempotency_key()}})
+      if (Status st = capped(field, *value, kMaxKeyBytes); !st.ok()) return st;
     // Parameter sets: the cartesian product of the grid, or the explicit list, or one empty set.
     std::vector<std::vector<std::string>> sets{{}};
     if (req.grid_size() > 0) {
@@ -413,8 +432,9 @@ class FoamService final : public v1::Foam::CallbackService {
             next.back().push_back(axis.key() + "=" + v);
           }
         sets = std::move(next);
-        if (sets.size() > 100000)
-          return Status(StatusCode::INVALID_ARGUMENT, "grid: more than 100000 jobs");
+        if (sets.size() > kMaxSweepJobs)
+          return Status(StatusCode::INVALID_ARGUMENT,
+                        "grid: more than " + std::to_string(kMaxSweepJobs) + " jobs");
       }
     } else if (req.sets_size() > 0) {
       sets.clear();
@@ -422,6 +442,14 @@ class FoamService final : public v1::Foam::CallbackService {
         sets.emplace_back(ps.settings().begin(), ps.settings().end());
     }
     std::vector<std::uint64_t> seeds(req.seeds().begin(), req.seeds().end());
+    // The cap counts jobs, not sets: 1000 values × 101 seeds made 101 000 jobs (issue 39).
+    const std::size_t n_jobs = sets.size() * std::max<std::size_t>(seeds.size(), 1);
+    if (sets.size() > kMaxSweepJobs || seeds.size() > kMaxSweepJobs || n_jobs > kMaxSweepJobs)
+      return Status(StatusCode::INVALID_ARGUMENT,
+                    "grid × seeds: " + std::to_string(sets.size()) + " parameter sets × " +
+                        std::to_string(std::max<std::size_t>(seeds.size(), 1)) +
+                        " seeds, more than the " + std::to_string(kMaxSweepJobs) +
+                        " jobs a sweep may have");
     std::vector<NewJob> jobs;
     const std::vector<std::string> base(req.settings().begin(), req.settings().end());
     for (std::size_t i = 0; i < sets.size(); ++i) {

@@ -48,10 +48,12 @@ struct StoreError : std::runtime_error {
   StoreError(Kind k, const std::string& what) : std::runtime_error(what), kind(k) {}
 };
 
-// One server per database: an exclusive flock(2) on "<db>.lock", held for the Store's life and
-// released by the kernel when the process ends (a crash leaves no stale lock). The file names
-// the holder (pid, host, start time) for the error a second server gets. Two foamd on one
-// database would each re-queue and run the other's jobs (issue 18).
+// One server per database: exclusive flock(2)s on the database file itself (its identity: any
+// alias — symlink, hard link, relative path — meets it) and on "<resolved db>.lock", held for
+// the Store's life and released by the kernel when the process ends (a crash leaves no stale
+// lock). The .lock file names the holder (pid, host, start time) for the error a second server
+// gets; through a hard link the holder's pid comes from /proc/locks. Two foamd on one database
+// would each re-queue and run the other's jobs (issues 18, 39).
 class DbLock {
  public:
   // Throws StoreError(FailedPrecondition) naming the holder when another process holds it.
@@ -61,7 +63,8 @@ class DbLock {
   DbLock& operator=(const DbLock&) = delete;
 
  private:
-  int fd_ = -1;
+  int fd_ = -1;     // <resolved db>.lock
+  int db_fd_ = -1;  // the database file
 };
 
 struct NewJob {

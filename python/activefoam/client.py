@@ -99,6 +99,23 @@ def _one_tag(tags: Optional[Sequence[str]]) -> str:
     return tags[0] if tags else ""
 
 
+MIN_TOKEN_BYTES, MAX_TOKEN_BYTES = 16, 4096   # as foamd and foam (common/.../token_file.h)
+
+
+def _check_token(token: str) -> None:
+    """A bearer token is 16..4096 bytes of printable ASCII without spaces; anything else would
+    abort gRPC's metadata check or be refused by foamd (ValueError says which byte)."""
+    if not isinstance(token, str):
+        raise ValueError(f"token: a string, got {type(token).__name__}")
+    if not MIN_TOKEN_BYTES <= len(token) <= MAX_TOKEN_BYTES:
+        raise ValueError(f"token: {len(token)} characters; a token has {MIN_TOKEN_BYTES} to "
+                         f"{MAX_TOKEN_BYTES}")
+    for i, ch in enumerate(token):
+        if not 0x21 <= ord(ch) <= 0x7E:
+            raise ValueError(f"token: character {ch!r} at offset {i}: a token is printable "
+                             "ASCII without spaces")
+
+
 def _progress_line(job: Any) -> str:
     bar = int(20 * job.progress)
     return (f"\r{job.id} {_state_name(job.state):<9} [{'#' * bar}{'.' * (20 - bar)}] "
@@ -117,6 +134,8 @@ class Client:
                  tls_ca: Optional[str] = None, timeout_s: float = 60.0):
         self.server = server or os.environ.get("FOAM_SERVER") or "127.0.0.1:50051"
         token = token if token is not None else os.environ.get("FOAM_TOKEN") or None
+        if token is not None:
+            _check_token(token)
         tls_ca = tls_ca if tls_ca is not None else os.environ.get("FOAM_TLS_CA") or None
         self.timeout_s = timeout_s
         options = [("grpc.max_receive_message_length", 64 << 20)]

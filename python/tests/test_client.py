@@ -116,3 +116,11 @@ def test_token_auth(tmp_path):
             del os.environ["FOAM_TOKEN"]
     finally:
         d.stop()
+
+
+@pytest.mark.parametrize("token", ["short", "x" * 5000, "good-token-0123456\n", "tok\x00en-0123456789",
+                                   "tökén-0123456789abc", "with space 0123456789"])
+def test_tokens_that_cannot_be_sent_are_refused_at_once(token):
+    # Issue 39: binary bytes or a newline made gRPC abort the client; 1 MB broke every call.
+    with pytest.raises(ValueError, match="token"):
+        Client("127.0.0.1:1", token=token)

@@ -325,6 +325,41 @@ SpecParseResult parseSpecJson(const nlohmann::json& doc, const SceneSpec& base,
   return finish(std::move(spec), std::move(result), options);
 }
 
+namespace {
+
+// The dotted key whose value is the first occurrence of `literal` outside a string in a JSON
+// text ("" when not found): a light scan keeping the stack of object keys.
+std::string jsonKeyBefore(std::string_view text, const std::string& literal) {
+  std::vector<std::string> keys;  // one per open object ("" until its first key)
+  std::string last_string;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (c == '"') {
+      std::string str;
+      for (++i; i < text.size() && text[i] != '"'; ++i) {
+        if (text[i] == '\\' && i + 1 < text.size()) ++i;
+        str += text[i];
+      }
+      last_string = str;
+      continue;
+    }
+    if (c == '{') {
+      keys.emplace_back();
+    } else if (c == '}') {
+      if (!keys.empty()) keys.pop_back();
+    } else if (c == ':') {
+      if (!keys.empty()) keys.back() = last_string;
+    } else if (text.compare(i, literal.size(), literal) == 0) {
+      std::string dotted;
+      for (const std::string& k : keys) dotted += (dotted.empty() ? "" : ".") + k;
+      return dotted;
+    }
+  }
+  return "";
+}
+
+}  // namespace
+
 SpecParseResult parseSpecText(std::string_view text, SpecFormat format, const SceneSpec& base,
                               const SpecParseOptions& options) {
   if (format == SpecFormat::Auto) format = sniffSpecFormat(text);
@@ -339,6 +374,19 @@ SpecParseResult parseSpecText(std::string_view text, SpecFormat format, const Sc
       if (const auto p = what.find("] "); p != std::string::npos) what.erase(0, p + 2);
       SpecParseResult r;
       r.errors.push_back({sourceName(options, "<json>"), oneLine("JSON " + what)});
+      return r;
+    } catch (const nlohmann::json::exception& e) {
+      // A number beyond double's range (1e400): "[json.exception.out_of_range.406] number
+      // overflow parsing '1e400'" — an error of the spec naming its key, not an engine crash.
+      std::string what = e.what();
+      if (const auto p = what.find("] "); p != std::string::npos) what.erase(0, p + 2);
+      std::string literal;
+      if (const auto a = what.find('\''), b = what.rfind('\''); a != std::string::npos && b > a)
+        literal = what.substr(a + 1, b - a - 1);
+      SpecParseResult r;
+      const std::string key = literal.empty() ? "" : jsonKeyBefore(text, literal);
+      r.errors.push_back({key.empty() ? sourceName(options, "<json>") : key,
+                          oneLine("JSON " + what + ": outside the range of a number (±1.8e308)")});
       return r;
     }
     return parseSpecJson(doc, base, options);

@@ -1,5 +1,6 @@
 // Fault injection against foamd as a process (issue 18): the everyday mistakes of a deployment
 // must not corrupt or split results.
+#include <algorithm>
 #include <fstream>
 #include <iostream>
 #include <iterator>
@@ -175,6 +176,51 @@ TEST(Faults, ASecondFoamdOnTheSameDatabaseIsRefused) {
   fs::remove_all(dir);
 }
 
+// The lock is the database file's, not its name's (issue 39: a second foamd through a symlink
+// re-queued and resumed the first's running job — 56 samples where 31 belong — and through a
+// hard link migrated the schema of the shared file): through a symlink, a hard link, a
+// symlinked directory or a relative path, the second foamd exits 2 naming the first's pid, and
+// the first's job ends with exactly its own samples.
+TEST(Faults, ASecondFoamdThroughAnyAliasOfTheDatabaseIsRefused) {
+  const fs::path dir = tempDir();
+  const fs::path db = dir / "foamd.db";
+  Foamd a(db, freePort());
+  const std::string id = submitCell(a, 3000, 100);
+  ASSERT_FALSE(id.empty());
+  for (int i = 0; i < 200 && state(a, id) != "running"; ++i) std::this_thread::sleep_for(50ms);
+  ASSERT_EQ(state(a, id), "running");
+
+  fs::create_directories(dir / "links");
+  fs::create_symlink(db, dir / "links" / "symlink.db");
+  fs::create_hard_link(db, dir / "links" / "hardlink.db");
+  fs::create_directory_symlink(dir, dir / "links" / "dirlink");
+  const std::vector<fs::path> aliases = {
+      dir / "links" / "symlink.db", dir / "links" / "hardlink.db",
+      dir / "links" / "dirlink" / "foamd.db", fs::relative(db, fs::current_path())};
+  for (const fs::path& alias : aliases) {
+    fs::remove(alias.parent_path() / "foamd.log");
+    Foamd b(alias, freePort());
+    const std::optional<int> rc = b.exited(10s);
+    ASSERT_TRUE(rc.has_value()) << alias << ": the second foamd is still running";
+    EXPECT_EQ(*rc, 2) << alias;
+    const std::string log = readAll(alias.parent_path() / "foamd.log");
+    EXPECT_NE(log.find("is in use by another foamd (pid " + std::to_string(a.pid())),
+              std::string::npos)
+        << alias << ":\n"
+        << log;
+  }
+  const Proc w = sh(a.foam() + " watch " + id + " -q");
+  EXPECT_EQ(firstLine(w.out), "succeeded") << w.out;
+  const Proc r = sh(a.foam() + " results " + id + " --csv");
+  ASSERT_EQ(r.rc, 0);
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 32) << r.out;  // header + 31 samples
+  a.stop(SIGKILL);
+  Foamd c(dir / "foamd.db", freePort());
+  EXPECT_FALSE(c.exited(1500ms).has_value()) << readAll(dir / "foamd.log");
+  EXPECT_EQ(state(c, id), "succeeded");
+  fs::remove_all(dir);
+}
+
 // A second foamd on a port in use (with its own database) exits 2 naming the address; every
 // client reaches the first (before: gRPC's SO_REUSEPORT let both listen, and 1 submit in 10
 // went to the other database).
@@ -204,5 +250,112 @@ TEST(Faults, ASecondFoamdOnTheSamePortIsRefused) {
   EXPECT_EQ(firstLine(sh(a.foam() + " cancel " + id).out), "cancelling");
   for (int i = 0; i < 200 && state(a, id) == "running"; ++i) std::this_thread::sleep_for(50ms);
   EXPECT_EQ(state(a, id), "cancelled");
+  fs::remove_all(dir);
+}
+
+// Issue 39: a hang-up stops foamd as SIGTERM does (exit 0, its running job re-queued to resume,
+// a log line saying why) instead of killing it silently (exit 129, no log).
+TEST(Faults, SighupStopsFoamdCleanlyWithALogLine) {
+  const fs::path dir = tempDir();
+  Foamd a(dir / "foamd.db", freePort());
+  const std::string id = submitCell(a, 3000, 100);
+  ASSERT_FALSE(id.empty());
+  for (int i = 0; i < 200 && state(a, id) != "running"; ++i) std::this_thread::sleep_for(50ms);
+  ::kill(a.pid(), SIGHUP);
+  const std::optional<int> rc = a.exited(30s);
+  ASSERT_TRUE(rc.has_value()) << "foamd ignored SIGHUP";
+  EXPECT_EQ(*rc, 0);
+  const std::string log = readAll(dir / "foamd.log");
+  EXPECT_NE(log.find("SIGHUP received, shutting down"), std::string::npos) << log;
+  EXPECT_NE(log.find("re-queued at shutdown"), std::string::npos) << log;
+  fs::remove_all(dir);
+}
+
+// Issue 39: a misspelt config key (`token_file` for `token-file`) started foamd without its
+// token; a bogus --log-level ran with no log. Both exit 2 naming what is wrong.
+TEST(Faults, ConfigTyposAndBadLogLevelsAreRefused) {
+  const fs::path dir = tempDir();
+  std::ofstream(dir / "token") << "s3cret-s3cret-s3cret-42\n";
+  fs::permissions(dir / "token", fs::perms::owner_read | fs::perms::owner_write);
+  std::ofstream(dir / "foamd.toml") << "token_file = \"" << (dir / "token").string() << "\"\n";
+  {
+    Foamd a(dir / "foamd.db", freePort(), 1, {"--config", (dir / "foamd.toml").string()});
+    const std::optional<int> rc = a.exited(10s);
+    ASSERT_TRUE(rc.has_value()) << "foamd started with an unknown config key";
+    EXPECT_EQ(*rc, 2);
+    const std::string log = readAll(dir / "foamd.log");
+    EXPECT_NE(log.find("unknown key 'token_file' (did you mean 'token-file'?)"), std::string::npos)
+        << log;
+  }
+  {
+    Foamd b(dir / "foamd.db", freePort(), 1, {"--log-level", "bogus"});
+    const std::optional<int> rc = b.exited(10s);
+    ASSERT_TRUE(rc.has_value()) << "foamd started with --log-level bogus";
+    EXPECT_EQ(*rc, 2);
+    EXPECT_NE(readAll(dir / "foamd.log").find("--log-level"), std::string::npos);
+  }
+  // The spelling of the flag works: foamd starts and wants the token.
+  std::ofstream(dir / "foamd.toml") << "token-file = \"" << (dir / "token").string() << "\"\n";
+  Foamd c(dir / "foamd.db", freePort(), 1, {"--config", (dir / "foamd.toml").string()});
+  EXPECT_FALSE(c.exited(1500ms).has_value()) << readAll(dir / "foamd.log");
+  const Proc anon = sh(c.foam() + " list 2>&1");
+  EXPECT_EQ(anon.rc, 4) << anon.out;  // unauthenticated
+  fs::remove_all(dir);
+}
+
+// Issue 39: ports beyond 65535 were taken modulo 65536 (--listen 127.0.0.1:92786 listened on
+// 27250; foam --server 127.0.0.1:87366 reached port 21830). Both refuse them, naming the flag.
+TEST(Faults, PortsOutsideTheirRangeAreRefused) {
+  const fs::path dir = tempDir();
+  // `timeout`: without the check foamd starts and serves (the test then fails, not hangs).
+  const Proc d = sh("timeout 10 " + std::string(FOAMD_EXE) + " --listen 127.0.0.1:92786 --db " +
+                    (dir / "foamd.db").string() + " 2>&1");
+  EXPECT_EQ(d.rc, 2) << d.out;
+  EXPECT_NE(d.out.find("--listen: '127.0.0.1:92786': the port 92786 is outside 1..65535"),
+            std::string::npos)
+      << d.out;
+  EXPECT_FALSE(fs::exists(dir / "foamd.db"));  // refused before the store is touched
+  const Proc h = sh("timeout 10 " + std::string(FOAMD_EXE) + " --http 127.0.0.1:0x50 --db " +
+                    (dir / "foamd.db").string() + " 2>&1");
+  EXPECT_EQ(h.rc, 2) << h.out;
+  EXPECT_NE(h.out.find("--http:"), std::string::npos) << h.out;
+  for (const std::string server : {"127.0.0.1:87366", "127.0.0.1:", "localhost", "::1:50051"}) {
+    const Proc c =
+        sh("timeout 10 " + std::string(FOAM_EXE) + " --server '" + server + "' list 2>&1");
+    EXPECT_EQ(c.rc, 2) << server << ": " << c.out;
+    EXPECT_NE(c.out.find("--server (or FOAM_SERVER)"), std::string::npos) << c.out;
+  }
+  const Proc env = sh("FOAM_SERVER=127.0.0.1:70000 " + std::string(FOAM_EXE) + " list 2>&1");
+  EXPECT_EQ(env.rc, 2) << env.out;
+  fs::remove_all(dir);
+}
+
+// Issue 39: a token file with a newline inside, binary or non-ASCII bytes, or 1 MB was accepted
+// by foamd, and foam then aborted in gRPC's metadata check (exit 134). Both refuse it at load,
+// naming the file and the byte; FOAM_TOKEN likewise.
+TEST(Faults, TokensThatCannotBeSentAreRefusedAtLoad) {
+  const fs::path dir = tempDir();
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"newline", "first-half-of-it\nsecond-half-of-it\n"},
+      {"binary", std::string("binary-token-") + '\0' + '\x01' + "-0123456789"},
+      {"non-ascii", "t\xc3\xb6ken-0123456789-abcdef"},
+      {"huge", std::string(1 << 20, 'x')}};
+  for (const auto& [name, content] : bad) {
+    const fs::path f = dir / name;
+    std::ofstream(f, std::ios::binary) << content;
+    fs::permissions(f, fs::perms::owner_read | fs::perms::owner_write);
+    const Proc d = sh("timeout 10 " + std::string(FOAMD_EXE) +
+                      " --listen 127.0.0.1:" + std::to_string(freePort()) + " --db " +
+                      (dir / "foamd.db").string() + " --token-file " + f.string() + " 2>&1");
+    EXPECT_EQ(d.rc, 2) << name << ": " << d.out;
+    EXPECT_NE(d.out.find("token file '" + f.string() + "'"), std::string::npos) << d.out;
+    const Proc c =
+        sh("timeout 10 " + std::string(FOAM_EXE) + " --token-file " + f.string() + " list 2>&1");
+    EXPECT_EQ(c.rc, 2) << name << ": " << c.out;
+  }
+  const Proc env =
+      sh("FOAM_TOKEN=$(printf 'has a space in it 0123') " + std::string(FOAM_EXE) + " list 2>&1");
+  EXPECT_EQ(env.rc, 2) << env.out;
+  EXPECT_NE(env.out.find("FOAM_TOKEN has byte 0x20"), std::string::npos) << env.out;
   fs::remove_all(dir);
 }

@@ -89,6 +89,10 @@ const InvalidCase kInvalid[] = {
    "unknown table"},
   {"JSON huge duration", R"({"scene": {"kind": "cell"}, "duration_s": 1e12})", "duration_s",
    "outside"},
+  {"JSON number beyond double", R"({"scene": "cell", "cells": {"xi": 2, "gamma": 1e400}})",
+   "cells.gamma", "number overflow parsing '1e400'"},
+  {"JSON number beyond double, top level", "{\"scene\": \"cell\",\n \"duration_s\": -2E+999}",
+   "duration_s", "outside the range"},
 };
 // clang-format on
 

@@ -608,6 +608,59 @@ TEST_F(ServiceTest, SweepCreatesGridTimesSeedsJobs) {
   EXPECT_EQ(store_->countRows("jobs"), jobs0);
 }
 
+// Issue 39: every string the API stores has a cap, the same on every RPC and named in the
+// error; a sweep's job count is capped through its seeds too (1000 values × 101 seeds made
+// 101 000 jobs). Nothing is stored by a refused request.
+TEST_F(ServiceTest, EveryStoredStringAndSweepSizeIsCapped) {
+  startServer();
+  const auto jobs0 = store_->countRows("jobs");
+  auto expectRefused = [&](const grpc::Status& st, const std::string& field) {
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << field;
+    EXPECT_NE(st.error_message().find(field), std::string::npos) << st.error_message();
+  };
+  // CancelJob: a 2 KiB reason.
+  const std::string id = submit(tinyCell(1000));
+  v1::CancelJobRequest cr;
+  cr.set_job_id(id);
+  cr.set_reason(std::string(2048, 'r'));
+  v1::Job j;
+  {
+    auto c = ctx();
+    expectRefused(stub_->CancelJob(c.get(), cr, &j), "reason: at most 1024 bytes");
+  }
+  cr.set_reason(std::string(1024, 'r'));  // at the cap: accepted
+  {
+    auto c = ctx();
+    EXPECT_TRUE(stub_->CancelJob(c.get(), cr, &j).ok());
+  }
+  // SubmitSweep: tag, name and idempotency key as SubmitJob's.
+  v1::SubmitSweepRequest base;
+  *base.mutable_spec() = tinyCell().spec();
+  base.add_seeds(1);
+  v1::SubmitSweepResponse resp;
+  for (const std::string field : {"tag", "name", "idempotency_key"}) {
+    v1::SubmitSweepRequest r = base;
+    const std::string big(257, 'x');
+    if (field == "tag") r.set_tag(big);
+    if (field == "name") r.set_name(big);
+    if (field == "idempotency_key") r.set_idempotency_key(big);
+    auto c = ctx();
+    expectRefused(stub_->SubmitSweep(c.get(), r, &resp), field + ": at most 256 bytes");
+  }
+  // 1000 values × 101 seeds: refused before a spec is converted.
+  v1::SubmitSweepRequest r = base;
+  auto* g = r.add_grid();
+  g->set_key("cells.gamma");
+  for (int k = 0; k < 1000; ++k) g->add_values(std::to_string(0.3 + k * 1e-4));
+  for (int s = 2; s <= 101; ++s) r.add_seeds(static_cast<std::uint64_t>(s));
+  {
+    auto c = ctx();
+    expectRefused(stub_->SubmitSweep(c.get(), r, &resp), "more than the 100000 jobs");
+  }
+  EXPECT_EQ(store_->countRows("jobs"), jobs0 + 1);  // the one cell job only
+  EXPECT_EQ(store_->countRows("sweeps"), 0);
+}
+
 TEST_F(ServiceTest, QueryResultsFiltersByParameters) {
   startServer();
   std::vector<std::string> ids;
