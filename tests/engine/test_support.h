@@ -5,6 +5,7 @@
 #include <cstdint>
 
 #include "activefoam/rng.h"
+#include "activefoam/run.h"
 #include "activefoam/simulation.h"
 
 namespace activefoam::testing {

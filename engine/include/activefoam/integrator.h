@@ -15,9 +15,9 @@
 #include "activefoam/block_matrix.h"
 #include "activefoam/cellset.h"
 #include "activefoam/contact_geometry.h"
+#include "activefoam/failure_kind.h"
 #include "activefoam/force_term.h"
 #include "activefoam/geometry.h"
-#include "activefoam/run.h"
 #include "activefoam/solver.h"
 #include "activefoam/spec.h"
 

@@ -156,32 +156,6 @@ double maxVolumeError(const Simulation& sim) {
 
 }  // namespace
 
-std::string_view toString(FailureKind k) {
-  switch (k) {
-    case FailureKind::None:
-      return "none";
-    case FailureKind::NonFinite:
-      return "non-finite";
-    case FailureKind::CgNotConverged:
-      return "cg-not-converged";
-    case FailureKind::InvertedTriangle:
-      return "inverted-triangle";
-    case FailureKind::VolumeDrift:
-      return "volume-drift";
-    case FailureKind::Interpenetration:
-      return "interpenetration";
-    case FailureKind::ContactOscillation:
-      return "contact-oscillation";
-    case FailureKind::Cancelled:
-      return "cancelled";
-    case FailureKind::PreparationFailed:
-      return "preparation-failed";
-    case FailureKind::StepError:
-      return "step-error";
-  }
-  return "unknown";
-}
-
 std::string fitResultName(std::string_view model, std::string_view parameter) {
   const bool shared = parameter == "theta_eq_deg" || parameter == "theta0_deg";
   return shared && model != "eq1" ? std::string(model) + "_" + std::string(parameter)
