@@ -13,14 +13,9 @@
 #include <variant>
 #include <vector>
 
-namespace activefoam {
+#include "activefoam/spec_enums.h"
 
-enum class SceneKind { Cell, Doublet, Spheroid, Fusion };
-enum class IntegratorKind { SemiImplicit, ContactImplicit, Ros2 };
-enum class PreconditionerKind { Jacobi, BlockJacobi, IncompleteCholesky };
-enum class ContactQuadrature { Exact, Dunavant7, Centroid };
-// Fidelity presets (issue 6, docs/study/): named numerics from the speed/accuracy study.
-enum class FidelityPreset { Draft, Standard, Reference };
+namespace activefoam {
 
 // The numerics keys a preset sets, as bits: which of them a spec set explicitly. Provenance, not
 // a value: two specs with the same values are equal whatever their pins.
@@ -222,12 +217,6 @@ std::string specFingerprint(const SceneSpec& spec);
 
 // Levenshtein distance (for "did you mean" suggestions on unknown keys and tables).
 std::size_t editDistance(std::string_view a, std::string_view b);
-
-std::string_view toString(SceneKind);
-std::string_view toString(IntegratorKind);
-std::string_view toString(PreconditionerKind);
-std::string_view toString(ContactQuadrature);
-std::string_view toString(FidelityPreset);
 
 // ---- fidelity presets
 // ----------------------------------------------------------------------------

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "activefoam/force_term.h"
+#include "activefoam/spec.h"
 
 namespace activefoam {
 
