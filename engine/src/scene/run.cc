@@ -228,13 +228,9 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
   // Sample, snapshot and end times in ticks (whole steps of the spec's Δt): the adaptive schedule
   // never steps across one, so they fall on the same times whatever it did.
   const std::int64_t total = clock.ticksFor(spec.duration_s);
-  const std::int64_t sample_every =
-      std::max<std::int64_t>(1, std::llround(spec.sample_every_s / dt)) * clock.ticksPerBaseStep();
+  const std::int64_t sample_every = clock.periodTicks(spec.sample_every_s);
   const std::int64_t snap_every =
-      spec.snapshot_every_s > 0
-          ? std::max<std::int64_t>(1, std::llround(spec.snapshot_every_s / dt)) *
-                clock.ticksPerBaseStep()
-          : 0;
+      spec.snapshot_every_s > 0 ? clock.periodTicks(spec.snapshot_every_s) : 0;
   // The loop's own state, carried through checkpoints so that a resumed run emits exactly the
   // samples an uninterrupted one would (wall-clock columns aside).
   struct Accumulators {

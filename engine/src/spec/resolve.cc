@@ -1,5 +1,5 @@
 // Resolution of a spec to what runs: reduced parameters to absolute ones, an accuracy target to
-// its preset, and the derived defaults (τ_K, τ_r, Δt_min, ξ⊥/ξ∥, the initial gap) with the
+// its preset, and every derived default (τ_K, τ_r, Δt_min, ξ⊥/ξ∥, the initial gap) with the
 // physical quantities they come from (Table 2 of the supplement).
 #include "activefoam/spec.h"
 
@@ -33,11 +33,10 @@ SceneSpec resolveUnchecked(const SceneSpec& spec) {
     c.xi = c.eta / (l_eta * l_eta);
     c.l_eta_reduced.reset();
   }
-  const double ts = tauShell(c);
-  if (!c.tau_k_s) c.tau_k_s = 2.0 * ts;
-  if (!r.numerics.remesh_every_s) r.numerics.remesh_every_s = 5.0 * ts;
+  if (!c.tau_k_s) c.tau_k_s = defaultTauKS(c);
+  if (!r.numerics.remesh_every_s) r.numerics.remesh_every_s = defaultRemeshEveryS(c);
   if (!r.scene_params.gap_um) r.scene_params.gap_um = defaultGapUm(c);
-  if (!r.numerics.dt_min_s) r.numerics.dt_min_s = r.numerics.dt_s / 64;
+  if (!r.numerics.dt_min_s) r.numerics.dt_min_s = defaultDtMinS(r.numerics.dt_s);
   if (!c.xi_normal) c.xi_normal = c.xi;
   if (!c.xi_tangential) c.xi_tangential = c.xi;
   return r;
@@ -82,6 +81,27 @@ double defaultGapUm(const CellParams& c) {
 
 double initialGapUm(const SceneSpec& spec) {
   return spec.scene_params.gap_um.value_or(defaultGapUm(spec.cells));
+}
+
+// ---- derived defaults (spec.h: each is computed here only) ------------------------------------
+
+double defaultTauKS(const CellParams& c) {
+  return 2.0 * tauShell(c);
+}
+double defaultRemeshEveryS(const CellParams& c) {
+  return 5.0 * tauShell(c);
+}
+double defaultDtMinS(double dt_s) {
+  return dt_s / 64;
+}
+double tauKS(const CellParams& c) {
+  return c.tau_k_s.value_or(defaultTauKS(c));
+}
+double remeshEveryS(const SceneSpec& spec) {
+  return spec.numerics.remesh_every_s.value_or(defaultRemeshEveryS(spec.cells));
+}
+double dtMinS(const NumericsParams& n) {
+  return n.dt_min_s.value_or(defaultDtMinS(n.dt_s));
 }
 
 }  // namespace activefoam
