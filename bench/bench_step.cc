@@ -25,8 +25,8 @@ SceneSpec benchSpec(int triangles) {
   SceneSpec s;
   s.scene = SceneKind::Cell;
   s.numerics.triangles_per_cell = triangles;
-  s.cells.tau_k_s = 2 * tauShell(s.cells);
-  s.numerics.remesh_every_s = 5 * tauShell(s.cells);
+  s.cells.tau_k_s = defaultTauKS(s.cells);
+  s.numerics.remesh_every_s = defaultRemeshEveryS(s.cells);
   return s;
 }
 

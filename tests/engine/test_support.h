@@ -5,6 +5,7 @@
 #include <cstdint>
 
 #include "activefoam/rng.h"
+#include "activefoam/run.h"
 #include "activefoam/simulation.h"
 
 namespace activefoam::testing {
@@ -18,8 +19,8 @@ inline SceneSpec cellSpec(double axes_ratio = 1.0, int triangles = 320) {
   s.cells.p_a = 0;
   s.scene_params.axes_ratio = axes_ratio;
   s.numerics.triangles_per_cell = triangles;
-  s.cells.tau_k_s = 2 * tauShell(s.cells);
-  s.numerics.remesh_every_s = 5 * tauShell(s.cells);
+  s.cells.tau_k_s = defaultTauKS(s.cells);
+  s.numerics.remesh_every_s = defaultRemeshEveryS(s.cells);
   return s;
 }
 

@@ -9,7 +9,7 @@
 #include <Eigen/Core>
 
 #include "activefoam/mesh.h"
-#include "activefoam/spec.h"
+#include "activefoam/spec_enums.h"
 
 namespace activefoam {
 

@@ -10,6 +10,7 @@
 
 #include "activefoam/contact_geometry.h"
 #include "activefoam/force_term.h"
+#include "activefoam/spec.h"
 
 namespace activefoam {
 

@@ -11,7 +11,6 @@
 #include "activefoam/block_matrix.h"
 #include "activefoam/cellset.h"
 #include "activefoam/geometry.h"
-#include "activefoam/spec.h"
 
 namespace activefoam {
 

@@ -15,9 +15,9 @@
 #include "activefoam/block_matrix.h"
 #include "activefoam/cellset.h"
 #include "activefoam/contact_geometry.h"
+#include "activefoam/failure_kind.h"
 #include "activefoam/force_term.h"
 #include "activefoam/geometry.h"
-#include "activefoam/run.h"
 #include "activefoam/solver.h"
 #include "activefoam/spec.h"
 
@@ -59,6 +59,10 @@ class TimeStepper {
   std::int64_t stepTicks() const { return ticksPerBaseStep() >> level_; }
   // Ticks of a duration given in seconds, rounded to whole steps of the spec's Δt.
   std::int64_t ticksFor(double seconds) const;
+  // Ticks of a period (sampling, snapshots, remeshing, a preparation's window): as ticksFor,
+  // but at least one step of the spec's Δt. The adaptive schedule never steps across one, so
+  // what happens every period happens at the same times whatever the schedule did.
+  std::int64_t periodTicks(double seconds) const;
   double time() const { return timeAt(ticks_); }
   double timeAt(std::int64_t ticks) const { return static_cast<double>(ticks) * tick_s_; }
   std::int64_t steps() const { return steps_; }  // accepted steps
@@ -81,6 +85,7 @@ class TimeStepper {
 
  private:
   void setLevel(int level);
+  std::int64_t baseSteps(double seconds) const;  // seconds in whole steps of Δt, rounded
   double dt_, tick_s_, level_dt_;
   int max_level_ = 0;
   bool adaptive_;

@@ -10,6 +10,7 @@
 
 #include <Eigen/Core>
 
+#include "activefoam/failure_kind.h"
 #include "activefoam/fits.h"
 #include "activefoam/mesh.h"
 #include "activefoam/spec.h"
@@ -37,20 +38,6 @@ struct Snapshot {
   std::vector<double> cell_pressure;  // P_l, kPa
   std::vector<int> cell_label;        // spheroid label (0/1), 0 for single-spheroid scenes
 };
-
-enum class FailureKind {
-  None,
-  NonFinite,
-  CgNotConverged,
-  InvertedTriangle,
-  VolumeDrift,
-  Interpenetration,
-  ContactOscillation,
-  Cancelled,
-  PreparationFailed,  // a spheroid's relaxation (fusion scene) failed
-  StepError           // ros2's error estimate above numerics.max_step_error_um (rejections only)
-};
-std::string_view toString(FailureKind);
 
 struct RunSummary {
   FailureKind failure = FailureKind::None;  // None: ran to duration_s

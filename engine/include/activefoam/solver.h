@@ -13,7 +13,7 @@
 
 #include "activefoam/block_matrix.h"
 #include "activefoam/incomplete_cholesky.h"
-#include "activefoam/spec.h"
+#include "activefoam/spec_enums.h"
 
 namespace activefoam {
 

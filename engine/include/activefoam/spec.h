@@ -13,14 +13,9 @@
 #include <variant>
 #include <vector>
 
-namespace activefoam {
+#include "activefoam/spec_enums.h"
 
-enum class SceneKind { Cell, Doublet, Spheroid, Fusion };
-enum class IntegratorKind { SemiImplicit, ContactImplicit, Ros2 };
-enum class PreconditionerKind { Jacobi, BlockJacobi, IncompleteCholesky };
-enum class ContactQuadrature { Exact, Dunavant7, Centroid };
-// Fidelity presets (issue 6, docs/study/): named numerics from the speed/accuracy study.
-enum class FidelityPreset { Draft, Standard, Reference };
+namespace activefoam {
 
 // The numerics keys a preset sets, as bits: which of them a spec set explicitly. Provenance, not
 // a value: two specs with the same values are equal whatever their pins.
@@ -223,12 +218,6 @@ std::string specFingerprint(const SceneSpec& spec);
 // Levenshtein distance (for "did you mean" suggestions on unknown keys and tables).
 std::size_t editDistance(std::string_view a, std::string_view b);
 
-std::string_view toString(SceneKind);
-std::string_view toString(IntegratorKind);
-std::string_view toString(PreconditionerKind);
-std::string_view toString(ContactQuadrature);
-std::string_view toString(FidelityPreset);
-
 // ---- fidelity presets
 // ----------------------------------------------------------------------------
 
@@ -276,6 +265,14 @@ inline constexpr double kMaxSnapshots = 1.0e5;       // duration_s / snapshot_ev
 double tauShell(const CellParams& c);        // η / (2√3 γ)
 double adhesionW(const CellParams& c);       // w = (1 − α) γ
 double contactRangeH0(const CellParams& c);  // h0 = √(w / k_AB)
+// The derived defaults, each computed here only: resolve() fills the unset keys with them, and
+// the engine's readers of a key that may be unset fall back on the same functions.
+double defaultTauKS(const CellParams& c);         // τ_K = 2 τ_shell
+double defaultRemeshEveryS(const CellParams& c);  // τ_r = 5 τ_shell
+double defaultDtMinS(double dt_s);                // Δt/64, the floor of the adaptive step
+double tauKS(const CellParams& c);                // cells.tau_k_s, or its default
+double remeshEveryS(const SceneSpec& spec);       // numerics.remesh_every_s, or its default
+double dtMinS(const NumericsParams& n);           // numerics.dt_min_s, or its default
 // The initial gap of doublet and fusion when scene.gap_um is unset: min(0.05 µm, 0.8 h0) — the
 // supplement's 50 nm where that is inside the adhesion range (all defaults: h0 = 63 nm), closer
 // where weak adhesion or stiff contacts shrink the range (α = 0.9: h0 = 26 nm).

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "activefoam/force_term.h"
+#include "activefoam/spec.h"
 
 namespace activefoam {
 
@@ -27,7 +28,7 @@ class SurfaceTension : public ForceTerm {
 class CytoplasmPressure : public ForceTerm {
  public:
   explicit CytoplasmPressure(const CellParams& p)
-      : gamma_(p.gamma), k_(p.bulk_modulus), tau_k_(p.tau_k_s.value_or(2 * tauShell(p))) {}
+      : gamma_(p.gamma), k_(p.bulk_modulus), tau_k_(tauKS(p)) {}
   std::string_view name() const override { return "cytoplasm_pressure"; }
   double addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) const override;
   void endStep(const StepContext& ctx, CellSet& cells) const override;

@@ -83,8 +83,7 @@ std::string specFingerprint(const SceneSpec& spec) {
     if (f.key == "scene.allow_uncompacted" && !spec.scene_params.allow_uncompacted) continue;
     // Added later; at 0 the relaxation is the one of earlier versions.
     if (f.key == "scene.prep_min_s" && spec.scene_params.prep_min_s == 0) continue;
-    if (f.key == "numerics.dt_min_s" &&
-        spec.numerics.dt_min_s.value_or(spec.numerics.dt_s / 64) == spec.numerics.dt_s / 64)
+    if (f.key == "numerics.dt_min_s" && dtMinS(spec.numerics) == defaultDtMinS(spec.numerics.dt_s))
       continue;
     os << f.key << '=';
     if (const auto v = getField(spec, f.key)) std::visit([&](const auto& x) { os << x; }, *v);

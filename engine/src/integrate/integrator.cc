@@ -27,8 +27,16 @@ double TimeStepper::minDt() const {
   return std::ldexp(dt_, -max_level_);
 }
 
+std::int64_t TimeStepper::baseSteps(double seconds) const {
+  return std::llround(seconds / dt_);
+}
+
 std::int64_t TimeStepper::ticksFor(double seconds) const {
-  return std::llround(seconds / dt_) * ticksPerBaseStep();
+  return baseSteps(seconds) * ticksPerBaseStep();
+}
+
+std::int64_t TimeStepper::periodTicks(double seconds) const {
+  return std::max<std::int64_t>(1, baseSteps(seconds)) * ticksPerBaseStep();
 }
 
 void TimeStepper::setLevel(int level) {
@@ -240,7 +248,7 @@ class StepErrorGuard : public StepGuard {
   std::optional<StepFailure> check(const GuardView& g) override {
     const NumericsParams& n = g.spec.numerics;
     if (!(n.max_step_error_um > 0) || !(g.step_error_um > n.max_step_error_um)) return std::nullopt;
-    if (0.5 * g.dt < n.dt_min_s.value_or(n.dt_s / 64)) return std::nullopt;  // at the floor
+    if (0.5 * g.dt < dtMinS(n)) return std::nullopt;  // at the floor
     std::ostringstream why;
     why << "error estimate " << g.step_error_um << " µm of a " << g.dt
         << " s step exceeds numerics.max_step_error_um = " << n.max_step_error_um << at(g.t);
@@ -268,10 +276,8 @@ std::vector<std::unique_ptr<StepGuard>> standardGuards(bool with_contacts) {
 RemeshPolicy::RemeshPolicy(const SceneSpec& spec, const TimeStepper& stepper)
     : min_area_factor_(spec.numerics.remesh_min_area_factor),
       triangles_(static_cast<double>(spec.numerics.triangles_per_cell)) {
-  const double every = spec.numerics.remesh_every_s.value_or(5 * tauShell(spec.cells));
-  if (every > 0)
-    interval_ticks_ = std::max<std::int64_t>(1, std::llround(every / stepper.baseDt())) *
-                      stepper.ticksPerBaseStep();
+  const double every = remeshEveryS(spec);
+  if (every > 0) interval_ticks_ = stepper.periodTicks(every);
 }
 
 double RemeshPolicy::minTriangleArea(const CellSet& cells, int c) const {

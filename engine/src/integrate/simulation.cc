@@ -24,8 +24,7 @@ Simulation::Simulation(const SceneSpec& spec) : Simulation(spec, buildScene(spec
 Simulation::Simulation(const SceneSpec& spec, CellSet cells)
     : spec_(spec),
       cells_(std::move(cells)),
-      stepper_(spec.numerics.dt_s, spec.numerics.dt_min_s.value_or(spec.numerics.dt_s / 64),
-               spec.numerics.adaptive),
+      stepper_(spec.numerics.dt_s, dtMinS(spec.numerics), spec.numerics.adaptive),
       integrator_(spec.numerics),
       remesh_(spec, stepper_) {
   init();

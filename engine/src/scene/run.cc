@@ -156,32 +156,6 @@ double maxVolumeError(const Simulation& sim) {
 
 }  // namespace
 
-std::string_view toString(FailureKind k) {
-  switch (k) {
-    case FailureKind::None:
-      return "none";
-    case FailureKind::NonFinite:
-      return "non-finite";
-    case FailureKind::CgNotConverged:
-      return "cg-not-converged";
-    case FailureKind::InvertedTriangle:
-      return "inverted-triangle";
-    case FailureKind::VolumeDrift:
-      return "volume-drift";
-    case FailureKind::Interpenetration:
-      return "interpenetration";
-    case FailureKind::ContactOscillation:
-      return "contact-oscillation";
-    case FailureKind::Cancelled:
-      return "cancelled";
-    case FailureKind::PreparationFailed:
-      return "preparation-failed";
-    case FailureKind::StepError:
-      return "step-error";
-  }
-  return "unknown";
-}
-
 std::string fitResultName(std::string_view model, std::string_view parameter) {
   const bool shared = parameter == "theta_eq_deg" || parameter == "theta0_deg";
   return shared && model != "eq1" ? std::string(model) + "_" + std::string(parameter)
@@ -254,13 +228,9 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
   // Sample, snapshot and end times in ticks (whole steps of the spec's Δt): the adaptive schedule
   // never steps across one, so they fall on the same times whatever it did.
   const std::int64_t total = clock.ticksFor(spec.duration_s);
-  const std::int64_t sample_every =
-      std::max<std::int64_t>(1, std::llround(spec.sample_every_s / dt)) * clock.ticksPerBaseStep();
+  const std::int64_t sample_every = clock.periodTicks(spec.sample_every_s);
   const std::int64_t snap_every =
-      spec.snapshot_every_s > 0
-          ? std::max<std::int64_t>(1, std::llround(spec.snapshot_every_s / dt)) *
-                clock.ticksPerBaseStep()
-          : 0;
+      spec.snapshot_every_s > 0 ? clock.periodTicks(spec.snapshot_every_s) : 0;
   // The loop's own state, carried through checkpoints so that a resumed run emits exactly the
   // samples an uninterrupted one would (wall-clock columns aside).
   struct Accumulators {

@@ -237,8 +237,7 @@ PreparedSpheroid prepareSpheroid(const SceneSpec& prep, const SpheroidCache* cac
   const double dt = prep.numerics.dt_s;
   const TimeStepper& clock = sim.stepper();  // in ticks: the adaptive schedule may halve steps
   const std::int64_t total = clock.ticksFor(prep.scene_params.prep_max_s);
-  const std::int64_t window =
-      std::max<std::int64_t>(1, std::llround(kWindowS / dt)) * clock.ticksPerBaseStep();
+  const std::int64_t window = clock.periodTicks(kWindowS);
   auto rg = [&] {
     return radiusOfGyration(sim.cells(), sim.geometry().cell_volume, sim.geometry().cell_centroid);
   };
