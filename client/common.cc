@@ -93,6 +93,23 @@ std::string stateName(v1::JobState s) {
   return n;
 }
 
+namespace {
+
+// At most kMaxSpecBytes from a stream, whatever it is: /dev/zero and `yes |` have no size to
+// check first (foam submit /dev/zero was OOM-killed at 24 GB; issue 39).
+std::string readCapped(std::istream& in, const std::string& name) {
+  std::string out(kMaxSpecBytes + 1, '\0');
+  in.read(out.data(), static_cast<std::streamsize>(out.size()));
+  out.resize(static_cast<std::size_t>(in.gcount()));
+  if (out.size() > kMaxSpecBytes)
+    throw std::runtime_error(name +
+                             " holds more than 1 MiB; a spec or certificate file has at "
+                             "most 1 MiB");
+  return out;
+}
+
+}  // namespace
+
 std::string readFile(const std::string& path) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec))
@@ -102,9 +119,7 @@ std::string readFile(const std::string& path) {
                              " bytes; a spec or certificate file has at most 1 MiB");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error("cannot read '" + path + "'");
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
+  return readCapped(in, "'" + path + "'");
 }
 
 std::string toJsonText(const google::protobuf::Message& m) {
@@ -201,9 +216,7 @@ std::string specText(const std::string& spec_file) {
   if (spec_file.empty()) return "";
   std::string text;
   if (spec_file == "-") {
-    std::ostringstream s;
-    s << std::cin.rdbuf();
-    text = s.str();
+    text = readCapped(std::cin, "standard input");
   } else {
     text = readFile(spec_file);
   }

@@ -186,7 +186,8 @@ int main(int argc, char** argv) {
                                     {"--http", &http},
                                     {"--slurm-report-to", &slurm.report_to}})
     if (!value->empty())
-      if (const std::string bad = activefoam::hostPortError(*value); !bad.empty()) {
+      if (const std::string bad = activefoam::hostPortError(*value, value != &slurm.report_to);
+          !bad.empty()) {
         std::cerr << "foamd: " << flag << ": " << bad << "\n";
         return 2;
       }

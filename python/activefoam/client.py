@@ -85,7 +85,15 @@ def _spec_fields(spec: Spec) -> Dict[str, Any]:
         raise ValueError(f"spec: no such file {str(path)!r}")
     if path.stat().st_size > 1 << 20:
         raise ValueError(f"spec: {str(path)!r} is larger than the 1 MiB a spec may have")
-    return {"spec_text": path.read_text()}
+    # At most 1 MiB whatever the file is (a device or a pipe has no size to check first).
+    with open(path, "rb") as f:
+        data = f.read((1 << 20) + 1)
+    if len(data) > 1 << 20:
+        raise ValueError(f"spec: {str(path)!r} holds more than the 1 MiB a spec may have")
+    try:
+        return {"spec_text": data.decode("utf-8")}
+    except UnicodeDecodeError as e:
+        raise ValueError(f"spec: {str(path)!r} is not UTF-8 (byte {e.start})") from None
 
 
 def _one_tag(tags: Optional[Sequence[str]]) -> str:

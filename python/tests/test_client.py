@@ -124,3 +124,9 @@ def test_tokens_that_cannot_be_sent_are_refused_at_once(token):
     # Issue 39: binary bytes or a newline made gRPC abort the client; 1 MB broke every call.
     with pytest.raises(ValueError, match="token"):
         Client("127.0.0.1:1", token=token)
+
+
+def test_a_spec_without_a_size_is_read_to_its_limit_only():
+    # Issue 39: /dev/zero has no size to check first; the client reads at most 1 MiB.
+    with Client("127.0.0.1:1") as c, pytest.raises(ValueError, match="more than the 1 MiB"):
+        c.submit("/dev/zero")

@@ -311,7 +311,7 @@ TEST(Faults, PortsOutsideTheirRangeAreRefused) {
   const Proc d = sh("timeout 10 " + std::string(FOAMD_EXE) + " --listen 127.0.0.1:92786 --db " +
                     (dir / "foamd.db").string() + " 2>&1");
   EXPECT_EQ(d.rc, 2) << d.out;
-  EXPECT_NE(d.out.find("--listen: '127.0.0.1:92786': the port 92786 is outside 1..65535"),
+  EXPECT_NE(d.out.find("--listen: '127.0.0.1:92786': the port 92786 is outside 0..65535"),
             std::string::npos)
       << d.out;
   EXPECT_FALSE(fs::exists(dir / "foamd.db"));  // refused before the store is touched
@@ -358,4 +358,17 @@ TEST(Faults, TokensThatCannotBeSentAreRefusedAtLoad) {
   EXPECT_EQ(env.rc, 2) << env.out;
   EXPECT_NE(env.out.find("FOAM_TOKEN has byte 0x20"), std::string::npos) << env.out;
   fs::remove_all(dir);
+}
+
+// Issue 39: `foam submit /dev/zero` was OOM-killed at 24 GB and `yes | foam submit -` never
+// ended: foam reads at most the 1 MiB a spec may have, and says so (exit 2).
+TEST(Faults, UnboundedSpecInputIsCutAtItsLimit) {
+  const Proc zero =
+      sh("timeout 30 " + std::string(FOAM_EXE) + " --server 127.0.0.1:1 submit /dev/zero 2>&1");
+  EXPECT_EQ(zero.rc, 2) << zero.out;
+  EXPECT_NE(zero.out.find("'/dev/zero' holds more than 1 MiB"), std::string::npos) << zero.out;
+  const Proc yes =
+      sh("yes | timeout 30 " + std::string(FOAM_EXE) + " --server 127.0.0.1:1 submit - 2>&1");
+  EXPECT_EQ(yes.rc, 2) << yes.out;
+  EXPECT_NE(yes.out.find("standard input holds more than 1 MiB"), std::string::npos) << yes.out;
 }
