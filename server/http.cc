@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <regex>
 #include <sstream>
 #include <stdexcept>
 #include <vector>
@@ -147,6 +148,21 @@ void checkHttpOptions(const HttpOptions& o) {
 
 namespace {
 
+// A Host header naming this machine's loopback interface: localhost, 127.a.b.c, [::1] (with or
+// without a port). Without a token, only such requests are served: a page on another site that
+// rebinds its DNS name to 127.0.0.1 reaches the port, but sends its own name (issue 39).
+bool loopbackHostHeader(std::string host) {
+  if (!host.empty() && host.front() == '[') {
+    host = host.substr(0, host.find(']') == std::string::npos ? host.size() : host.find(']') + 1);
+  } else if (const auto colon = host.rfind(':'); colon != std::string::npos) {
+    host.resize(colon);
+  }
+  for (char& ch : host) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  if (host == "localhost" || host == "[::1]") return true;
+  static const std::regex ipv4_loopback(R"(127\.\d{1,3}\.\d{1,3}\.\d{1,3})");
+  return std::regex_match(host, ipv4_loopback);
+}
+
 // What a browser or a probe may fetch without the token: the page (no data in it), health.
 bool isPublic(const std::string& path, bool metrics_public) {
   if (path == "/healthz") return true;
@@ -196,6 +212,15 @@ HttpEndpoint::HttpEndpoint(Store& store, Executor& pool, HttpOptions options)
       jsonError(res, 414,
                 "request target of " + std::to_string(req.target.size()) + " bytes; the limit is " +
                     std::to_string(options_.max_target_bytes));
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    if (options_.token.empty() && req.has_header("Host") &&
+        !loopbackHostHeader(req.get_header_value("Host"))) {
+      jsonError(res, 403,
+                "Host '" + req.get_header_value("Host").substr(0, 200) +
+                    "' is not a loopback name: without --token-file foamd answers only requests "
+                    "addressed to localhost, 127.0.0.0/8 or [::1] (a page elsewhere could reach "
+                    "it by rebinding its DNS name)");
       return httplib::Server::HandlerResponse::Handled;
     }
     if (!options_.token.empty() && !isPublic(req.path, options_.metrics_public) &&

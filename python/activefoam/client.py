@@ -336,7 +336,11 @@ class Job:
         for info in r.snapshots:
             data = self._snapshot_bytes(info.index)
             snap = job_pb2.SnapshotData()
-            snap.ParseFromString(data)
+            try:
+                snap.ParseFromString(data)
+            except Exception as e:  # protobuf's DecodeError: damaged, not a client bug
+                raise RuntimeError(f"snapshot {info.index} of {self.id} is damaged: {len(data)} "
+                                   f"bytes that are not a SnapshotData ({e})") from None
             name = f"snap_{info.index:06d}.vtp"
             (out / name).write_text(vtk.polydata(snap))
             series.append((snap.t_s, name))
@@ -357,7 +361,11 @@ class Job:
             raise _error(e, f"snapshot {index} of {self.id}") from None
         data = b"".join(chunks)
         if compression == "zlib":
-            return zlib.decompress(data)
+            try:
+                return zlib.decompress(data)
+            except zlib.error as e:  # a damaged snapshot in the store: say which, as foam does
+                raise RuntimeError(f"snapshot {index} of {self.id} is damaged: {len(data)} "
+                                   f"compressed bytes that do not inflate ({e})") from None
         if compression:
             raise RuntimeError(f"snapshot {index}: unknown compression {compression!r}")
         return data

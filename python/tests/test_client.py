@@ -130,3 +130,26 @@ def test_a_spec_without_a_size_is_read_to_its_limit_only():
     # Issue 39: /dev/zero has no size to check first; the client reads at most 1 MiB.
     with Client("127.0.0.1:1") as c, pytest.raises(ValueError, match="more than the 1 MiB"):
         c.submit("/dev/zero")
+
+
+class _FakeChunk:
+    def __init__(self, data, compression):
+        self.data, self.compression = data, compression
+
+
+class _FakeStub:
+    def __init__(self, chunks):
+        self._chunks = chunks
+
+    def GetSnapshot(self, req, timeout=None):
+        return iter(self._chunks)
+
+
+def test_a_damaged_snapshot_is_a_runtime_error_naming_it():
+    # Issue 39: zlib.error escaped Job.export, not one of the client's documented exceptions.
+    from activefoam.client import Job
+    c = Client("127.0.0.1:1")
+    c._stub = _FakeStub([_FakeChunk(b"\x78\x9c not deflate", "zlib")])
+    with pytest.raises(RuntimeError, match="snapshot 3 of j-x is damaged"):
+        Job(c, "j-x")._snapshot_bytes(3)
+    c.close()

@@ -127,6 +127,27 @@ TEST_F(HttpTest, LimitsAnswerWithTheirStatus) {
   EXPECT_EQ(res->get_header_value("Allow"), "GET, HEAD");
 }
 
+// Issue 39: without a token the dashboard answered any Host, so a page elsewhere that rebinds
+// its DNS name to 127.0.0.1 could read every job. Only loopback names are served then; with a
+// token the token decides.
+TEST_F(HttpTest, WithoutATokenOnlyLoopbackHostNamesAreServed) {
+  start({});
+  auto c = client();
+  for (const std::string host :
+       {"127.0.0.1", "localhost:8080", "LOCALHOST", "[::1]:1234", "127.1.2.3:80"}) {
+    auto res = c.Get("/jobs", {{"Host", host}});
+    ASSERT_TRUE(res) << host;
+    EXPECT_EQ(res->status, 200) << host;
+  }
+  for (const std::string host :
+       {"evil.example", "evil.example:8080", "127.0.0.1.evil.example", "[::2]:80", "10.0.0.1"}) {
+    auto res = c.Get("/jobs", {{"Host", host}});
+    ASSERT_TRUE(res) << host;
+    EXPECT_EQ(res->status, 403) << host;
+    EXPECT_NE(res->body.find("not a loopback name"), std::string::npos) << res->body;
+  }
+}
+
 TEST_F(HttpTest, TheTokenGuardsEveryDataRouteButNotThePageOrHealth) {
   HttpOptions o;
   o.token = "s3cret-token";
