@@ -19,9 +19,7 @@ from __future__ import annotations
 
 import argparse
 import difflib
-import gzip
 import hashlib
-import io
 import json
 import math
 import os
@@ -38,6 +36,7 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.9/3.10 with tomli ins
     import tomli as tomllib  # type: ignore
 
 from activefoam import trends
+from activefoam.client import _flatten
 
 # Failure kinds of the simulation itself (engine/include/activefoam/run.h): deterministic for a
 # (spec, seed), so a result, not something to run again.
@@ -74,17 +73,6 @@ class StudyError(ValueError):
 
 
 # ---- the study file ----------------------------------------------------------------------------
-
-def _flatten(table: Dict[str, Any], prefix: str = "") -> Dict[str, Any]:
-    out: Dict[str, Any] = {}
-    for k, v in table.items():
-        name = f"{prefix}{k}"
-        if isinstance(v, dict):
-            out.update(_flatten(v, name + "."))
-        else:
-            out[name] = v
-    return out
-
 
 def _closest(word: str, known: Sequence[str]) -> str:
     m = difflib.get_close_matches(word, list(known), n=1)
@@ -571,7 +559,7 @@ def derive_metrics(study: Study, runs: Any, samples: Any, msrd: Any) -> Any:
             v = g["msrd_um2"].to_numpy(dtype=float)
             v = v[np.isfinite(v)]
             mend[jid] = v[-1] if len(v) else math.nan
-    ok = runs["state"] == "succeeded" if "state" in runs else None
+    ok = runs["state"] == "succeeded"
     for name in ("theta_end_deg", "shape_index_end", "unique_contacts_end"):
         runs[name] = [last.get(j, {}).get(name, math.nan) if s == "succeeded" else math.nan
                       for j, s in zip(runs.get("job_id", [None] * len(runs)), runs["state"])]
@@ -957,10 +945,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         with _client(args) as c:
             _report(study, c, out)
         return 0
-    except StudyError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    except ValueError as e:
+    except ValueError as e:  # StudyError, or a spec foamd refused
         print(f"error: {e}", file=sys.stderr)
         return 2
     except PermissionError as e:

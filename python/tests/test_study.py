@@ -1,7 +1,6 @@
 """Studies as files (activefoam.study) through a real foamd: run, interrupt, rerun, report; and
 bad study files."""
 
-import gzip
 import os
 import signal
 import subprocess
@@ -194,7 +193,6 @@ def test_points_are_the_union_of_the_grids(tmp_path):
 def _synthetic(tmp: Path, shift_theta: float, failed_seed: int = 0):
     """A preset-fitness study's data folder with known answers: θ(t) = 40 + 5 t/h + seed noise
     (draft shifted by shift_theta), and one failed draft run."""
-    import numpy as np
     f = tmp / "fit.toml"
     f.write_text(textwrap.dedent("""\
         [study]
