@@ -298,9 +298,27 @@ def _spec_value(spec: Dict[str, Any], key: str) -> Any:
     return value
 
 
+def _resolved_value(spec: Dict[str, Any], key: str) -> Any:
+    """A key's value in a job's resolved spec. The reduced keys are resolved into the absolute
+    ones (and null there), so they are computed back: p_a r/2γ, τ_γ = η/γ, L_η/r = √(η/ξ)/r."""
+    c = spec.get("cells", {})
+    try:
+        if key == "cells.pa_reduced":
+            return c["p_a"] * c["radius_mean_um"] / (2 * c["gamma"])
+        if key == "cells.tau_gamma_s":
+            return c["eta"] / c["gamma"]
+        if key == "cells.l_eta_reduced":
+            return math.sqrt(c["eta"] / c["xi"]) / c["radius_mean_um"]
+    except (KeyError, TypeError, ZeroDivisionError):
+        return None
+    if key == "scene" and isinstance(spec.get("scene"), dict):
+        return spec["scene"].get("kind")
+    return _spec_value(spec, key)
+
+
 def _matches(study: Study, run: Run, spec: Dict[str, Any]) -> bool:
     for k, v in study.settings(run).items():
-        got = _spec_value(spec, k)
+        got = _resolved_value(spec, k)
         if got is None:
             if k in run.point or k == "seed":
                 return False

@@ -267,3 +267,32 @@ def test_fitness_report_on_synthetic_data_with_known_answers(tmp_path):
     summary = pd.read_csv(out2 / "summary.csv").set_index("numerics.preset")
     assert summary.loc["draft", "failed"] == 1
     assert summary.loc["draft", "failures"] == "volume-drift"
+
+
+def test_runs_match_jobs_by_their_resolved_spec_reduced_keys_included(tmp_path):
+    # foamd resolves the reduced keys (p_a r/2γ, τ_γ, L_η/r) into p_a, η, ξ and stores them as
+    # null: a run on a reduced key must still find its job, or a rerun would submit it again.
+    f = tmp_path / "reduced.toml"
+    f.write_text(textwrap.dedent("""\
+        [study]
+        name = "reduced"
+        seeds = [7]
+        [spec]
+        scene = "fusion"
+        [[grid]]
+        "cells.pa_reduced" = [0.33, 1]
+        "cells.tau_gamma_s" = [10]
+        "cells.l_eta_reduced" = [0.5]
+        """))
+    s = st.load(f)
+    r, g = 8.88, 0.5
+    eta = 10 * g
+    resolved = {"scene": {"kind": "fusion"}, "seed": 7,
+                "cells": {"p_a": 0.33 * 2 * g / r, "radius_mean_um": r, "gamma": g, "eta": eta,
+                          "xi": eta / (0.5 * r) ** 2, "pa_reduced": None, "tau_gamma_s": None,
+                          "l_eta_reduced": None}}
+    runs = s.runs()
+    assert st._matches(s, runs[0], resolved)
+    assert not st._matches(s, runs[1], resolved)     # p_a r/2γ = 1 is another run
+    resolved["seed"] = 8
+    assert not st._matches(s, runs[0], resolved)
