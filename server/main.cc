@@ -66,24 +66,11 @@ std::string configErrorMessage(const CLI::App& app, const std::string& what) {
   const std::string key = what.substr(prefix.size());
   std::string best;
   std::size_t best_d = std::string::npos;
-  std::vector<std::string> known;
   for (const CLI::Option* o : app.get_options()) {
     for (const std::string& name : o->get_lnames()) {
       if (name == "config" || name == "help" || name == "version") continue;
-      known.push_back(name);
-      // Edit distance (small strings; case and '_' vs '-' count as one edit each).
-      std::vector<std::size_t> row(name.size() + 1);
-      for (std::size_t j = 0; j <= name.size(); ++j) row[j] = j;
-      for (std::size_t i = 1; i <= key.size(); ++i) {
-        std::size_t diag = row[0];
-        row[0] = i;
-        for (std::size_t j = 1; j <= name.size(); ++j) {
-          const std::size_t up = row[j];
-          row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (key[i - 1] != name[j - 1])});
-          diag = up;
-        }
-      }
-      if (row[name.size()] < best_d) best_d = row[name.size()], best = name;
+      const std::size_t d = activefoam::editDistance(key, name);
+      if (d < best_d) best_d = d, best = name;
     }
   }
   std::string msg = "unknown key '" + key + "'";
