@@ -514,14 +514,15 @@ def collect(study: Study, client: Any, out_dir: os.PathLike) -> Path:
             keep = [c for c in SAMPLE_COLUMNS if c in cols]
             idx = [cols.index(c) for c in keep]
             for s in r.samples:
-                samples.append([j.id, s.t_s] + [s.values[k] for k in idx])
+                samples.append({"job_id": j.id, "t_s": s.t_s,
+                                **{c: s.values[k] for c, k in zip(keep, idx)}})
             for c in getattr(r, "curves", []):
                 if c.name == "msrd":
                     curves += [[j.id, x, y] for x, y in zip(c.x, c.y)]
         rows.append(row)
     pd.DataFrame(rows).to_csv(out / "runs.csv", index=False)
-    pd.DataFrame(samples, columns=["job_id", "t_s"] + SAMPLE_COLUMNS[:len(samples[0]) - 2]
-                 if samples else ["job_id", "t_s"]).to_csv(out / "samples.csv.gz", index=False)
+    pd.DataFrame(samples, columns=["job_id", "t_s", *SAMPLE_COLUMNS]).to_csv(
+        out / "samples.csv.gz", index=False)
     pd.DataFrame(curves, columns=["job_id", "lag_s", "msrd_um2"]).to_csv(
         out / "msrd.csv.gz", index=False)
     meta = {"study": study.name, "file": str(study.path), "tag": study.tag,
