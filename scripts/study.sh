@@ -32,6 +32,12 @@ esac
 export FOAM_SERVER="${FOAM_SERVER:-127.0.0.1:50051}"
 answers() { "$bin/client/foam" list --state running >/dev/null 2>&1; }
 if [ "$needs_server" = 1 ] && ! answers; then
+  case "$FOAM_SERVER" in
+    127.*:* | localhost:* | "[::1]":*) ;;
+    *) echo "study.sh: no foamd answers at $FOAM_SERVER (a remote server is not started" \
+         "from here: start it there, or unset FOAM_SERVER for a local one)" >&2
+       exit 3 ;;
+  esac
   db="${FOAM_STUDY_DB:-${XDG_DATA_HOME:-$HOME/.local/share}/activefoam/studies.db}"
   mkdir -p "$(dirname "$db")"
   log="${db%.db}-foamd.log"
