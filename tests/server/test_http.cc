@@ -84,7 +84,7 @@ TEST_F(HttpTest, IdleConnectionsAndASlowClientDoNotDelayHealthz) {
   std::atomic<bool> stop{false};
   std::thread drip([&] {
     const int fd = connectTo(http.port());
-    const std::string req = "GET /jobs HTTP/1.1\r\nHost: x\r\nX-Padding: ";
+    const std::string req = "GET /jobs HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Padding: ";
     for (std::size_t k = 0; !stop; k = (k + 1) % req.size()) {
       (void)send(fd, req.data() + k, 1, MSG_NOSIGNAL);
       for (int i = 0; i < 15 && !stop; ++i) std::this_thread::sleep_for(100ms);

@@ -1152,7 +1152,7 @@ TEST_F(ServiceTest, HttpServesJobsResultsAndMetricsWithFilters) {
     a.sin_port = htons(static_cast<std::uint16_t>(http.port()));
     a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
     EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
-    const std::string req = line + "\r\nHost: x\r\n\r\n";
+    const std::string req = line + "\r\nHost: 127.0.0.1\r\n\r\n";
     EXPECT_EQ(send(fd, req.data(), req.size(), 0), static_cast<ssize_t>(req.size()));
     std::string resp;
     char buf[4096];
