@@ -46,8 +46,8 @@ SIMULATION_FAILURES = {"non-finite", "cg-not-converged", "inverted-triangle", "v
 MAX_RUNS = 2000          # runs (points × seeds) one study may hold
 MAX_ATTEMPTS = 5         # jobs per run before a run counts as failed for good
 
-STUDY_KEYS = {"name", "title", "figure", "base", "preset", "seeds", "x", "x_label", "x_log",
-              "by", "by_label", "priority", "description", "scale"}
+STUDY_KEYS = {"name", "title", "base", "preset", "seeds", "x", "x_label", "x_log", "by",
+              "by_label", "priority", "scale"}
 FITNESS_KEYS = {"key", "reference", "metrics"}
 TOP_KEYS = {"study", "spec", "grid", "fitness"}
 PRESETS = {"draft", "standard", "reference"}
@@ -128,7 +128,6 @@ class Study:
     by: str = ""
     by_label: str = ""
     priority: int = 0
-    description: str = ""
     scale: str = ""
     fitness: Optional[Dict[str, Any]] = None
 
@@ -209,8 +208,7 @@ def load(path: os.PathLike) -> Study:
     if preset and preset not in PRESETS:
         raise StudyError(f"study.preset: one of {', '.join(sorted(PRESETS))}, got {preset!r}")
     study = Study(path=p, name=name, title=str(st.get("title", name)), seeds=list(seeds),
-                  grids=[], preset=preset, description=str(st.get("description", "")),
-                  scale=str(st.get("scale", "")))
+                  grids=[], preset=preset, scale=str(st.get("scale", "")))
     for key in ("x", "by", "x_label", "by_label"):
         v = st.get(key, "")
         if not isinstance(v, str):
@@ -605,16 +603,11 @@ def study_radius(study: Study) -> float:
 
 # ---- report: tables and figures --------------------------------------------------------------
 
-def _group_keys(study: Study) -> List[str]:
-    keys = study.swept_keys()
-    return keys
-
-
 def summary_table(study: Study, runs: Any, metrics: Sequence[str] = tuple(METRICS)) -> Any:
     """Per grid point: runs, succeeded, failed (with their failure kinds), and per metric n,
     median, q25, q75 over seeds."""
     import pandas as pd
-    keys = _group_keys(study)
+    keys = study.swept_keys()
     out = []
     for point in study.points():
         sel = runs
@@ -654,8 +647,9 @@ def summary_markdown(study: Study, table: Any) -> str:
             cells.append("—" if math.isnan(med) else
                          f"{med:.3g} [{r[f'{m}_q25']:.3g}, {r[f'{m}_q75']:.3g}] ({r[f'{m}_n']})")
         lines.append("| " + " | ".join(cells) + " |")
-    return ("Median [q25, q75] (n runs) over seeds; mixing time is capped at the run's length "
-            "where MSRD never reached r².\n\n" + "\n".join(lines) + "\n")
+    head_line = f"# {study.title}\n\n" + (f"Scale: {study.scale}.\n\n" if study.scale else "")
+    return (head_line + "Median [q25, q75] (n runs) over seeds; mixing time is capped at the "
+            "run's length where MSRD never reached r².\n\n" + "\n".join(lines) + "\n")
 
 
 def _markdown(df: Any, floatfmt: str = ".3g") -> str:
