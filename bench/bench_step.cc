@@ -287,7 +287,7 @@ void BM_NarrowPhaseReference(benchmark::State& state) {  // one detection; argum
 }
 BENCHMARK(BM_NarrowPhaseReference)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
-// One step's incomplete-Cholesky factor of Γ (prepareFriction first), as Integrator::solve builds
+// One step's incomplete-Cholesky factor of Γ (prepareFriction first), as VelocitySolver::solve builds
 // it.
 bool factorFriction(const Simulation& sim, IncompleteCholesky& ic) {
   return ic.factor(

@@ -228,9 +228,50 @@ TEST(Doublet, Ros2ConsistentContactStiffnessIsOneSpdOperator) {
   no_k.numerics.integrator = IntegratorKind::SemiImplicit;  // same friction, no springs in Γ
   Simulation bare(no_k, sim.cells());
   const Eigen::MatrixXd a0 = Eigen::MatrixXd(bare.assembleFriction());
-  const double expected = Integrator::kRos2Gamma * s.numerics.dt_s * s.cells.k_contact * energy;
+  const double expected = kRos2Gamma * s.numerics.dt_s * s.cells.k_contact * energy;
   EXPECT_NEAR(v.dot((a - a0) * v), expected, 1e-9 * std::abs(expected));
   EXPECT_GT(energy, 0);
+}
+
+// S14–S16 with the contact-implicit springs: each contact pair couples every vertex i of its A
+// triangle with every vertex k of its B triangle with weight w_ik = λ_i^A λ_k^B, so the
+// dissipation vᵀΓv of the contact friction alone is Σ_pairs Σ_ik w_ik Δv_ikᵀ G Δv_ik with
+// Δv_ik = v_i − v_k and G = S ((ξ_n + Δt k) n̂n̂ᵀ + ξ_t (I − n̂n̂ᵀ)), summed here from the contacts.
+TEST(Doublet, ContactFrictionDissipatesEachPairsWeightedVelocityDifferences) {
+  Simulation sim(doubletSpec(0.4375));
+  for (int k = 0; k < 300; ++k) ASSERT_TRUE(sim.step().ok());
+  const ContactList& con = sim.contacts();
+  ASSERT_GT(con.pairs.size(), 10u);
+  CellParams cp = sim.spec().cells;
+  cp.xi_normal = 3 * cp.xi;  // anisotropic, so that the normal matters
+  cp.xi_tangential = 0.5 * cp.xi;
+  const ContactFriction friction(cp);
+  const double dt = 0.1;
+  Topology topo;
+  const StepContext ctx{sim.cells(), sim.geometry(), topo, dt, 0.0, &con, dt};
+  FrictionOperator op;
+  op.reset(sim.cells().numVertices(), sim.cells().topology_version);
+  friction.addFriction(ctx, op);
+  Rng rng(7, 1);
+  Eigen::VectorXd v(3 * sim.cells().numVertices()), y(v.size());
+  for (Eigen::Index k = 0; k < v.size(); ++k) v[k] = rng.uniform() - 0.5;
+  op.apply(v.data(), y.data());
+  double expected = 0;
+  for (const ContactPair& p : con.pairs) {
+    const Vec3& n = p.c.normal;
+    const Eigen::Matrix3d nn = n * n.transpose();
+    const Eigen::Matrix3d g = p.c.area * ((*cp.xi_normal + dt * cp.k_contact) * nn +
+                                          *cp.xi_tangential * (Eigen::Matrix3d::Identity() - nn));
+    for (int i = 0; i < 3; ++i)
+      for (int k = 0; k < 3; ++k) {
+        const Vec3 dv =
+            v.segment<3>(3 * sim.cells().tri[p.ta][i]) - v.segment<3>(3 * sim.cells().tri[p.tb][k]);
+        expected += p.c.bary_a[i] * p.c.bary_b[k] * dv.dot(g * dv);
+      }
+  }
+  EXPECT_GT(expected, 0);
+  EXPECT_NEAR(v.dot(y), expected, 1e-11 * expected);
+  EXPECT_NEAR(v.dot(op.assembled() * v), expected, 1e-11 * expected);
 }
 
 TEST(Doublet, SemiImplicitIsUnstableAtTheSupplementTimeStepAndSaysSo) {

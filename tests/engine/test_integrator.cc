@@ -7,7 +7,8 @@
 
 #include <gtest/gtest.h>
 
-#include "activefoam/integrator.h"
+#include "activefoam/step_guards.h"
+#include "activefoam/time_stepper.h"
 #include "test_support.h"
 
 using namespace activefoam;
@@ -147,7 +148,7 @@ TEST(TimeStepper, HalvesDownToTheFloorAndGrowsBackOnlyOnTheCoarserGrid) {
   EXPECT_EQ(s.ticksFor(2.5), 5 * 64);
 }
 
-TEST(Integrator, StandardGuardsInOrder) {
+TEST(StepGuards, StandardGuardsInOrder) {
   Simulation cell(cellSpec(1.3, 80));
   EXPECT_EQ(cell.guardNames(),
             (std::vector<std::string_view>{"non-finite", "cg-not-converged", "inverted-triangle",

@@ -152,40 +152,15 @@ class ContactFriction : public ForceTerm {
   explicit ContactFriction(const CellParams& p)
       : xi_n_(p.xi_normal.value_or(p.xi)), xi_t_(p.xi_tangential.value_or(p.xi)), k_(p.k_contact) {}
   std::string_view name() const override { return "contact_friction"; }
-  void addFriction(const StepContext& ctx, BlockMatrix& gamma) const override;
-  // Assembled, the couplings of a 2 × 100-cell aggregate were ~10⁶ blocks: assembly took longer
-  // than the CG solve and each product streamed ~100 MB. Applied pair by pair they need ~100
-  // bytes per contact pair and no pattern.
-  bool hasCouplingProduct() const override { return true; }
-  void addFrictionDiagonal(const StepContext& ctx, BlockMatrix& gamma) const override;
-  void addCouplingProduct(const double* v, double* y) const override;
-  void forEachCouplingBlock(const BlockSink& sink) const override;
+  // The couplings are a product, pair by pair (~100 bytes a pair, no pattern): assembled, those
+  // of a 2 × 100-cell aggregate were ~10⁶ blocks, assembly took longer than the CG solve and each
+  // product streamed ~100 MB.
+  void addFriction(const StepContext& ctx, FrictionOperator& op) const override;
 
  private:
-  // One contact pair as the product needs it: vertices, barycentric weights, area and normal
-  // (G = area (ξ_t I + d_factor_ n̂n̂ᵀ)). 104 bytes: the product streams them every CG iteration.
-  struct PairOp {
-    PairOp() {}  // left uninitialised: every one is written before use, and resize must not zero
-                 // the list's ~13 MB every step
-    int a[3], b[3];
-    double wa[3], wb[3];
-    double area;
-    double n[3];
-  };
-  // The consistent stiffness' moments per pair (ros2 only): m_ab (9), then the off-diagonal
-  // m_aa (01, 02, 12) and m_bb (01, 02, 12). Copied from the contacts so that a product streams
-  // 104 bytes per pair, not the whole TriangleContact (reading those doubled the time per CG
-  // iteration), and kept apart so that contact-implicit's pair ops stay as small as they were.
-  using Moments = std::array<double, 15>;
-  mutable std::vector<Moments> moments_;
   // Its friction block, with the stiffness factor of the step (StepContext).
   Eigen::Matrix3d pairMatrix(const ContactPair& p, double stiffness_dt) const;
   double xi_n_, xi_t_, k_;
-  mutable std::vector<PairOp> ops_;  // the pairs of the last addFrictionDiagonal
-  mutable double d_factor_ = 0;  // theirs: ξ_n + Δt k − ξ_t (contact-implicit), ξ_n − ξ_t
-  mutable double ks_ = 0;        // factor of the consistent stiffness (0 unless used)
-  mutable ContactPartition partition_;  // theirs, when the contact list came without one
-  mutable const ContactPartition* part_ = nullptr;
 };
 
 // S8–S11: active migration. P_i^a = p_a (S_c,l/S_l) ((x_i − x_c,l)/‖x_i − x_c,l‖)·p̂_l acts as a

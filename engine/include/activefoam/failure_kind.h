@@ -1,4 +1,4 @@
-// How a step or a run failed. Below both the step (integrator.h's guards) and the scene driver
+// How a step or a run failed. Below both the step (step_guards.h) and the scene driver
 // (run.h's RunSummary), so that the integrator does not include the scene layer for it.
 #pragma once
 

@@ -1,5 +1,5 @@
 // One interface for every physical contribution (DESIGN.md §2, §4): a term adds forces (and
-// returns its energy where it has one), adds SPD friction blocks to Γ, and may update its state
+// returns its energy where it has one), adds its SPD friction to Γ, and may update its state
 // after the position update. Terms are listed explicitly in Simulation, not registered by macros.
 #pragma once
 
@@ -8,8 +8,8 @@
 
 #include <Eigen/Core>
 
-#include "activefoam/block_matrix.h"
 #include "activefoam/cellset.h"
+#include "activefoam/friction_operator.h"
 #include "activefoam/geometry.h"
 
 namespace activefoam {
@@ -39,6 +39,20 @@ struct StepContext {
   const Geometry* geo_end = nullptr;
 };
 
+// The context c at another geometry (and predicted end), everything else as in c.
+inline StepContext atGeometry(const StepContext& c, const Geometry& geo, const Geometry* geo_end) {
+  return {c.cells,
+          geo,
+          c.topo,
+          c.dt,
+          c.t,
+          c.contacts,
+          c.contact_stiffness_dt,
+          c.consistent_stiffness,
+          c.t_end,
+          geo_end};
+}
+
 class ForceTerm {
  public:
   virtual ~ForceTerm() = default;
@@ -46,22 +60,10 @@ class ForceTerm {
   // Adds this term's nodal forces (nN) to f (3 × numVertices). Returns the term's energy (nN·µm)
   // for conservative terms, 0 otherwise.
   virtual double addForces(const StepContext& /*ctx*/, Eigen::Matrix3Xd& /*f*/) const { return 0; }
-  // Adds this term's friction blocks (nN·s/µm) to Γ. A step's Γ holds diagonal blocks only:
-  // a term that couples vertices (mesh edges, contacts) has a product, below, and its
-  // addFriction assembles the same couplings for tests and tools (Simulation::assembleFriction).
-  virtual void addFriction(const StepContext& /*ctx*/, BlockMatrix& /*gamma*/) const {}
-  // Terms that couple vertices (cortex viscosity along mesh edges, contact friction) are
-  // applied without assembling those couplings: a step adds only their diagonal blocks to Γ
-  // (addFrictionDiagonal) and the rest as a product, y += C v (addCouplingProduct); between
-  // the two calls the geometry and contacts do not change. Diagonal + product = what
-  // addFriction assembles.
-  virtual bool hasCouplingProduct() const { return false; }
-  virtual void addFrictionDiagonal(const StepContext& /*ctx*/, BlockMatrix& /*gamma*/) const {}
-  virtual void addCouplingProduct(const double* /*v*/, double* /*y*/) const {}
-  // The product's couplings as blocks C_ij, i ≠ j (C_ji = C_ijᵀ; a vertex pair may come more
-  // than once, to be summed), for a preconditioner that needs them assembled; valid between the
-  // same two calls as the product.
-  virtual void forEachCouplingBlock(const BlockSink& /*sink*/) const {}
+  // Adds this term's friction (nN·s/µm) to this step's Γ: diagonal blocks into op.diagonal(),
+  // and for a term that couples vertices its couplings (op.coupling), made from the geometry
+  // and contacts of ctx, which do not change while Γ is in use.
+  virtual void addFriction(const StepContext& /*ctx*/, FrictionOperator& /*op*/) const {}
   // Updates per-cell state once the step is taken (positions already advanced).
   virtual void endStep(const StepContext& /*ctx*/, CellSet& /*cells*/) const {}
 };

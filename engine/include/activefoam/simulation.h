@@ -15,10 +15,14 @@
 #include "activefoam/failure_kind.h"
 #include "activefoam/force_term.h"
 #include "activefoam/geometry.h"
-#include "activefoam/integrator.h"
+#include "activefoam/remesh_policy.h"
 #include "activefoam/solver.h"
 #include "activefoam/spec.h"
+#include "activefoam/step_guards.h"
 #include "activefoam/terms.h"
+#include "activefoam/time_scheme.h"
+#include "activefoam/time_stepper.h"
+#include "activefoam/velocity_solver.h"
 
 namespace activefoam {
 
@@ -38,11 +42,6 @@ struct StepReport {
   bool ok() const { return failure == FailureKind::None; }
 };
 
-// Accumulated wall time per phase, seconds.
-struct PhaseTimes {
-  double geometry = 0, contacts = 0, forces = 0, matrix = 0, solve = 0, remesh = 0;
-};
-
 // Builds the cells of a scene (radii from the Gamma law with the spec's seed).
 CellSet buildScene(const SceneSpec& spec);
 // The cell scene's starting shape: an icosphere with the mesh volume exactly V* = 4/3 π r³,
@@ -60,6 +59,8 @@ class Simulation {
   // `spec` must be validated and resolved.
   explicit Simulation(const SceneSpec& spec);
   Simulation(const SceneSpec& spec, CellSet cells);
+  // With a time scheme of the caller's instead of numerics.integrator's (tests of new schemes).
+  Simulation(const SceneSpec& spec, CellSet cells, std::unique_ptr<TimeScheme> scheme);
 
   // One accepted time step. With numerics.adaptive, a try that fails a guard is undone (cells,
   // PI integrals, polarities, counters, contacts: all as at the start of the step) and retried at
@@ -114,12 +115,12 @@ class Simulation {
   double computeForces(Eigen::Matrix3Xd& f);  // returns the sum of term energies
   // Γ as a step uses it: the assembled blocks of the cells (pattern: mesh edges) with the
   // contacts' diagonal blocks, and the contact couplings applied as a product.
-  void prepareFriction() { integrator_.prepareFriction(context(), terms_); }
-  const BlockMatrix& frictionMatrix() const { return integrator_.frictionMatrix(); }
-  void applyFriction(const double* v, double* y) const { integrator_.applyFriction(v, y); }
-  void forEachFrictionBlock(const BlockSink& sink) const { integrator_.forEachFrictionBlock(sink); }
-  // The whole Γ assembled, contact couplings included (tests and tools; builds its pattern on
-  // every call).
+  void prepareFriction() { solver_.prepareFriction(context(), terms_); }
+  const BlockMatrix& frictionMatrix() const { return solver_.frictionMatrix(); }
+  void applyFriction(const double* v, double* y) const { solver_.applyFriction(v, y); }
+  void forEachFrictionBlock(const BlockSink& sink) const { solver_.forEachFrictionBlock(sink); }
+  const TimeScheme& scheme() const { return *scheme_; }
+  // The whole Γ as one matrix, couplings included (tests and tools).
   SpMat assembleFriction();
   // Empty, or the reason why two cells interpenetrate beyond numerics.max_penetration_um in the
   // current contacts (a guard checks it after every step).
@@ -146,19 +147,12 @@ class Simulation {
             dt,
             time(),
             with_contacts_ ? &contacts_ : nullptr,
-            integrator_.contactStiffnessDt(dt),
-            integrator_.twoStage(),
+            scheme_->contactStiffnessDt(dt),
+            scheme_->consistentStiffness(),
             stepper_.timeAt(stepper_.ticks() + stepper_.stepTicks())};
   }
   // One try of a step of length stepper_.dt(); the schedule is advanced by the caller.
   StepReport tryStep();
-  double step_error_ = 0;  // ros2: Δt/2 max|k₁ + k₂| of the last second stage, µm
-  // ros2: predicts x* = x₀ + Δt k₁ (k₁ in v_), re-evaluates geometry, contacts, forces and Γ
-  // there, solves the second stage and leaves the step's velocity in v_, x* in cells_ (x₀ in
-  // x0_). A failure of the first stage is returned before anything is evaluated at x*.
-  std::optional<StepFailure> secondStage(double dt, SolveStats& cg);
-  // The context c with another geometry (the start's, kept in geo_prev_ once geo_ moved on).
-  static StepContext atGeometry(const StepContext& c, const Geometry& geo, const Geometry* geo_end);
   std::optional<StepFailure> runGuards(StepGuard::Phase phase, const GuardView& view);
   void resetGuardCounts();
   // The state a rejected try is undone to (what the try can change; geometry and contacts are
@@ -177,14 +171,12 @@ class Simulation {
   std::vector<std::unique_ptr<ForceTerm>> terms_;
   const CytoplasmPressure* pressure_ = nullptr;
   TimeStepper stepper_;
-  Integrator integrator_;
+  std::unique_ptr<TimeScheme> scheme_;
+  VelocitySolver solver_;
   RemeshPolicy remesh_;
   std::vector<std::unique_ptr<StepGuard>> guards_;
   Eigen::Matrix3Xd f_;
   Eigen::VectorXd v_;
-  Eigen::Matrix3Xd x0_, k1_, f2_;  // ros2: start positions, first stage, second stage's F
-  Eigen::VectorXd g_, k2_;         // ros2: Γ* k₁, the second stage
-  std::vector<double> pi0_;        // ros2: the PI integrals at the start of the step
   std::int64_t remesh_ops_ = 0;
   std::int64_t steps_rejected_ = 0;
   PhaseTimes times_;

@@ -2,7 +2,7 @@
 // block-Jacobi or block incomplete-Cholesky preconditioner, warm-started from the previous
 // velocities. Our own loop rather than Eigen's ConjugateGradient because a step's Γ is not one
 // assembled matrix: the contact couplings are applied pair by pair
-// (ContactFriction::addCouplingProduct). On an assembled matrix the two loops cost within 10 % of
+// (FrictionOperator, friction_operator.h). On an assembled matrix the two loops cost within 10 % of
 // each other (2 × 100-cell reference scene).
 #pragma once
 

@@ -72,7 +72,7 @@ struct NumericsParams {
   // Consecutive steps in which contacting vertices mostly reverse their velocity (the period-2
   // signature of an explicit scheme beyond its stability limit) before the run fails.
   std::int64_t max_oscillating_steps = 10;
-  // Adaptive time step (integrator.h, TimeStepper): a step that fails one of the checks above is
+  // Adaptive time step (time_stepper.h): a step that fails one of the checks above is
   // undone and retried at half the length, down to dt_min_s (default Δt/64); after a run of good
   // steps Δt grows back. false: the first failed step ends the run (the studies measure that).
   bool adaptive = true;

@@ -43,38 +43,26 @@ class MediumDrag : public ForceTerm {
  public:
   explicit MediumDrag(const CellParams& p) : eta_m_(p.eta_m) {}
   std::string_view name() const override { return "medium_drag"; }
-  void addFriction(const StepContext& ctx, BlockMatrix& gamma) const override;
+  void addFriction(const StepContext& ctx, FrictionOperator& op) const override;
 
  private:
   double eta_m_;
 };
 
-// S13: per edge ij, G = (η/√3)(n̂n̂ᵀ + t̂t̂ᵀ + ε_n b̂b̂ᵀ) as a coupling between i and j.
-// A step adds the diagonal blocks to Γ and applies the couplings as a product, edge by edge
-// (32 bytes an edge): assembled, the couplings were ~85 % of Γ's 2 M non-zeros on the 2 × 100
-// fusion, which every CG iteration streamed (docs/benchmarks.md, "The cortex viscosity's
-// couplings as a product").
+// S13: per edge ij, G = (η/√3)(n̂n̂ᵀ + t̂t̂ᵀ + ε_n b̂b̂ᵀ) as a coupling between i and j: +G on
+// the diagonal blocks of i and j, −G across. The couplings are a product, edge by edge (32 bytes
+// an edge): assembled, they were ~85 % of Γ's 2 M non-zeros on the 2 × 100 fusion, which every
+// CG iteration streamed (docs/benchmarks.md, "The cortex viscosity's couplings as a product").
 class CortexViscosity : public ForceTerm {
  public:
   explicit CortexViscosity(const CellParams& p) : eps_n_(p.eps_n), g_(p.eta / std::sqrt(3.0)) {}
   std::string_view name() const override { return "cortex_viscosity"; }
-  void addFriction(const StepContext& ctx, BlockMatrix& gamma) const override;
-  bool hasCouplingProduct() const override { return true; }
-  void addFrictionDiagonal(const StepContext& ctx, BlockMatrix& gamma) const override;
-  void addCouplingProduct(const double* v, double* y) const override;
-  void forEachCouplingBlock(const BlockSink& sink) const override;
+  void addFriction(const StepContext& ctx, FrictionOperator& op) const override;
 
  private:
   // b̂ of edge e, or zero for a fully folded edge (no defined bisector: isotropic coupling).
   static Vec3 bisector(const StepContext& ctx, const Edge& e);
-  Eigen::Matrix3d edgeMatrix(const Vec3& b) const;
-  struct EdgeOp {
-    int i, j;
-    double b[3];
-  };
   double eps_n_, g_;
-  mutable std::vector<EdgeOp> ops_;              // the edges of the last addFrictionDiagonal
-  mutable std::vector<std::size_t> cell_edges_;  // cell c's edges: ops_[cell_edges_[c] .. [c + 1])
 };
 
 }  // namespace activefoam

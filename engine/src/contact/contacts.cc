@@ -288,45 +288,176 @@ Eigen::Matrix3d ContactFriction::pairMatrix(const ContactPair& p, double stiffne
   return p.c.area * ((xi_n_ + stiffness_dt * k_) * nn + xi_t_ * (Eigen::Matrix3d::Identity() - nn));
 }
 
-void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& gamma) const {
-  ops_.clear();
-  part_ = nullptr;
+namespace {
+
+// The contact pairs' couplings of one step: −w_ik G across each pair (G = area (ξ_t I + d n̂n̂ᵀ),
+// w_ik = λ_i^A λ_k^B), and for the consistent stiffness (ros2) its off-diagonal blocks.
+class PairCoupling : public Coupling {
+ public:
+  // One contact pair as the product needs it: vertices, barycentric weights, area and normal.
+  // 104 bytes: the product streams them every CG iteration.
+  struct PairOp {
+    PairOp() {}  // left uninitialised: every one is written before use, and resize must not zero
+                 // the list's ~13 MB every step
+    int a[3], b[3];
+    double wa[3], wb[3];
+    double area;
+    double n[3];
+  };
+  // The consistent stiffness' moments per pair (ros2 only): m_ab (9), then the off-diagonal
+  // m_aa (01, 02, 12) and m_bb (01, 02, 12). Copied from the contacts so that a product streams
+  // 104 bytes per pair, not the whole TriangleContact (reading those doubled the time per CG
+  // iteration), and kept apart so that contact-implicit's pair ops stay as small as they were.
+  using Moments = std::array<double, 15>;
+
+  void addProduct(const double* v, double* y) const override {
+    // The off-diagonal blocks −w_ik G: vertex i of A gets −λ_i^A G u_B with u_B = Σ_k λ_k^B v_k.
+    if (ops.empty()) return;
+    // One loop per kind, so that contact-implicit's pairs run without the consistent stiffness'
+    // branches (a runtime test cost ~20 % of the product).
+    auto product = [&](auto consistent_kind) {
+      constexpr bool consistent = decltype(consistent_kind)::value;
+      forEachOwnedSide(*part, [&](std::size_t q, bool own_a, bool own_b) {
+        const PairOp& op = ops[q];
+        // G = s I + d n̂n̂ᵀ: s and d as addFriction's diagonal G has them, the same bits.
+        const double s = op.area * xi_t, d = op.area * d_factor;
+        double ua[3] = {0, 0, 0}, ub[3] = {0, 0, 0};
+        for (int i = 0; i < 3; ++i)
+          for (int c = 0; c < 3; ++c) {
+            ua[c] += op.wa[i] * v[3 * op.a[i] + c];
+            ub[c] += op.wb[i] * v[3 * op.b[i] + c];
+          }
+        const double na = op.n[0] * ua[0] + op.n[1] * ua[1] + op.n[2] * ua[2];
+        const double nb = op.n[0] * ub[0] + op.n[1] * ub[1] + op.n[2] * ub[2];
+        double ga[3], gb[3];  // G u_A (what B's vertices get), G u_B (what A's vertices get)
+        for (int c = 0; c < 3; ++c) {
+          gb[c] = s * ub[c] + d * nb * op.n[c];
+          ga[c] = s * ua[c] + d * na * op.n[c];
+        }
+        // The consistent stiffness' normal forces on A's and B's vertices (its off-diagonal part).
+        double fa[3] = {0, 0, 0}, fb[3] = {0, 0, 0};
+        if constexpr (consistent) {
+          // Normal components of the vertices' velocities, then the off-diagonal part of
+          // K = k [M_aa, −M_ab; −M_abᵀ, M_bb] ⊗ n̂n̂ᵀ (the diagonal sits in Γ).
+          double an[3], bn[3];
+          for (int i = 0; i < 3; ++i) {
+            an[i] = bn[i] = 0;
+            for (int c = 0; c < 3; ++c) {
+              an[i] += op.n[c] * v[3 * op.a[i] + c];
+              bn[i] += op.n[c] * v[3 * op.b[i] + c];
+            }
+          }
+          const Moments& m = moments[q];
+          // Off-diagonal index of (i, j), i ≠ j, in the symmetric triples: 01 → 0, 02 → 1, 12 → 2.
+          auto off = [](int i, int j) { return i + j - 1; };
+          for (int i = 0; i < 3; ++i) {
+            double sa = 0, sb = 0;
+            for (int j = 0; j < 3; ++j) {
+              if (j != i) {
+                sa += m[9 + off(i, j)] * an[j];
+                sb += m[12 + off(i, j)] * bn[j];
+              }
+              sa -= m[3 * i + j] * bn[j];
+              sb -= m[3 * j + i] * an[j];
+            }
+            fa[i] = ks * sa;
+            fb[i] = ks * sb;
+          }
+        }
+        auto side = [&](const int* t, const double* w, const double* g, const double* fn) {
+          for (int i = 0; i < 3; ++i) {
+            double* yv = y + 3 * static_cast<std::int64_t>(t[i]);
+            for (int c = 0; c < 3; ++c) yv[c] -= w[i] * g[c];
+            if constexpr (consistent)
+              for (int c = 0; c < 3; ++c) yv[c] += fn[i] * op.n[c];
+          }
+        };
+        if (own_a) side(op.a, op.wa, gb, fa);
+        if (own_b) side(op.b, op.wb, ga, fb);
+      });
+    };
+    if (ks > 0)
+      product(std::true_type{});
+    else
+      product(std::false_type{});
+  }
+  void forEachBlock(const BlockSink& sink) const override {
+    // The off-diagonal blocks that addProduct applies: −w_ik G across the pair, and for
+    // the consistent stiffness −k m_ab n̂n̂ᵀ across, +k m_aa n̂n̂ᵀ within each triangle.
+    const bool consistent = !ops.empty() && ks > 0;
+    for (std::size_t q = 0; q < ops.size(); ++q) {
+      const PairOp& op = ops[q];
+      const Vec3 n(op.n[0], op.n[1], op.n[2]);
+      const Eigen::Matrix3d nn = n * n.transpose();
+      const Eigen::Matrix3d g =
+          (op.area * xi_t) * Eigen::Matrix3d::Identity() + (op.area * d_factor) * nn;
+      for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k) {
+          Eigen::Matrix3d m = -(op.wa[i] * op.wb[k]) * g;
+          if (consistent) m -= (ks * moments[q][3 * i + k]) * nn;
+          sink(op.a[i], op.b[k], m);
+        }
+      if (!consistent) continue;
+      const Moments& mo = moments[q];
+      for (int i = 0; i < 3; ++i)
+        for (int j = i + 1; j < 3; ++j) {
+          sink(op.a[i], op.a[j], (ks * mo[9 + i + j - 1]) * nn);
+          sink(op.b[i], op.b[j], (ks * mo[12 + i + j - 1]) * nn);
+        }
+    }
+  }
+
+  std::vector<PairOp> ops;
+  std::vector<Moments> moments;
+  double xi_t = 0;
+  double d_factor = 0;         // ξ_n + Δt k − ξ_t (contact-implicit), ξ_n − ξ_t
+  double ks = 0;               // factor of the consistent stiffness (0 unless used)
+  ContactPartition partition;  // when the contact list came without one
+  const ContactPartition* part = nullptr;
+};
+
+}  // namespace
+
+void ContactFriction::addFriction(const StepContext& ctx, FrictionOperator& op) const {
   if (!ctx.contacts) return;
+  auto& coupling = op.coupling<PairCoupling>(this);
+  BlockMatrix& gamma = op.diagonal();
   // The centroid spring goes with the friction blocks; the consistent one separately.
   const double spring_dt = ctx.consistent_stiffness ? 0.0 : ctx.contact_stiffness_dt;
   const double ks = ctx.consistent_stiffness ? ctx.contact_stiffness_dt * k_ : 0.0;
   const ContactList& con = *ctx.contacts;
   checkMoments(con, ks);
-  part_ = &partitionOf(con, ctx.cells, partition_);
-  ops_.resize(con.pairs.size());
-  moments_.resize(ks > 0 ? con.pairs.size() : 0);
-  ks_ = ks;
-  d_factor_ = xi_n_ + spring_dt * k_ - xi_t_;
+  coupling.part = &partitionOf(con, ctx.cells, coupling.partition);
+  coupling.ops.resize(con.pairs.size());
+  coupling.moments.resize(ks > 0 ? con.pairs.size() : 0);
+  coupling.ks = ks;
+  coupling.xi_t = xi_t_;
+  coupling.d_factor = xi_n_ + spring_dt * k_ - xi_t_;
   // The product's copy of a pair, made in the one visit that owns its A side (one pass over the
   // pairs instead of two: each pair is 152 bytes, and ~130 000 of them outgrow the caches).
   auto makeOp = [&](std::size_t q) {
     const ContactPair& p = con.pairs[q];
     const Tri& a = ctx.cells.tri[p.ta];
     const Tri& b = ctx.cells.tri[p.tb];
-    PairOp& op = ops_[q];
+    PairCoupling::PairOp& pop = coupling.ops[q];
     for (int i = 0; i < 3; ++i) {
-      op.a[i] = a[i];
-      op.b[i] = b[i];
-      op.wa[i] = p.c.bary_a[i];
-      op.wb[i] = p.c.bary_b[i];
+      pop.a[i] = a[i];
+      pop.b[i] = b[i];
+      pop.wa[i] = p.c.bary_a[i];
+      pop.wb[i] = p.c.bary_b[i];
     }
-    op.area = p.c.area;
+    pop.area = p.c.area;
     if (ks > 0) {
-      Moments& m = moments_[q];
+      PairCoupling::Moments& m = coupling.moments[q];
       const ContactMoments& mo = con.moments[q];
       for (int k = 0; k < 9; ++k) m[k] = mo.ab[k];
       m[9] = mo.aa[1], m[10] = mo.aa[2], m[11] = mo.aa[5];
       m[12] = mo.bb[1], m[13] = mo.bb[2], m[14] = mo.bb[5];
     }
-    for (int k = 0; k < 3; ++k) op.n[k] = p.c.normal[k];
+    for (int k = 0; k < 3; ++k) pop.n[k] = p.c.normal[k];
   };
   // Σ_k w_ik G = λ_i^A (Σ_k λ_k^B) G on vertex i of A, and the same for B.
-  forEachOwnedSide(*part_, [&](std::size_t q, bool own_a, bool own_b) {
+  forEachOwnedSide(*coupling.part, [&](std::size_t q, bool own_a, bool own_b) {
     if (own_a) makeOp(q);
     const ContactPair& p = con.pairs[q];
     const Eigen::Matrix3d g = pairMatrix(p, spring_dt);
@@ -344,134 +475,6 @@ void ContactFriction::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& g
     if (own_a) side(ctx.cells.tri[p.ta], p.c.bary_a, p.c.bary_b, mo ? mo->aa.data() : nullptr);
     if (own_b) side(ctx.cells.tri[p.tb], p.c.bary_b, p.c.bary_a, mo ? mo->bb.data() : nullptr);
   });
-}
-
-void ContactFriction::addCouplingProduct(const double* v, double* y) const {
-  // The off-diagonal blocks −w_ik G: vertex i of A gets −λ_i^A G u_B with u_B = Σ_k λ_k^B v_k.
-  if (ops_.empty()) return;
-  // One loop per kind, so that contact-implicit's pairs run without the consistent stiffness'
-  // branches (a runtime test cost ~20 % of the product).
-  auto product = [&](auto consistent_kind) {
-    constexpr bool consistent = decltype(consistent_kind)::value;
-    forEachOwnedSide(*part_, [&](std::size_t q, bool own_a, bool own_b) {
-      const PairOp& op = ops_[q];
-      // G = s I + d n̂n̂ᵀ: s and d as addFrictionDiagonal's G has them, the same bits.
-      const double s = op.area * xi_t_, d = op.area * d_factor_;
-      double ua[3] = {0, 0, 0}, ub[3] = {0, 0, 0};
-      for (int i = 0; i < 3; ++i)
-        for (int c = 0; c < 3; ++c) {
-          ua[c] += op.wa[i] * v[3 * op.a[i] + c];
-          ub[c] += op.wb[i] * v[3 * op.b[i] + c];
-        }
-      const double na = op.n[0] * ua[0] + op.n[1] * ua[1] + op.n[2] * ua[2];
-      const double nb = op.n[0] * ub[0] + op.n[1] * ub[1] + op.n[2] * ub[2];
-      double ga[3], gb[3];  // G u_A (what B's vertices get), G u_B (what A's vertices get)
-      for (int c = 0; c < 3; ++c) {
-        gb[c] = s * ub[c] + d * nb * op.n[c];
-        ga[c] = s * ua[c] + d * na * op.n[c];
-      }
-      // The consistent stiffness' normal forces on A's and B's vertices (its off-diagonal part).
-      double fa[3] = {0, 0, 0}, fb[3] = {0, 0, 0};
-      if constexpr (consistent) {
-        // Normal components of the vertices' velocities, then the off-diagonal part of
-        // K = k [M_aa, −M_ab; −M_abᵀ, M_bb] ⊗ n̂n̂ᵀ (the diagonal sits in Γ).
-        double an[3], bn[3];
-        for (int i = 0; i < 3; ++i) {
-          an[i] = bn[i] = 0;
-          for (int c = 0; c < 3; ++c) {
-            an[i] += op.n[c] * v[3 * op.a[i] + c];
-            bn[i] += op.n[c] * v[3 * op.b[i] + c];
-          }
-        }
-        const Moments& m = moments_[q];
-        // Off-diagonal index of (i, j), i ≠ j, in the symmetric triples: 01 → 0, 02 → 1, 12 → 2.
-        auto off = [](int i, int j) { return i + j - 1; };
-        for (int i = 0; i < 3; ++i) {
-          double sa = 0, sb = 0;
-          for (int j = 0; j < 3; ++j) {
-            if (j != i) {
-              sa += m[9 + off(i, j)] * an[j];
-              sb += m[12 + off(i, j)] * bn[j];
-            }
-            sa -= m[3 * i + j] * bn[j];
-            sb -= m[3 * j + i] * an[j];
-          }
-          fa[i] = ks_ * sa;
-          fb[i] = ks_ * sb;
-        }
-      }
-      auto side = [&](const int* t, const double* w, const double* g, const double* fn) {
-        for (int i = 0; i < 3; ++i) {
-          double* yv = y + 3 * static_cast<std::int64_t>(t[i]);
-          for (int c = 0; c < 3; ++c) yv[c] -= w[i] * g[c];
-          if constexpr (consistent)
-            for (int c = 0; c < 3; ++c) yv[c] += fn[i] * op.n[c];
-        }
-      };
-      if (own_a) side(op.a, op.wa, gb, fa);
-      if (own_b) side(op.b, op.wb, ga, fb);
-    });
-  };
-  if (ks_ > 0)
-    product(std::true_type{});
-  else
-    product(std::false_type{});
-}
-
-void ContactFriction::forEachCouplingBlock(const BlockSink& sink) const {
-  // The off-diagonal blocks that addCouplingProduct applies: −w_ik G across the pair, and for
-  // the consistent stiffness −k m_ab n̂n̂ᵀ across, +k m_aa n̂n̂ᵀ within each triangle.
-  const bool consistent = !ops_.empty() && ks_ > 0;
-  for (std::size_t q = 0; q < ops_.size(); ++q) {
-    const PairOp& op = ops_[q];
-    const Vec3 n(op.n[0], op.n[1], op.n[2]);
-    const Eigen::Matrix3d nn = n * n.transpose();
-    const Eigen::Matrix3d g =
-        (op.area * xi_t_) * Eigen::Matrix3d::Identity() + (op.area * d_factor_) * nn;
-    for (int i = 0; i < 3; ++i)
-      for (int k = 0; k < 3; ++k) {
-        Eigen::Matrix3d m = -(op.wa[i] * op.wb[k]) * g;
-        if (consistent) m -= (ks_ * moments_[q][3 * i + k]) * nn;
-        sink(op.a[i], op.b[k], m);
-      }
-    if (!consistent) continue;
-    const Moments& mo = moments_[q];
-    for (int i = 0; i < 3; ++i)
-      for (int j = i + 1; j < 3; ++j) {
-        sink(op.a[i], op.a[j], (ks_ * mo[9 + i + j - 1]) * nn);
-        sink(op.b[i], op.b[j], (ks_ * mo[12 + i + j - 1]) * nn);
-      }
-  }
-}
-
-void ContactFriction::addFriction(const StepContext& ctx, BlockMatrix& gamma) const {
-  if (!ctx.contacts) return;
-  const double spring_dt = ctx.consistent_stiffness ? 0.0 : ctx.contact_stiffness_dt;
-  const double ks = ctx.consistent_stiffness ? ctx.contact_stiffness_dt * k_ : 0.0;
-  checkMoments(*ctx.contacts, ks);
-  for (std::size_t q = 0; q < ctx.contacts->pairs.size(); ++q) {
-    const ContactPair& p = ctx.contacts->pairs[q];
-    const Eigen::Matrix3d g = pairMatrix(p, spring_dt);
-    const Tri& a = ctx.cells.tri[p.ta];
-    const Tri& b = ctx.cells.tri[p.tb];
-    for (int i = 0; i < 3; ++i)
-      for (int k = 0; k < 3; ++k) {
-        const double w = p.c.bary_a[i] * p.c.bary_b[k];
-        if (w > 0) gamma.addCoupling(a[i], b[k], w * g);
-      }
-    if (!(ks > 0)) continue;
-    // δg has coefficients c = (−λ^A, +λ^B) summing to zero, so c cᵀ = Σ_{p<q} (−c_p c_q)
-    // (e_p − e_q)(e_p − e_q)ᵀ: couplings +k∫λ^Aλ^B across, −k∫λλ within a triangle.
-    const Eigen::Matrix3d nn = p.c.normal * p.c.normal.transpose();
-    const ContactMoments& mo = ctx.contacts->moments[q];
-    for (int i = 0; i < 3; ++i) {
-      for (int k = 0; k < 3; ++k) gamma.addCoupling(a[i], b[k], (ks * mo.ab[3 * i + k]) * nn);
-      for (int j = i + 1; j < 3; ++j) {
-        gamma.addCoupling(a[i], a[j], (-ks * mo.aa[3 * i + j]) * nn);
-        gamma.addCoupling(b[i], b[j], (-ks * mo.bb[3 * i + j]) * nn);
-      }
-    }
-  }
 }
 
 double ActiveMigration::addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) const {

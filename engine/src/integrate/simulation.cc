@@ -13,19 +13,20 @@ namespace activefoam {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 }  // namespace
 
 Simulation::Simulation(const SceneSpec& spec) : Simulation(spec, buildScene(spec)) {}
 
 Simulation::Simulation(const SceneSpec& spec, CellSet cells)
+    : Simulation(spec, std::move(cells), makeTimeScheme(spec.numerics)) {}
+
+Simulation::Simulation(const SceneSpec& spec, CellSet cells, std::unique_ptr<TimeScheme> scheme)
     : spec_(spec),
       cells_(std::move(cells)),
       stepper_(spec.numerics.dt_s, dtMinS(spec.numerics), spec.numerics.adaptive),
-      integrator_(spec.numerics),
+      scheme_(std::move(scheme)),
+      solver_(spec.numerics),
       remesh_(spec, stepper_) {
   init();
 }
@@ -45,17 +46,16 @@ void Simulation::init() {
   if (with_contacts_) {
     law_.k = p.k_contact;
     law_.h0 = contactRangeH0(p);
-    law_.stiffness_moments = integrator_.twoStage();
+    law_.stiffness_moments = scheme_->consistentStiffness();
     terms_.push_back(std::make_unique<ContactAdhesion>());
-    const bool implicit = integrator_.contactStiffnessDt(1.0) > 0;
+    const bool implicit = scheme_->contactStiffnessDt(1.0) > 0;
     const bool frictionless =
         p.xi_normal.value_or(p.xi) == 0 && p.xi_tangential.value_or(p.xi) == 0;
     if (implicit || !frictionless) terms_.push_back(std::make_unique<ContactFriction>(p));
     if (p.p_a > 0) terms_.push_back(std::make_unique<ActiveMigration>(p, spec_.seed));
   }
   guards_ = standardGuards(with_contacts_);
-  if (integrator_.twoStage() && spec_.numerics.max_step_error_um > 0)
-    guards_.push_back(stepErrorGuard());
+  scheme_->addGuards(spec_.numerics, guards_);
   updateTopology(cells_, topo_);
   computeGeometry(cells_, geo_);
   detect();
@@ -73,20 +73,15 @@ void Simulation::setPositions(const Eigen::Matrix3Xd& x) {
 }
 
 double Simulation::computeForces(Eigen::Matrix3Xd& f) {
-  return integrator_.computeForces(context(), terms_, f);
+  return solver_.computeForces(context(), terms_, f);
 }
 
 SpMat Simulation::assembleFriction() {
-  std::vector<std::pair<int, int>> couplings;
-  for (const Edge& e : topo_.edges) couplings.emplace_back(e.i, e.j);
-  for (const ContactPair& p : contacts_.pairs)
-    for (int i : cells_.tri[p.ta])
-      for (int k : cells_.tri[p.tb]) couplings.emplace_back(i, k);
-  BlockMatrix full;
-  full.setPattern(cells_.numVertices(), std::move(couplings));
+  FrictionOperator op;
+  op.reset(cells_.numVertices(), cells_.topology_version);
   const StepContext ctx = context();
-  for (const auto& term : terms_) term->addFriction(ctx, full);
-  return full.matrix();
+  for (const auto& term : terms_) term->addFriction(ctx, op);
+  return op.assembled();
 }
 
 std::string Simulation::interpenetration() {
@@ -171,16 +166,13 @@ StepReport Simulation::tryStep() {
   rep.contacts = static_cast<int>(contacts_.pairs.size());
   const StepContext ctx = context();  // geometry and contacts of the start of the step
 
-  auto t0 = Clock::now();
-  integrator_.computeForces(ctx, terms_, f_);
-  times_.forces += since(t0);
-  t0 = Clock::now();
-  integrator_.prepareFriction(ctx, terms_);
-  times_.matrix += since(t0);
-  t0 = Clock::now();
+  // geo_prev_ takes the start of the step's geometry (for the end-of-step updates and the Moved
+  // guards) once geo_ moves on: within the scheme if it evaluates elsewhere (ros2's x*; the
+  // Solved guards then see that state's contacts), else after the Solved guards.
+  SchemeState state{cells_, geo_, geo_prev_, terms_, solver_, f_, v_, times_, [this] { detect(); }};
   v_ = Eigen::Map<const Eigen::VectorXd>(cells_.v.data(), cells_.v.size());  // warm start
-  rep.cg = integrator_.solve(f_, v_);
-  times_.solve += since(t0);
+  SchemeResult solved = scheme_->solve(state, ctx);
+  rep.cg = solved.cg;
 
   GuardView view{spec_, cells_, geo_};
   view.contacts = with_contacts_ ? &contacts_ : nullptr;
@@ -190,31 +182,21 @@ StepReport Simulation::tryStep() {
   view.v = &v_;
   view.force = &f_;
   view.cg = &rep.cg;
+  view.step_error_um = solved.step_error_um;
   auto failed = [&rep](StepFailure&& f) {
     rep.failure = f.kind;
     rep.reason = std::move(f.reason);
     return rep;
   };
-  // geo_prev_ keeps the start of the step's geometry for the end-of-step updates and the Moved
-  // guards; ros2 evaluates its second stage in geo_ and contacts_ (the Solved guards see those).
-  const bool two_stage = integrator_.twoStage();
-  if (two_stage) {
-    std::swap(geo_prev_, geo_);
-    if (auto f = secondStage(dt, rep.cg)) return failed(std::move(*f));
-    view.step_error_um = step_error_;
-  }
+  if (solved.failure) return failed(std::move(*solved.failure));
   if (auto f = runGuards(StepGuard::Phase::Solved, view)) return failed(std::move(*f));
-  if (!two_stage) std::swap(geo_prev_, geo_);
+  state.keepStart();
 
   cells_.v = Eigen::Map<const Eigen::Matrix3Xd>(v_.data(), 3, cells_.numVertices());
-  if (two_stage) cells_.x = x0_;
-  cells_.x += dt * cells_.v;
-  // ε of the start of the step (and of the predicted end, still in geo_, for ros2).
-  const StepContext start = atGeometry(ctx, geo_prev_, two_stage ? &geo_ : nullptr);
+  scheme_->advance(cells_, dt);
+  const StepContext start = atGeometry(ctx, geo_prev_, scheme_->predictedEnd(state));
   for (const auto& term : terms_) term->endStep(start, cells_);
-  t0 = Clock::now();
-  computeGeometry(cells_, geo_);
-  times_.geometry += since(t0);
+  timed(times_.geometry, [&] { computeGeometry(cells_, geo_); });
   view.geo_before = &geo_prev_;
   if (auto f = runGuards(StepGuard::Phase::Moved, view)) return failed(std::move(*f));
 
@@ -230,89 +212,10 @@ StepReport Simulation::tryStep() {
     rep.remesh_ops = r.remesh_ops;
     rep.remesh_volume_jump = r.remesh_volume_jump;
   }
-  if (cells_.topology_version == topology_before) {
-    t0 = Clock::now();
-    detect();
-    times_.contacts += since(t0);
-  }
+  if (cells_.topology_version == topology_before) timed(times_.contacts, [&] { detect(); });
   view.geo_before = nullptr;  // the meshes may have changed
   if (auto f = runGuards(StepGuard::Phase::Detected, view)) return failed(std::move(*f));
   return rep;
-}
-
-StepContext Simulation::atGeometry(const StepContext& c, const Geometry& geo,
-                                   const Geometry* geo_end) {
-  return {c.cells,
-          geo,
-          c.topo,
-          c.dt,
-          c.t,
-          c.contacts,
-          c.contact_stiffness_dt,
-          c.consistent_stiffness,
-          c.t_end,
-          geo_end};
-}
-
-std::optional<StepFailure> Simulation::secondStage(double dt, SolveStats& cg) {
-  // Stage 1 must be usable before anything is evaluated at x*: NaNs in the broad phase, or a
-  // prediction from an unconverged solve, would only produce a later, less clear failure.
-  std::ostringstream why;
-  if (!v_.allFinite() || !f_.allFinite()) {
-    why << "non-finite " << (f_.allFinite() ? "velocity" : "force")
-        << " in the first stage at t=" << time() << " s";
-    return StepFailure{FailureKind::NonFinite, why.str()};
-  }
-  if (!cg.converged) {
-    why << "CG did not reach the tolerance " << spec_.numerics.cg_tol << " in " << cg.iterations
-        << " iterations in the first stage (relative residual " << cg.residual
-        << ") at t=" << time() << " s";
-    return StepFailure{FailureKind::CgNotConverged, why.str()};
-  }
-  x0_ = cells_.x;
-  k1_ = Eigen::Map<const Eigen::Matrix3Xd>(v_.data(), 3, cells_.numVertices());
-  cells_.x = x0_ + dt * k1_;
-  auto t0 = Clock::now();
-  computeGeometry(cells_, geo_);
-  times_.geometry += since(t0);
-  t0 = Clock::now();
-  detect();
-  times_.contacts += since(t0);
-
-  StepContext predicted = context();
-  // The pressure at x* with the PI integral predicted as ROS2 predicts every state variable,
-  // I* = I₀ + Δt ε₀; I₀ is restored for the end of the step.
-  pi0_ = cells_.pi_integral;
-  pressure_->endStep(atGeometry(predicted, geo_prev_, nullptr), cells_);
-  t0 = Clock::now();
-  integrator_.computeForces(predicted, terms_, f2_);
-  times_.forces += since(t0);
-  cells_.pi_integral = pi0_;
-  // Γ* k₁ without the spring stiffness, then Γ* + γΔt K* for the solve.
-  t0 = Clock::now();
-  const double stiffness = predicted.contact_stiffness_dt;
-  predicted.contact_stiffness_dt = 0;
-  integrator_.prepareFriction(predicted, terms_);
-  g_.resize(k1_.size());
-  integrator_.applyFriction(k1_.data(), g_.data());
-  predicted.contact_stiffness_dt = stiffness;
-  integrator_.prepareFriction(predicted, terms_);
-  times_.matrix += since(t0);
-  f2_ -= 2 * Eigen::Map<const Eigen::Matrix3Xd>(g_.data(), 3, cells_.numVertices());
-  t0 = Clock::now();
-  k2_ = -v_;  // k₂ ≈ −k₁ where the forces change little over the step
-  const SolveStats s2 = integrator_.solve(f2_, k2_, /*reuse_factor=*/true);
-  times_.solve += since(t0);
-  cg.iterations += s2.iterations;
-  cg.converged = cg.converged && s2.converged;
-  cg.residual = std::max(cg.residual, s2.residual);
-  // x₁ − (x₀ + Δt k₁) = Δt/2 (k₁ + k₂): the embedded first-order step's distance, the estimate.
-  double e2 = 0;
-  for (Eigen::Index i = 0; i < v_.size(); i += 3)
-    e2 = std::max(e2, (v_.segment<3>(i) + k2_.segment<3>(i)).squaredNorm());
-  step_error_ = 0.5 * dt * std::sqrt(e2);
-  v_ = 1.5 * v_ + 0.5 * k2_;  // the step's effective velocity: x₁ = x₀ + Δt v
-  return std::nullopt;
 }
 
 StepReport Simulation::remeshAll() {

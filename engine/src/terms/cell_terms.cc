@@ -76,7 +76,8 @@ void CytoplasmPressure::endStep(const StepContext& ctx, CellSet& cells) const {
   }
 }
 
-void MediumDrag::addFriction(const StepContext& ctx, BlockMatrix& gamma) const {
+void MediumDrag::addFriction(const StepContext& ctx, FrictionOperator& op) const {
+  BlockMatrix& gamma = op.diagonal();
 #pragma omp parallel for schedule(static) if (ctx.cells.numVertices() > grain().min_items)
   for (int i = 0; i < ctx.cells.numVertices(); ++i) {
     const double r = ctx.cells.radius[ctx.cells.vertex_cell[i]];
@@ -94,58 +95,74 @@ Vec3 CortexViscosity::bisector(const StepContext& ctx, const Edge& e) {
   return b / bn;
 }
 
-Eigen::Matrix3d CortexViscosity::edgeMatrix(const Vec3& b) const {
-  // (n̂, t̂ = b̂ × n̂, b̂) is orthonormal: n̂n̂ᵀ + t̂t̂ᵀ + ε b̂b̂ᵀ = I − (1 − ε) b̂b̂ᵀ.
-  return g_ * (Eigen::Matrix3d::Identity() - (1 - eps_n_) * b * b.transpose());
-}
+namespace {
 
-void CortexViscosity::addFriction(const StepContext& ctx, BlockMatrix& gamma) const {
-  for (const Edge& e : ctx.topo.edges) gamma.addCoupling(e.i, e.j, edgeMatrix(bisector(ctx, e)));
-}
+// The mesh edges' couplings of one step: −G_ij across each edge ij.
+class EdgeCoupling : public Coupling {
+ public:
+  struct EdgeOp {
+    int i, j;
+    double b[3];
+  };
+  // G of an edge: (n̂, t̂ = b̂ × n̂, b̂) is orthonormal, so n̂n̂ᵀ + t̂t̂ᵀ + ε b̂b̂ᵀ = I − (1 − ε) b̂b̂ᵀ.
+  Eigen::Matrix3d edgeMatrix(const double* b) const {
+    const Vec3 bv(b[0], b[1], b[2]);
+    return g * (Eigen::Matrix3d::Identity() - (1 - eps_n) * bv * bv.transpose());
+  }
+  // −G v_j into y_i and −G v_i into y_j, with G v = g (v − (1 − ε) b̂ (b̂·v)): edgeMatrix applied
+  // without forming it.
+  void addProduct(const double* v, double* y) const override {
+    const int nc = static_cast<int>(cell_edges.size()) - 1;
+    const double c = 1 - eps_n;
+#pragma omp parallel for schedule(static) if (static_cast <int>(edges.size()) > grain().min_items)
+    for (int cell = 0; cell < nc; ++cell)
+      for (std::size_t k = cell_edges[cell]; k < cell_edges[cell + 1]; ++k) {
+        const EdgeOp& e = edges[k];
+        const double* vi = v + 3 * static_cast<std::int64_t>(e.i);
+        const double* vj = v + 3 * static_cast<std::int64_t>(e.j);
+        double* yi = y + 3 * static_cast<std::int64_t>(e.i);
+        double* yj = y + 3 * static_cast<std::int64_t>(e.j);
+        const double bi = c * (e.b[0] * vi[0] + e.b[1] * vi[1] + e.b[2] * vi[2]);
+        const double bj = c * (e.b[0] * vj[0] + e.b[1] * vj[1] + e.b[2] * vj[2]);
+        for (int d = 0; d < 3; ++d) {
+          yi[d] -= g * (vj[d] - bj * e.b[d]);
+          yj[d] -= g * (vi[d] - bi * e.b[d]);
+        }
+      }
+  }
+  void forEachBlock(const BlockSink& sink) const override {
+    for (const EdgeOp& e : edges) sink(e.i, e.j, -edgeMatrix(e.b));
+  }
+  double g = 0, eps_n = 0;
+  std::vector<EdgeOp> edges;
+  std::vector<std::size_t> cell_edges;  // cell c's edges: edges[cell_edges[c] .. [c + 1])
+};
 
-void CortexViscosity::addFrictionDiagonal(const StepContext& ctx, BlockMatrix& gamma) const {
+}  // namespace
+
+void CortexViscosity::addFriction(const StepContext& ctx, FrictionOperator& op) const {
   const auto& edges = ctx.topo.edges;
+  auto& coupling = op.coupling<EdgeCoupling>(this);
+  coupling.g = g_;
+  coupling.eps_n = eps_n_;
   // A cell's edges are one range that couples only its own vertices (updateTopology).
-  cell_edges_ = ctx.topo.cell_edge_begin;
-  ops_.resize(edges.size());
+  coupling.cell_edges = ctx.topo.cell_edge_begin;
+  coupling.edges.resize(edges.size());
+  BlockMatrix& gamma = op.diagonal();
   const int nc = ctx.cells.numCells();
-  // Threads own whole cells and add their edges in list order: each diagonal block gets the sums
-  // addCoupling would add, in the same order.
+  // Threads own whole cells and add their edges in list order: each diagonal block gets its
+  // edges' G in the same order whatever the thread count.
 #pragma omp parallel for schedule(static) if (static_cast <int>(edges.size()) > grain().min_items)
   for (int c = 0; c < nc; ++c)
-    for (std::size_t k = cell_edges_[c]; k < cell_edges_[c + 1]; ++k) {
+    for (std::size_t k = coupling.cell_edges[c]; k < coupling.cell_edges[c + 1]; ++k) {
       const Edge& e = edges[k];
       const Vec3 b = bisector(ctx, e);
-      ops_[k] = {e.i, e.j, {b.x(), b.y(), b.z()}};
-      const Eigen::Matrix3d m = edgeMatrix(b);
+      EdgeCoupling::EdgeOp& out = coupling.edges[k];
+      out = {e.i, e.j, {b.x(), b.y(), b.z()}};
+      const Eigen::Matrix3d m = coupling.edgeMatrix(out.b);
       gamma.addDiagonal(e.i, m);
       gamma.addDiagonal(e.j, m);
     }
-}
-
-void CortexViscosity::addCouplingProduct(const double* v, double* y) const {
-  // The off-diagonal blocks −G_ij: y_i −= G v_j, y_j −= G v_i with G v = g (v − (1 − ε) b (b·v)).
-  const int nc = static_cast<int>(cell_edges_.size()) - 1;
-  const double c = 1 - eps_n_;
-#pragma omp parallel for schedule(static) if (static_cast <int>(ops_.size()) > grain().min_items)
-  for (int cell = 0; cell < nc; ++cell)
-    for (std::size_t k = cell_edges_[cell]; k < cell_edges_[cell + 1]; ++k) {
-      const EdgeOp& op = ops_[k];
-      const double* vi = v + 3 * static_cast<std::int64_t>(op.i);
-      const double* vj = v + 3 * static_cast<std::int64_t>(op.j);
-      double* yi = y + 3 * static_cast<std::int64_t>(op.i);
-      double* yj = y + 3 * static_cast<std::int64_t>(op.j);
-      const double bi = c * (op.b[0] * vi[0] + op.b[1] * vi[1] + op.b[2] * vi[2]);
-      const double bj = c * (op.b[0] * vj[0] + op.b[1] * vj[1] + op.b[2] * vj[2]);
-      for (int d = 0; d < 3; ++d) {
-        yi[d] -= g_ * (vj[d] - bj * op.b[d]);
-        yj[d] -= g_ * (vi[d] - bi * op.b[d]);
-      }
-    }
-}
-
-void CortexViscosity::forEachCouplingBlock(const BlockSink& sink) const {
-  for (const EdgeOp& op : ops_) sink(op.i, op.j, -edgeMatrix(Vec3(op.b[0], op.b[1], op.b[2])));
 }
 
 }  // namespace activefoam

@@ -1,83 +1,12 @@
-#include "activefoam/integrator.h"
+#include "activefoam/step_guards.h"
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <sstream>
 
 #include "activefoam/contacts.h"
 
 namespace activefoam {
-
-// ---- TimeStepper ---------------------------------------------------------------------------
-
-TimeStepper::TimeStepper(double dt_s, double dt_min_s, bool adaptive)
-    : dt_(dt_s), adaptive_(adaptive) {
-  // The deepest halving whose step is still ≥ dt_min (a tolerance of one part in 10⁹ so that
-  // dt_min = Δt/64 written in decimal still allows the sixth halving). Non-adaptive runs never
-  // halve, and their ticks are whole steps.
-  if (adaptive_)
-    while (max_level_ < 30 && std::ldexp(dt_, -(max_level_ + 1)) >= dt_min_s * (1 - 1e-9))
-      ++max_level_;
-  tick_s_ = std::ldexp(dt_, -max_level_);
-  setLevel(0);
-}
-
-double TimeStepper::minDt() const {
-  return std::ldexp(dt_, -max_level_);
-}
-
-std::int64_t TimeStepper::baseSteps(double seconds) const {
-  return std::llround(seconds / dt_);
-}
-
-std::int64_t TimeStepper::ticksFor(double seconds) const {
-  return baseSteps(seconds) * ticksPerBaseStep();
-}
-
-std::int64_t TimeStepper::periodTicks(double seconds) const {
-  return std::max<std::int64_t>(1, baseSteps(seconds)) * ticksPerBaseStep();
-}
-
-void TimeStepper::setLevel(int level) {
-  level_ = level;
-  level_dt_ = std::ldexp(dt_, -level_);  // exact: a power of two
-}
-
-void TimeStepper::halve() {
-  if (since_growth_ < std::max(4 * wait_, kRecent))  // grew too early
-    wait_ = std::min(2 * wait_, kMaxWait);
-  setLevel(level_ + 1);
-  good_ = 0;
-  calm_ = 0;
-}
-
-void TimeStepper::accept() {
-  ticks_ += stepTicks();
-  ++steps_;
-  since_growth_ = std::min(since_growth_ + 1, kSaturated);
-  if (++calm_ >= 2 * std::max(4 * wait_, kRecent)) {
-    wait_ = std::max(wait_ / 2, kGrowAfter);
-    calm_ = 0;
-  }
-  if (level_ > 0 && ++good_ >= wait_ && ticks_ % (2 * stepTicks()) == 0) {
-    setLevel(level_ - 1);
-    good_ = 0;
-    since_growth_ = 0;
-  }
-}
-
-void TimeStepper::setState(const State& s) {
-  ticks_ = s.ticks;
-  steps_ = s.steps;
-  setLevel(std::clamp<int>(s.level, 0, max_level_));
-  good_ = s.good;
-  wait_ = std::clamp<int>(s.wait, kGrowAfter, kMaxWait);
-  since_growth_ = std::clamp<int>(s.since_growth, 0, kSaturated);
-  calm_ = std::max<int>(s.calm, 0);
-}
-
-// ---- guards --------------------------------------------------------------------------------
 
 namespace {
 
@@ -269,109 +198,6 @@ std::vector<std::unique_ptr<StepGuard>> standardGuards(bool with_contacts) {
   g.push_back(std::make_unique<VolumeGuard>());
   if (with_contacts) g.push_back(std::make_unique<InterpenetrationGuard>());
   return g;
-}
-
-// ---- RemeshPolicy ---------------------------------------------------------------------------
-
-RemeshPolicy::RemeshPolicy(const SceneSpec& spec, const TimeStepper& stepper)
-    : min_area_factor_(spec.numerics.remesh_min_area_factor),
-      triangles_(static_cast<double>(spec.numerics.triangles_per_cell)) {
-  const double every = remeshEveryS(spec);
-  if (every > 0) interval_ticks_ = stepper.periodTicks(every);
-}
-
-double RemeshPolicy::minTriangleArea(const CellSet& cells, int c) const {
-  const double r = cells.radius[c];
-  return min_area_factor_ * 4 * M_PI * r * r / triangles_;
-}
-
-std::vector<char> RemeshPolicy::due(std::int64_t ticks, const CellSet& cells, const Geometry& geo,
-                                    bool& all) const {
-  all = false;
-  if (interval_ticks_ == 0) return {};
-  if (ticks % interval_ticks_ == 0) {
-    all = true;
-    return std::vector<char>(cells.numCells(), 1);
-  }
-  std::vector<char> which(cells.numCells(), 0);
-  bool any = false;
-  for (int t = 0; t < cells.numTriangles(); ++t) {
-    const int c = cells.tri_cell[t];
-    if (!which[c] && geo.tri_area[t] < 0.5 * minTriangleArea(cells, c)) which[c] = any = true;
-  }
-  if (!any) which.clear();
-  return which;
-}
-
-// ---- Integrator ------------------------------------------------------------------------------
-
-Integrator::Integrator(const NumericsParams& n)
-    : kind_(n.integrator),
-      solver_(n.preconditioner, n.cg_tol, static_cast<int>(n.cg_max_iter)),
-      preconditioner_(n.preconditioner) {}
-
-double Integrator::computeForces(const StepContext& ctx, const Terms& terms,
-                                 Eigen::Matrix3Xd& f) const {
-  f.setZero(3, ctx.cells.numVertices());
-  double energy = 0;
-  for (const auto& term : terms) energy += term->addForces(ctx, f);
-  return energy;
-}
-
-void Integrator::prepareFriction(const StepContext& ctx, const Terms& terms) {
-  if (pattern_version_ != ctx.cells.topology_version) {
-    // Diagonal blocks only: every coupling (mesh edges, contacts) is applied as a product, so
-    // neither remeshing nor contacts coming and going change more than the number of blocks.
-    gamma_.setPattern(ctx.cells.numVertices(), {});
-    pattern_version_ = ctx.cells.topology_version;
-  } else {
-    gamma_.setZero();
-  }
-  if (preconditioner_ == PreconditionerKind::IncompleteCholesky)
-    cell_vertex_begin_ = ctx.cells.cell_vertex_begin;  // the factor's groups (solve())
-  product_terms_.clear();
-  for (const auto& term : terms) {
-    if (term->hasCouplingProduct()) {
-      term->addFrictionDiagonal(ctx, gamma_);
-      product_terms_.push_back(term.get());
-    } else {
-      term->addFriction(ctx, gamma_);
-    }
-  }
-}
-
-void Integrator::applyFriction(const double* v, double* y) const {
-  gamma_.multiply(v, y);
-  for (const ForceTerm* t : product_terms_) t->addCouplingProduct(v, y);
-}
-
-void Integrator::forEachFrictionBlock(const BlockSink& sink) const {
-  gamma_.forEachLowerBlock(sink);
-  for (const ForceTerm* t : product_terms_) t->forEachCouplingBlock(sink);
-}
-
-SolveStats Integrator::solve(const Eigen::Matrix3Xd& f, Eigen::VectorXd& v, bool reuse_factor) {
-  Eigen::Map<const Eigen::VectorXd> b(f.data(), f.size());
-  const IncompleteCholesky* factor = nullptr;
-  if (preconditioner_ == PreconditionerKind::IncompleteCholesky) {
-    if (!reuse_factor || factor_.numBlocks() != gamma_.numBlocks()) {
-      // The cells are the factor's groups: its triangular solves run the cells of one colour
-      // (no two of them in contact) in parallel.
-      const bool ok = factor_.factor(
-          gamma_.numBlocks(), [this](const BlockSink& sink) { forEachFrictionBlock(sink); },
-          cell_vertex_begin_);
-      if (!ok) {
-        // Γ is SPD whenever the step is sane; a factor that breaks down at every shift means
-        // non-finite entries, which the CG guard reports.
-        SolveStats s;
-        s.residual = std::numeric_limits<double>::quiet_NaN();
-        return s;
-      }
-    }
-    factor = &factor_;
-  }
-  return solver_.solve([this](const double* in, double* out) { applyFriction(in, out); }, gamma_, b,
-                       v, factor);
 }
 
 }  // namespace activefoam
