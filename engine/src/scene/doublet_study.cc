@@ -6,6 +6,7 @@
 
 #include "activefoam/observables.h"
 #include "activefoam/simulation.h"
+#include "activefoam/step_loop.h"
 
 namespace activefoam {
 
@@ -33,13 +34,8 @@ DoubletEquilibrium measureDoubletEquilibrium(const SceneSpec& spec, double durat
   double next_sample_t = 5;
   double sum = 0, iters = 0;
   int count = 0;
-  while (clock.ticks() < n) {
-    const StepReport r = sim.step();
-    if (!r.ok()) {
-      o.failure = std::string(toString(r.failure));
-      o.reason = r.reason;
-      break;
-    }
+  const LoopResult loop = runSteps(sim, n, nullptr, [&](const StepReport& r) {
+    if (!r.ok()) return false;
     iters += r.cg.iterations;
     for (int c = 0; c < sim.cells().numCells(); ++c)
       o.volume_error_max = std::max(o.volume_error_max, std::abs(sim.geometry().cell_volume[c] -
@@ -54,6 +50,11 @@ DoubletEquilibrium measureDoubletEquilibrium(const SceneSpec& spec, double durat
         ++count;
       }
     }
+    return true;
+  });
+  if (loop.end == LoopEnd::Failed) {
+    o.failure = std::string(toString(loop.failed.failure));
+    o.reason = loop.failed.reason;
   }
   o.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   o.theta_c_deg = count ? sum / count : std::nan("");

@@ -14,6 +14,7 @@
 #include "activefoam/observables.h"
 #include "activefoam/simulation.h"
 #include "activefoam/spheroid.h"
+#include "activefoam/step_loop.h"
 
 namespace activefoam {
 namespace {
@@ -305,30 +306,18 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
   auto progress = [&] {
     if (obs.on_progress) obs.on_progress(sim.time(), sim.steps(), sim.stepsRejected());
   };
-  while (clock.ticks() < total) {
-    if (obs.cancel && obs.cancel->load(std::memory_order_relaxed)) {
-      sum.failure = FailureKind::Cancelled;
-      sum.reason = "cancelled at t=" + std::to_string(sim.time()) + " s";
-      checkpoint();
-      break;
-    }
-    const StepReport r = sim.step();
+  const LoopResult loop = runSteps(sim, total, obs.cancel, [&](const StepReport& r) {
     if (r.rejected > 0 && acc.window_rejected == 0 && obs.on_log)  // one line per sample
       obs.on_log("step rejected: " + std::string(toString(r.rejected_kind)) + ": " +
                  r.rejected_reason + "; retried at dt = " + formatNumber(r.dt) + " s (" +
                  std::to_string(r.rejected) + " halvings)");
     acc.window_rejected += r.rejected;
-    if (!r.ok()) {
-      sum.failure = r.failure;
-      sum.reason = r.reason;
-      acc.run_dt_min = acc.run_dt_min > 0 ? std::min(acc.run_dt_min, r.dt) : r.dt;
-      break;
-    }
+    acc.run_dt_min = acc.run_dt_min > 0 ? std::min(acc.run_dt_min, r.dt) : r.dt;
+    if (!r.ok()) return false;
     window_iters += r.cg.iterations;
     all_iters += r.cg.iterations;
     ++window_steps;
     acc.window_dt_min = acc.window_dt_min > 0 ? std::min(acc.window_dt_min, r.dt) : r.dt;
-    acc.run_dt_min = acc.run_dt_min > 0 ? std::min(acc.run_dt_min, r.dt) : r.dt;
     window_vol = std::max(window_vol, maxVolumeError(sim));
     if (clock.ticks() % sample_every == 0) {
       emitSample();
@@ -342,6 +331,15 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
       last_progress = wall();
       progress();
     }
+    return true;
+  });
+  if (loop.end == LoopEnd::Cancelled) {
+    sum.failure = FailureKind::Cancelled;
+    sum.reason = "cancelled at t=" + std::to_string(sim.time()) + " s";
+    checkpoint();
+  } else if (loop.end == LoopEnd::Failed) {
+    sum.failure = loop.failed.failure;
+    sum.reason = loop.failed.reason;
   }
   sum.t_s = sim.time();
   sum.steps = sim.steps();

@@ -13,6 +13,7 @@
 #include "../integrate/bytes.h"
 #include "activefoam/rng.h"
 #include "activefoam/simulation.h"
+#include "activefoam/step_loop.h"
 
 namespace activefoam {
 namespace {
@@ -243,31 +244,28 @@ PreparedSpheroid prepareSpheroid(const SceneSpec& prep, const SpheroidCache* cac
   };
   PreparedSpheroid out;
   double rg_prev = rg();
-  while (clock.ticks() < total) {
-    if (obs.cancel && obs.cancel->load(std::memory_order_relaxed)) {
-      PrepFailed e("cancelled while preparing the " + what);
-      e.cancelled = true;
-      throw e;
-    }
-    const StepReport r = sim.step();
-    if (!r.ok())
-      throw PrepFailed("preparing the " + what + " failed: " + std::string(toString(r.failure)) +
-                       ": " + r.reason + " (try a smaller scene.prep_dt_s)");
-    if (clock.ticks() % window == 0) {
-      const double now = rg();
-      const double rate = std::abs(now - rg_prev) / now / kWindowS;
-      rg_prev = now;
-      out.compaction_rate_per_s = rate;
-      log("  relaxing: t = " + formatNumber(sim.time()) + " s, radius of gyration " +
-          formatNumber(std::round(now * 1000) / 1000) +
-          " µm, |dRg/dt|/Rg = " + formatNumber(std::round(rate * 1e8) / 1e8) + " /s");
-      const double earliest = std::max(2 * kWindowS, prep.scene_params.prep_min_s);
-      if (sim.time() >= earliest - 0.5 * dt && rate < prep.scene_params.compact_rate_per_s) {
-        out.compact = true;
-        break;
-      }
-    }
+  const LoopResult loop = runSteps(sim, total, obs.cancel, [&](const StepReport& r) {
+    if (!r.ok() || clock.ticks() % window != 0) return true;
+    const double now = rg();
+    const double rate = std::abs(now - rg_prev) / now / kWindowS;
+    rg_prev = now;
+    out.compaction_rate_per_s = rate;
+    log("  relaxing: t = " + formatNumber(sim.time()) + " s, radius of gyration " +
+        formatNumber(std::round(now * 1000) / 1000) +
+        " µm, |dRg/dt|/Rg = " + formatNumber(std::round(rate * 1e8) / 1e8) + " /s");
+    const double earliest = std::max(2 * kWindowS, prep.scene_params.prep_min_s);
+    out.compact = sim.time() >= earliest - 0.5 * dt && rate < prep.scene_params.compact_rate_per_s;
+    return !out.compact;
+  });
+  if (loop.end == LoopEnd::Cancelled) {
+    PrepFailed e("cancelled while preparing the " + what);
+    e.cancelled = true;
+    throw e;
   }
+  if (loop.end == LoopEnd::Failed)
+    throw PrepFailed("preparing the " + what +
+                     " failed: " + std::string(toString(loop.failed.failure)) + ": " +
+                     loop.failed.reason + " (try a smaller scene.prep_dt_s)");
   out.relaxed_s = sim.time();
   out.radius_gyration_um = rg();
   out.cells = sim.cells();
