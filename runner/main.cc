@@ -329,17 +329,6 @@ int main(int argc, char** argv) {
     std::vector<std::string> keys = parsed.keys;
     keys.insert(keys.end(), set.keys.begin(), set.keys.end());
     if (errors.empty()) errors = checkSceneKeys(spec, keys);
-    // A valid spec this engine version cannot build yet is refused the same way, before any
-    // output is written.
-    if (errors.empty() && !sceneAvailable(spec.scene)) {
-      std::string avail;
-      for (SceneKind k :
-           {SceneKind::Cell, SceneKind::Doublet, SceneKind::Spheroid, SceneKind::Fusion})
-        if (sceneAvailable(k)) avail += (avail.empty() ? "" : ", ") + std::string(toString(k));
-      errors.push_back(
-          {"scene", "'" + std::string(toString(spec.scene)) +
-                        "' is not available in this engine version (available: " + avail + ")"});
-    }
   }
   if (!errors.empty()) {
     for (const SpecError& e : errors) std::cerr << "foam-run: invalid spec: " << e.str() << "\n";

@@ -184,20 +184,6 @@ ConvertResult convertSpec(const v1::SceneSpec& typed, std::string_view spec_text
     out.errors = wrong;
     return out;
   }
-  if (!sceneAvailable(ready.spec->scene)) {
-    std::string avail;
-    for (SceneKind k :
-         {SceneKind::Cell, SceneKind::Doublet, SceneKind::Spheroid, SceneKind::Fusion})
-      if (sceneAvailable(k)) {
-        if (!avail.empty()) avail += ", ";
-        avail += toString(k);
-      }
-    std::string msg = "'";
-    msg += toString(ready.spec->scene);
-    msg += "' is not available in this engine version (available: " + avail + ")";
-    out.errors.push_back({"scene", msg});
-    return out;
-  }
   out.spec = ready.spec;
   return out;
 }

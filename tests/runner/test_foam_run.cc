@@ -1,6 +1,4 @@
 // The foam-run binary: exit codes, messages, and what it leaves in the output folder.
-//
-// Tests that run the engine end to end are skipped when FOAM_RUN_NO_ENGINE is set.
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -83,10 +81,6 @@ class FoamRun : public ::testing::Test {
   fs::path dir_;
 };
 
-bool engineMissing() {
-  return std::getenv("FOAM_RUN_NO_ENGINE") != nullptr;
-}
-
 // ---- invalid input: exit 2, one line per error naming the key, nothing created --------------
 
 struct BadSpec {
@@ -127,7 +121,6 @@ TEST_F(FoamRun, InvalidSpecExits2NamingTheKeyAndWritesNothing) {
 // A gap beyond the adhesion range runs (a study may want it) but is named on stderr: foamd
 // refuses the same spec (SpecConvert.AGapBeyondTheAdhesionRangeIsRefusedAndTheDefaultIsInsideIt).
 TEST_F(FoamRun, AGapBeyondTheAdhesionRangeRunsWithAWarning) {
-  if (engineMissing()) GTEST_SKIP() << "no engine in this build";
   const fs::path s = spec(
       "scene = \"doublet\"\nduration_s = 1\nsample_every_s = 0.5\nsnapshot_every_s = 0\n"
       "[cells]\nalpha = 0.9\n[scene]\ngap_um = 0.05\n[numerics]\ntriangles_per_cell = 80\n");
@@ -250,7 +243,6 @@ void expectCompleteOutput(const fs::path& out, SceneKind scene, std::size_t rows
 }
 
 TEST_F(FoamRun, CellSceneEndToEnd) {
-  if (engineMissing()) GTEST_SKIP() << "FOAM_RUN_NO_ENGINE is set";
   const fs::path s = spec(kCell);
   const fs::path out = dir_ / "out";
   const Result r = run(quote(s.string()) + " --out " + quote(out.string()) + " --quiet");
@@ -271,7 +263,6 @@ TEST_F(FoamRun, CellSceneEndToEnd) {
 }
 
 TEST_F(FoamRun, DoubletReportsContactAnglePerSample) {
-  if (engineMissing()) GTEST_SKIP() << "FOAM_RUN_NO_ENGINE is set";
   const std::string text =
       "scene = \"doublet\"\nduration_s = 300\nsample_every_s = 50\n"
       "[cells]\nradius_gamma_k = 0\np_a = 0\n";
@@ -296,7 +287,6 @@ TEST_F(FoamRun, DoubletReportsContactAnglePerSample) {
 }
 
 TEST_F(FoamRun, OverridesStdinAndSnapshots) {
-  if (engineMissing()) GTEST_SKIP() << "FOAM_RUN_NO_ENGINE is set";
   const std::string text = "{\"scene\": \"cell\", \"duration_s\": 50}";
   const fs::path out = dir_ / "out";
   const Result r = run("- --out " + quote(out.string()) +
@@ -320,7 +310,6 @@ TEST_F(FoamRun, OverridesStdinAndSnapshots) {
 }
 
 TEST_F(FoamRun, ForceReplacesAnEarlierRun) {
-  if (engineMissing()) GTEST_SKIP() << "FOAM_RUN_NO_ENGINE is set";
   const fs::path s = spec(kCell);
   const fs::path out = dir_ / "out";
   ASSERT_EQ(run(quote(s.string()) + " --out " + quote(out.string()) + " -q").code, 0);
@@ -332,7 +321,6 @@ TEST_F(FoamRun, ForceReplacesAnEarlierRun) {
 }
 
 TEST_F(FoamRun, SigintCancelsWithExit130AndASummary) {
-  if (engineMissing()) GTEST_SKIP() << "FOAM_RUN_NO_ENGINE is set";
   const fs::path s = spec(
       "scene = \"cell\"\nduration_s = 1e6\nsample_every_s = 1\nsnapshot_every_s = 0\n"
       "[numerics]\ntriangles_per_cell = 80\n");
@@ -421,7 +409,6 @@ std::vector<std::string> physicsRows(const fs::path& csv) {
 }  // namespace resume
 
 TEST_F(FoamRun, InterruptedRunResumesToTheUninterruptedResult) {
-  if (engineMissing()) GTEST_SKIP() << "FOAM_RUN_NO_ENGINE is set";
   ASSERT_EQ(sampleColumns(SceneKind::Doublet)[2], "wall_s");
   const fs::path s = spec(
       "scene = \"doublet\"\nduration_s = 200\nsample_every_s = 5\nsnapshot_every_s = 20\n"
@@ -469,7 +456,6 @@ TEST_F(FoamRun, InterruptedRunResumesToTheUninterruptedResult) {
 }
 
 TEST_F(FoamRun, ResumeWithoutCheckpointStartsOverAndADamagedOneIsRefused) {
-  if (engineMissing()) GTEST_SKIP() << "FOAM_RUN_NO_ENGINE is set";
   const fs::path s = spec(kCell);
   const fs::path out = dir_ / "out";
   fs::create_directories(out);

@@ -188,9 +188,6 @@ std::optional<SpecError> clearField(SceneSpec& spec, std::string_view key);
 // Real keys give double, Integer keys std::int64_t, Choice keys std::string.
 std::optional<SpecValue> getField(const SceneSpec& spec, std::string_view key);
 
-// Whether this engine version can build the scene (the others are accepted keys, not yet built).
-bool sceneAvailable(SceneKind scene);
-
 // Every range and cross-field rule. Empty when the spec can run.
 std::vector<SpecError> validate(const SceneSpec& spec);
 

@@ -39,11 +39,6 @@ TriMesh ellipsoidCell(double radius, double axes_ratio, int triangles, const Vec
   return m;
 }
 
-bool sceneAvailable(SceneKind scene) {
-  return scene == SceneKind::Cell || scene == SceneKind::Doublet || scene == SceneKind::Spheroid ||
-         scene == SceneKind::Fusion;
-}
-
 std::vector<Vec3> packSpheres(const std::vector<double>& radii, std::uint64_t seed) {
   const int n = static_cast<int>(radii.size());
   double mean = 0;

@@ -1,6 +1,7 @@
 // A stored snapshot (a SnapshotData message, zlib-compressed or not) as a VtkMesh: what `foam
 // export` writes from GetSnapshot's chunks and foamd's HTTP `.vtp` route writes from its store,
-// decoded one way. Users link activefoam_proto, activefoam_vtk and zlib.
+// decoded one way. It lives with the wire contract, not in common/ (which knows nothing of proto):
+// users link activefoam_proto, activefoam_vtk and zlib.
 #pragma once
 
 #include <zlib.h>
