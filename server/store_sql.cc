@@ -129,6 +129,7 @@ v1::Job readJob(Stmt& s) {
   j.set_last_seq(s.i64(18));
   j.set_executor_ref(s.text(19));
   j.set_outcome(s.text(20));
+  j.set_terminal(isTerminal(j.state()));
   return j;
 }
 

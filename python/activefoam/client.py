@@ -19,7 +19,6 @@ from activefoam.v1 import job_pb2, service_pb2, service_pb2_grpc
 
 Spec = Union[Mapping[str, Any], str, os.PathLike]
 
-_TERMINAL = {"succeeded", "failed", "cancelled"}
 _STATES = {"queued", "running", "succeeded", "failed", "cancelled"}
 
 
@@ -291,7 +290,7 @@ class Job:
             if progress:
                 print(_progress_line(j), end="", file=sys.stderr, flush=True)
             state = _state_name(j.state)
-            if state in _TERMINAL:
+            if j.terminal:  # the server says when a job has ended
                 if progress:
                     print(f"  {state}" + (f": {j.reason}" if j.reason else ""), file=sys.stderr)
                 return state
@@ -390,7 +389,7 @@ class Sweep:
             counts: Dict[str, int] = {}
             for j in jobs:
                 counts[_state_name(j.state)] = counts.get(_state_name(j.state), 0) + 1
-            done = sum(counts.get(s, 0) for s in _TERMINAL)
+            done = sum(1 for j in jobs if j.terminal)
             if progress:
                 parts = ", ".join(f"{n} {s}" for s, n in sorted(counts.items()))
                 print(f"\rsweep {self.id}: {done}/{len(jobs)} done ({parts})", end="",

@@ -6,7 +6,6 @@
 const POLL_MS = 3000;
 const JOBS_PAGE_SIZE = 100;
 const TOKEN_KEY = 'foamd.token';
-const TERMINAL = new Set(['succeeded', 'failed', 'cancelled']);
 // Sample columns that describe the solver rather than the tissue.
 const BOOKKEEPING = new Set(['t_s', 'steps', 'wall_s', 'cg_iters_mean', 'volume_error_max',
   'dt_min_s', 'steps_rejected']);
@@ -531,7 +530,7 @@ async function refreshJob(live, ctx) {
   $('#results-empty').hidden = ctx.data.results.length > 0;
 
   drawJobCharts(ctx);
-  return !TERMINAL.has(state);
+  return !job.terminal;  // the server says when a job has ended
 }
 
 function drawJobCharts(ctx) {
@@ -668,7 +667,7 @@ async function refreshSweep(live, ctx) {
   ctx.y = y;
 
   drawSweep(ctx);
-  return states.some(s => !TERMINAL.has(s));
+  return jobs.some(j => !j.terminal);
 }
 
 function drawSweep(ctx) {
