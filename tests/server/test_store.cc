@@ -1,0 +1,199 @@
+// The store (SQLite, one writer thread) and the job lifecycle table, without a server: job order
+// and requeue after a restart, results and curves, outcomes and their filters, state changes.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "store.h"
+
+using namespace activefoam;
+using namespace activefoam::server;
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path tempDb() {
+  static std::mt19937_64 rng{std::random_device{}()};
+  const fs::path dir = fs::temp_directory_path() / ("foamd-store-test-" + std::to_string(rng()));
+  fs::create_directories(dir);
+  return dir / "foamd.db";
+}
+
+}  // namespace
+
+TEST(Store, PriorityThenAgeAndRequeueAfterRestart) {
+  const fs::path db = tempDb();
+  auto job = [](int priority) {
+    NewJob j;
+    j.spec.scene = SceneKind::Cell;
+    j.spec = resolve(j.spec);
+    j.spec_json = "{}";
+    j.priority = priority;
+    return j;
+  };
+  std::string low, high1, high2;
+  {
+    Store s(db.string());
+    EXPECT_EQ(s.schemaVersion(), kSchemaVersion);
+    low = s.submit(job(0)).first;
+    high1 = s.submit(job(5)).first;
+    high2 = s.submit(job(5)).first;
+    EXPECT_EQ(s.claimNext()->job.id(), high1);
+    EXPECT_EQ(s.claimNext()->job.id(), high2);
+    s.saveCheckpoint(high2, 3.5, "state");
+  }  // "crash": two jobs left running
+  Store s(db.string());
+  EXPECT_EQ(s.requeueRunning("restart"), 2);
+  EXPECT_EQ(s.getJob(high1)->state(), v1::JOB_STATE_QUEUED);
+  EXPECT_EQ(s.getJob(high1)->reason(), "restart");
+  const auto c1 = s.claimNext();
+  EXPECT_EQ(c1->job.id(), high1);
+  EXPECT_FALSE(c1->checkpoint);
+  const auto c2 = s.claimNext();
+  EXPECT_EQ(c2->job.id(), high2);
+  ASSERT_TRUE(c2->checkpoint);
+  EXPECT_EQ(*c2->checkpoint, "state");
+  EXPECT_DOUBLE_EQ(c2->checkpoint_t_s, 3.5);
+  EXPECT_EQ(c2->job.attempts(), 2);
+  EXPECT_EQ(s.claimNext()->job.id(), low);
+  fs::remove_all(db.parent_path());
+}
+
+// A finished run's curves (fusion: the MSRD against the lag) come back with its results, bit
+// for bit and NaN included, and a restart from scratch drops them with the results.
+TEST(Store, CurvesOfAFinishedRunComeBackWithItsResults) {
+  const fs::path db = tempDb();
+  Store s(db.string());
+  NewJob j;
+  j.spec.scene = SceneKind::Cell;
+  j.spec = resolve(j.spec);
+  j.spec_json = "{}";
+  const std::string id = s.submit(j).first;
+  ASSERT_EQ(s.claimNext()->job.id(), id);
+  const FlatCurve msrd{"msrd", {30, 60, 90.5}, {0.25, 1.0 / 3.0, std::nan("")}};
+  ASSERT_TRUE(s.finish(id, v1::JOB_STATE_SUCCEEDED, "", "", {{"x", 1.0}}, 90, 9, "", {msrd}));
+  const v1::JobResults r = s.results(id, false);
+  ASSERT_EQ(r.curves_size(), 1);
+  EXPECT_EQ(r.curves(0).name(), "msrd");
+  ASSERT_EQ(r.curves(0).x_size(), 3);
+  ASSERT_EQ(r.curves(0).y_size(), 3);
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(r.curves(0).x(k), msrd.x[static_cast<size_t>(k)]);
+  EXPECT_EQ(r.curves(0).y(1), 1.0 / 3.0);
+  EXPECT_TRUE(std::isnan(r.curves(0).y(2)));
+  s.resetOutputs(id, std::nullopt);
+  EXPECT_EQ(s.results(id, false).curves_size(), 0);
+  fs::remove_all(db.parent_path());
+}
+
+// flattenSummary carries summary.json's MSRD curve (foam-run's, and a Slurm task's report).
+TEST(Store, FlattenSummaryCarriesTheMsrdCurve) {
+  const auto flat = flattenSummary(nlohmann::json::parse(
+      R"({"t_s": 60, "msrd": {"lag_s": [30, 60], "msrd_um2": [0.5, null]}})"));
+  ASSERT_EQ(flat.curves.size(), 1u);
+  EXPECT_EQ(flat.curves[0].name, "msrd");
+  EXPECT_EQ(flat.curves[0].x, (std::vector<double>{30, 60}));
+  EXPECT_EQ(flat.curves[0].y[0], 0.5);
+  EXPECT_TRUE(std::isnan(flat.curves[0].y[1]));
+  EXPECT_TRUE(flattenSummary(nlohmann::json::parse(R"({"t_s": 1})")).curves.empty());
+}
+
+// The lifecycle table (job_states.h): exactly these six changes, nothing out of an end state.
+TEST(JobStates, OnlyTheLifecycleTransitionsAreAllowed) {
+  using S = v1::JobState;
+  const std::vector<S> states = {S::JOB_STATE_QUEUED, S::JOB_STATE_RUNNING, S::JOB_STATE_SUCCEEDED,
+                                 S::JOB_STATE_FAILED, S::JOB_STATE_CANCELLED};
+  const std::set<std::pair<S, S>> allowed = {
+      {S::JOB_STATE_QUEUED, S::JOB_STATE_RUNNING},    {S::JOB_STATE_QUEUED, S::JOB_STATE_CANCELLED},
+      {S::JOB_STATE_RUNNING, S::JOB_STATE_SUCCEEDED}, {S::JOB_STATE_RUNNING, S::JOB_STATE_FAILED},
+      {S::JOB_STATE_RUNNING, S::JOB_STATE_CANCELLED}, {S::JOB_STATE_RUNNING, S::JOB_STATE_QUEUED}};
+  for (S from : states)
+    for (S to : {S::JOB_STATE_UNSPECIFIED, S::JOB_STATE_QUEUED, S::JOB_STATE_RUNNING,
+                 S::JOB_STATE_SUCCEEDED, S::JOB_STATE_FAILED, S::JOB_STATE_CANCELLED})
+      EXPECT_EQ(allowedTransition(from, to), allowed.count({from, to}) == 1)
+          << v1::JobState_Name(from) << " -> " << v1::JobState_Name(to);
+  EXPECT_EQ(jobTransitions().size(), allowed.size());
+  for (S s : states)
+    EXPECT_EQ(isTerminal(s), s != S::JOB_STATE_QUEUED && s != S::JOB_STATE_RUNNING);
+}
+
+// Every store operation that would move a job outside the table leaves it as it is: finishing
+// a queued or an ended job, ending it twice, re-queueing an ended one, cancelling an ended one,
+// and finish() with a state that is not an end.
+TEST(Store, StateChangesOutsideTheLifecycleAreRefused) {
+  const fs::path db = tempDb();
+  Store s(db.string());
+  NewJob j;
+  j.spec.scene = SceneKind::Cell;
+  j.spec = resolve(j.spec);
+  j.spec_json = "{}";
+  const std::string a = s.submit(j).first;
+  EXPECT_FALSE(s.finish(a, v1::JOB_STATE_SUCCEEDED, "", "", {}, 1, 1));  // queued: not running
+  EXPECT_FALSE(s.requeue(a, "x"));
+  EXPECT_EQ(s.getJob(a)->state(), v1::JOB_STATE_QUEUED);
+  ASSERT_EQ(s.claimNext()->job.id(), a);
+  EXPECT_THROW(s.finish(a, v1::JOB_STATE_QUEUED, "", "", {}, 1, 1), std::logic_error);
+  EXPECT_EQ(s.getJob(a)->state(), v1::JOB_STATE_RUNNING);
+  EXPECT_TRUE(s.finish(a, v1::JOB_STATE_FAILED, "non-finite", "boom", {{"x", 1.0}}, 2, 20));
+  const std::int64_t seq = s.getJob(a)->last_seq();
+  EXPECT_FALSE(s.finish(a, v1::JOB_STATE_SUCCEEDED, "", "", {}, 3, 30));  // once only
+  EXPECT_FALSE(s.requeue(a, "restart"));
+  EXPECT_EQ(s.requeueRunning("restart"), 0);
+  EXPECT_EQ(s.cancel(a, "late").state(), v1::JOB_STATE_FAILED);
+  const v1::Job after = *s.getJob(a);
+  EXPECT_EQ(after.state(), v1::JOB_STATE_FAILED);
+  EXPECT_EQ(after.reason(), "boom");
+  EXPECT_EQ(after.steps(), 20);
+  EXPECT_EQ(after.last_seq(), seq) << "a refused change records no event";
+  fs::remove_all(db.parent_path());
+}
+
+// Fusion outcomes are stored with the job's end and filter ListJobs and QueryResults; an
+// unknown outcome is refused naming the field.
+TEST(Store, OutcomeIsStoredAndFiltersJobsAndResults) {
+  const fs::path db = tempDb();
+  Store s(db.string());
+  auto job = [] {
+    NewJob j;
+    j.spec.scene = SceneKind::Cell;
+    j.spec = resolve(j.spec);
+    j.spec_json = "{}";
+    return j;
+  };
+  std::vector<std::string> ids;
+  for (const char* outcome : {"fused", "separated", "fused", ""}) {
+    ids.push_back(s.submit(job()).first);
+    ASSERT_EQ(s.claimNext()->job.id(), ids.back());
+    ASSERT_TRUE(s.finish(ids.back(), v1::JOB_STATE_SUCCEEDED, "", "", {{"theta_deg", 40.0}}, 1, 10,
+                         outcome));
+  }
+  EXPECT_EQ(s.getJob(ids[1])->outcome(), "separated");
+  EXPECT_EQ(s.getJob(ids[3])->outcome(), "");
+  v1::ListJobsRequest lr;
+  lr.set_outcome("fused");
+  const v1::ListJobsResponse listed = s.listJobs(lr);
+  ASSERT_EQ(listed.jobs_size(), 2);
+  EXPECT_EQ(listed.jobs(0).id(), ids[2]);  // newest first
+  EXPECT_EQ(listed.jobs(1).id(), ids[0]);
+  v1::QueryResultsRequest q;
+  q.set_outcome("separated");
+  const v1::QueryResultsResponse rows = s.queryResults(q);
+  ASSERT_EQ(rows.rows_size(), 1);
+  EXPECT_EQ(rows.rows(0).job_id(), ids[1]);
+  EXPECT_EQ(rows.rows(0).outcome(), "separated");
+  EXPECT_EQ(s.queryResults(v1::QueryResultsRequest()).rows_size(), 4);
+  q.set_outcome("merged");
+  try {
+    s.queryResults(q);
+    ADD_FAILURE() << "unknown outcome accepted";
+  } catch (const StoreError& e) {
+    EXPECT_EQ(e.kind, StoreError::Kind::InvalidArgument);
+    EXPECT_NE(std::string(e.what()).find("outcome: 'merged' is not one of"), std::string::npos)
+        << e.what();
+  }
+  fs::remove_all(db.parent_path());
+}
