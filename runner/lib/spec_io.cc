@@ -470,33 +470,59 @@ SpecParseResult applySettings(const SceneSpec& base, const std::vector<std::stri
 std::vector<SpecError> checkSceneKeys(const SceneSpec& spec, const std::vector<std::string>& keys) {
   const SceneKind scene = spec.scene;
   // A resolved spec (spec.json, what foamd hands a Slurm task) lists every key with the value
-  // resolve gives it; only a value other than that is a key someone set for this run.
+  // resolve gives it; only a value other than that is a key someone set for this run. The
+  // [scene] and numerics keys are compared with what resolve gives for these cells and preset,
+  // the cells' own keys with what it gives for default cells.
   SceneSpec plain;
   plain.scene = scene;
+  applyPreset(plain.numerics, spec.numerics.preset);
+  const SceneSpec default_cells = resolve(plain);
   plain.cells = spec.cells;
   const SceneSpec defaults = resolve(plain);
-  // Which scenes read each [scene] key (engine/src/scene: scenes.cc, spheroid.cc).
-  static const std::vector<std::pair<std::string_view, std::vector<SceneKind>>> kUsers = {
-      {"scene.axes_ratio", {SceneKind::Cell}},
-      {"scene.gap_um", {SceneKind::Doublet, SceneKind::Fusion}},
-      {"scene.n_cells", {SceneKind::Spheroid, SceneKind::Fusion}},
-      {"scene.n_cells_a", {SceneKind::Fusion}},
-      {"scene.n_cells_b", {SceneKind::Fusion}},
-      {"scene.prep_dt_s", {SceneKind::Fusion}},
-      {"scene.prep_max_s", {SceneKind::Fusion}},
-      {"scene.prep_min_s", {SceneKind::Fusion}},
-      {"scene.compact_rate_per_s", {SceneKind::Fusion}},
-      {"scene.allow_uncompacted", {SceneKind::Fusion}}};
+  constexpr SceneKind kCell = SceneKind::Cell, kDoublet = SceneKind::Doublet,
+                      kSpheroid = SceneKind::Spheroid, kFusion = SceneKind::Fusion;
+  // Which scenes read each key (engine/src/scene: scenes.cc, spheroid.cc; Simulation::init builds
+  // adhesion, contact friction and motility only where there are contacts, in scenes of more than
+  // one cell), and the field whose value says whether it was set (a reduced key sets another).
+  struct Users {
+    std::string_view key, field;
+    std::vector<SceneKind> scenes;
+  };
+  const std::vector<SceneKind> contacts = {kDoublet, kSpheroid, kFusion};
+  const std::vector<Users> users = {
+      {"scene.axes_ratio", "scene.axes_ratio", {kCell}},
+      {"scene.gap_um", "scene.gap_um", {kDoublet, kFusion}},
+      {"scene.n_cells", "scene.n_cells", {kSpheroid, kFusion}},
+      {"scene.n_cells_a", "scene.n_cells_a", {kFusion}},
+      {"scene.n_cells_b", "scene.n_cells_b", {kFusion}},
+      {"scene.prep_dt_s", "scene.prep_dt_s", {kFusion}},
+      {"scene.prep_max_s", "scene.prep_max_s", {kFusion}},
+      {"scene.prep_min_s", "scene.prep_min_s", {kFusion}},
+      {"scene.compact_rate_per_s", "scene.compact_rate_per_s", {kFusion}},
+      {"scene.allow_uncompacted", "scene.allow_uncompacted", {kFusion}},
+      {"cells.alpha", "cells.alpha", contacts},
+      {"cells.k_contact", "cells.k_contact", contacts},
+      {"cells.xi", "cells.xi", contacts},
+      {"cells.xi_normal", "cells.xi_normal", contacts},
+      {"cells.xi_tangential", "cells.xi_tangential", contacts},
+      {"cells.p_a", "cells.p_a", contacts},
+      {"cells.tau_p_s", "cells.tau_p_s", contacts},
+      {"cells.pa_reduced", "cells.p_a", contacts},
+      {"cells.l_eta_reduced", "cells.xi", contacts},
+      {"numerics.contact_quadrature", "numerics.contact_quadrature", contacts},
+      {"numerics.max_penetration_um", "numerics.max_penetration_um", contacts},
+      {"numerics.max_oscillating_steps", "numerics.max_oscillating_steps", contacts}};
   std::vector<SpecError> errors;
   std::vector<std::string_view> seen;
   for (const std::string& key : keys)
-    for (const auto& [name, users] : kUsers) {
-      if (key != name || std::find(seen.begin(), seen.end(), name) != seen.end()) continue;
-      seen.push_back(name);
-      if (std::find(users.begin(), users.end(), scene) != users.end()) continue;
-      if (getField(spec, name) == getField(defaults, name)) continue;
+    for (const Users& u : users) {
+      if (key != u.key || std::find(seen.begin(), seen.end(), u.key) != seen.end()) continue;
+      seen.push_back(u.key);
+      if (std::find(u.scenes.begin(), u.scenes.end(), scene) != u.scenes.end()) continue;
+      const SceneSpec& reference = u.field.substr(0, 6) == "cells." ? default_cells : defaults;
+      if (getField(spec, u.field) == getField(reference, u.field)) continue;
       std::string list;
-      for (SceneKind k : users) list += (list.empty() ? "" : ", ") + std::string(toString(k));
+      for (SceneKind k : u.scenes) list += (list.empty() ? "" : ", ") + std::string(toString(k));
       errors.push_back({key, "not used by the " + std::string(toString(scene)) +
                                  " scene (only by: " + list +
                                  "); remove it, or run the scene it belongs to"});

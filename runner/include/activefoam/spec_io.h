@@ -41,9 +41,10 @@ struct SpecParseResult {
   bool ok() const { return errors.empty(); }
 };
 
-// The [scene] keys among `keys` (those a document or settings set) that spec.scene does not use
-// (scene.n_cells on a cell, gap_um on a spheroid, ...) and that hold a value other than the
-// default: one error each, naming the key, the scene and the scenes that use it. A key that the
+// The keys among `keys` (those a document or settings set) that spec.scene does not use
+// (scene.n_cells on a cell, gap_um on a spheroid, the contacts' and motility's cells.* and
+// numerics.* keys on a single cell, ...) and that hold a value other than the default: one error
+// each, naming the key, the scene and the scenes that use it. A key that the
 // scene ignores is a mistake about what runs, not a harmless extra; a resolved spec, which
 // lists every key at its default, passes.
 std::vector<SpecError> checkSceneKeys(const SceneSpec& spec, const std::vector<std::string>& keys);
