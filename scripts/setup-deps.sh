@@ -9,7 +9,8 @@ pkgs=(build-essential cmake ninja-build pkg-config git
       zlib1g-dev bsdextrautils libcpp-httplib-dev libjs-chart.js
       python3-grpcio python3-protobuf python3-pandas python3-pytest  # the Python client's tests
       python3-matplotlib  # study reports (python/activefoam/study.py)
-      clang libomp-dev)  # the tsan preset: clang + LLVM's libomp, whose Archer tool TSan understands
+      clang libomp-dev  # the tsan preset: clang + LLVM's libomp, whose Archer tool TSan understands
+      ccache)  # the compiler launcher (CMakeLists.txt): builds reuse earlier builds' objects
 # Only some tests use these (the dashboard in a real browser, a real Prometheus scraping foamd);
 # where they cannot be installed, those tests report skipped.
 optional=(chromium fonts-dejavu-core prometheus)
