@@ -25,6 +25,7 @@
 
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
 #include "activefoam/run.h"
@@ -239,73 +240,66 @@ int main(int argc, char** argv) {
   installSignalHandlers();
 
   Args args;
-  bool spec_seen = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string_view a = argv[i];
-    auto value = [&](std::string_view name, std::string& into) {
-      if (a.size() > name.size() && a.substr(0, name.size()) == name && a[name.size()] == '=') {
-        into = std::string(a.substr(name.size() + 1));
-        return true;
-      }
-      if (a == name) {
-        if (i + 1 >= argc) throw std::invalid_argument(std::string(name) + " needs a value");
-        into = argv[++i];
-        return true;
-      }
-      return false;
-    };
-    try {
-      std::string v;
-      if (a == "--help" || a == "-h") {
-        printHelp();
-        return kExitOk;
-      } else if (a == "--version") {
-        std::cout << "foam-run " << ACTIVEFOAM_VERSION << "\n";
-        return kExitOk;
-      } else if (a == "--keys") {
-        printKeys();
-        return kExitOk;
-      } else if (a == "--quiet" || a == "-q") {
-        args.quiet = true;
-      } else if (a == "--force") {
-        args.force = true;
-      } else if (a == "--resume") {
-        args.resume = true;
-      } else if (value("--checkpoint-every", v)) {
-        char* end = nullptr;
-        const double x = std::strtod(v.c_str(), &end);
-        if (v.empty() || *end != '\0' || !std::isfinite(x) || x < 0)
-          return usageError("--checkpoint-every: '" + v +
-                            "' is not a number of seconds in [0, inf)");
-        args.checkpoint_every_s = x;
-      } else if (value("--threads", v)) {
-        char* end = nullptr;
-        const long n = std::strtol(v.c_str(), &end, 10);
-        if (v.empty() || *end != '\0' || n < 1 || n > 1024)
-          return usageError("--threads: '" + v + "' is not a thread count in [1, 1024]");
-        args.threads = static_cast<int>(n);
-      } else if (value("--out", v) || value("-o", v)) {
-        args.out = v;
-      } else if (value("--spheroid-cache", v)) {
-        args.cache = v;
-      } else if (a == "--no-cache") {
-        args.cache = "";
-      } else if (value("--set", v)) {
-        args.settings.push_back(v);
-      } else if (a.size() > 1 && a[0] == '-') {
-        return usageError("unknown option '" + std::string(a) + "'");
-      } else if (spec_seen) {
-        return usageError("more than one SPEC given ('" + args.spec + "', '" + std::string(a) +
-                          "')");
-      } else {
-        args.spec = a;
-        spec_seen = true;
-      }
-    } catch (const std::invalid_argument& e) {
-      return usageError(e.what());
-    }
+  // CLI11 as in foam and foamd; the help text is ours (printHelp), and every usage error is one
+  // line naming the option, exit 2.
+  CLI::App app{"foam-run"};
+  app.set_help_flag();
+  bool help = false, version = false, keys = false, no_cache = false;
+  std::vector<std::string> specs;
+  std::string checkpoint_every, threads, cache;
+  app.add_flag("-h,--help", help);
+  app.add_flag("--version", version);
+  app.add_flag("--keys", keys);
+  app.add_flag("-q,--quiet", args.quiet);
+  app.add_flag("--force", args.force);
+  app.add_flag("--resume", args.resume);
+  app.add_option("--checkpoint-every", checkpoint_every);
+  app.add_option("--threads", threads);
+  app.add_option("-o,--out", args.out);
+  auto* cache_opt = app.add_option("--spheroid-cache", cache);
+  app.add_flag("--no-cache", no_cache)->excludes(cache_opt);
+  app.add_option("--set", args.settings)
+      ->allow_extra_args(false)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  app.add_option("SPEC", specs);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return usageError(e.what());
   }
-  if (!spec_seen) return usageError("no SPEC given");
+  if (help) {
+    printHelp();
+    return kExitOk;
+  }
+  if (version) {
+    std::cout << "foam-run " << ACTIVEFOAM_VERSION << "\n";
+    return kExitOk;
+  }
+  if (keys) {
+    printKeys();
+    return kExitOk;
+  }
+  if (!checkpoint_every.empty()) {
+    char* end = nullptr;
+    const double x = std::strtod(checkpoint_every.c_str(), &end);
+    if (*end != '\0' || !std::isfinite(x) || x < 0)
+      return usageError("--checkpoint-every: '" + checkpoint_every +
+                        "' is not a number of seconds in [0, inf)");
+    args.checkpoint_every_s = x;
+  }
+  if (!threads.empty()) {
+    char* end = nullptr;
+    const long n = std::strtol(threads.c_str(), &end, 10);
+    if (*end != '\0' || n < 1 || n > 1024)
+      return usageError("--threads: '" + threads + "' is not a thread count in [1, 1024]");
+    args.threads = static_cast<int>(n);
+  }
+  if (no_cache) args.cache = "";
+  if (cache_opt->count() > 0) args.cache = cache;  // "" disables, as --no-cache
+  if (specs.size() > 1)
+    return usageError("more than one SPEC given ('" + specs[0] + "', '" + specs[1] + "')");
+  if (specs.empty()) return usageError("no SPEC given");
+  args.spec = specs[0];
   if (args.out.empty()) return usageError("no output directory given (--out DIR)");
   if (args.force && args.resume) return usageError("--force and --resume exclude each other");
   setThreads(args.threads > 0 ? args.threads : defaultThreads());
