@@ -20,6 +20,7 @@
 #include <CLI/CLI.hpp>
 
 #include "activefoam/host_port.h"
+#include "activefoam/pem_file.h"
 #include "activefoam/token_file.h"
 #include "activefoam/utf8.h"
 #include "commands.h"
@@ -91,7 +92,9 @@ int main(int argc, char** argv) {
     return kUsage;
   }
   try {
-    if (!tls_ca_file.empty()) conn.tls_ca = readFile(tls_ca_file);
+    if (!tls_ca_file.empty())
+      conn.tls_ca =
+          activefoam::readPemFile(tls_ca_file, "--tls-ca", activefoam::PemKind::Certificate);
     if (!token_file.empty()) {
       conn.token = activefoam::readTokenFile(token_file);
     }

@@ -6,7 +6,7 @@ pkgs=(build-essential cmake ninja-build pkg-config git
       libeigen3-dev libspdlog-dev libsqlite3-dev libcli11-dev nlohmann-json3-dev
       libtomlplusplus-dev libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox python3
       libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler grpc-proto
-      zlib1g-dev bsdextrautils libcpp-httplib-dev libjs-chart.js
+      zlib1g-dev bsdextrautils libcpp-httplib-dev libssl-dev libjs-chart.js
       python3-grpcio python3-protobuf python3-pandas python3-pytest  # the Python client's tests
       python3-matplotlib  # study reports (python/activefoam/study.py)
       clang libomp-dev  # the tsan preset: clang + LLVM's libomp, whose Archer tool TSan understands

@@ -24,10 +24,13 @@
 #include <sstream>
 #include <thread>
 
+#include <openssl/pem.h>
+#include <openssl/x509.h>
 #include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
 
 #include "activefoam/host_port.h"
+#include "activefoam/pem_file.h"
 #include "activefoam/token_file.h"
 #include "http.h"
 #include "pool.h"
@@ -51,12 +54,25 @@ std::string defaultDbPath() {
   return (base / "activefoam" / "foamd.db").string();
 }
 
-std::string readFile(const std::string& path, const char* what) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(std::string("cannot read ") + what + " '" + path + "'");
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
+// Empty when the key is the certificate's; else what is wrong, naming the options (a mismatched
+// pair used to surface as "the port is taken": gRPC's listener failed without saying why).
+std::string keyPairError(const std::string& cert_pem, const std::string& key_pem) {
+  BIO* cb = BIO_new_mem_buf(cert_pem.data(), static_cast<int>(cert_pem.size()));
+  X509* cert = PEM_read_bio_X509(cb, nullptr, nullptr, nullptr);
+  BIO_free(cb);
+  BIO* kb = BIO_new_mem_buf(key_pem.data(), static_cast<int>(key_pem.size()));
+  EVP_PKEY* key = PEM_read_bio_PrivateKey(kb, nullptr, nullptr, nullptr);
+  BIO_free(kb);
+  std::string why;
+  if (!cert)
+    why = "--tls-cert: the PEM certificate cannot be parsed";
+  else if (!key)
+    why = "--tls-key: the PEM private key cannot be parsed";
+  else if (X509_check_private_key(cert, key) != 1)
+    why = "--tls-cert and --tls-key do not belong together: the key is not the certificate's";
+  X509_free(cert);
+  EVP_PKEY_free(key);
+  return why;
 }
 
 // "INI was not able to parse token_file" → the key, what it is, and the closest known key.
@@ -195,8 +211,14 @@ int main(int argc, char** argv) {
     if (!token_file.empty()) {
       config.token = activefoam::readTokenFile(token_file);
     }
-    if (!cert.empty()) config.tls_cert = readFile(cert, "TLS certificate");
-    if (!key.empty()) config.tls_key = readFile(key, "TLS key");
+    if (!cert.empty())
+      config.tls_cert =
+          activefoam::readPemFile(cert, "--tls-cert", activefoam::PemKind::Certificate);
+    if (!key.empty())
+      config.tls_key = activefoam::readPemFile(key, "--tls-key", activefoam::PemKind::PrivateKey);
+    if (!cert.empty() && !key.empty())
+      if (const std::string bad = keyPairError(config.tls_cert, config.tls_key); !bad.empty())
+        throw std::runtime_error(bad);
     config.insecure_public = insecure_public;
     HttpOptions http_options;
     http_options.listen = http;

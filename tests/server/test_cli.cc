@@ -372,10 +372,66 @@ TEST(Cli, SweepResultsAggregateOverSeeds) {
   fs::remove_all(dir);
 }
 
+// Issue 39 item 14: TLS files are checked before anything starts, each error naming the option
+// and the file (a garbage --tls-ca was gRPC's "empty address list: (14)", a key of another
+// certificate "the port is taken"; a key that others can read was accepted).
+TEST(Cli, TlsFilesAreCheckedAtStartNamingTheFile) {
+  const fs::path dir = tempDir();
+  const fs::path data = SERVER_TEST_DATA;
+  const fs::path cert = data / "test-cert.pem", garbage = dir / "garbage.pem";
+  std::ofstream(garbage) << "this is not a certificate\n";
+  auto privateCopy = [&](const char* name) {
+    fs::copy_file(data / name, dir / name);
+    fs::permissions(dir / name, fs::perms::owner_read | fs::perms::owner_write);
+    return (dir / name).string();
+  };
+  const std::string key = privateCopy("test-key.pem"), other = privateCopy("other-key.pem");
+  auto foamd = [&](const std::string& cert_file, const std::string& key_file) {
+    // `timeout`: a foamd that accepts the files starts and serves (the test then fails, not hangs).
+    return sh("timeout 10 " + std::string(FOAMD_EXE) + " --listen 127.0.0.1:" +
+              std::to_string(freePort()) + " --db " + (dir / "foamd.db").string() + " --tls-cert " +
+              cert_file + " --tls-key " + key_file + " 2>&1");
+  };
+  Proc r = foamd(garbage.string(), key);
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("--tls-cert '" + garbage.string() + "': not a PEM certificate"),
+            std::string::npos)
+      << r.out;
+  r = foamd(cert.string(), other);
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("--tls-cert and --tls-key do not belong together"), std::string::npos)
+      << r.out;
+  const fs::path garbage_key = dir / "garbage-key.pem";
+  fs::copy_file(garbage, garbage_key);
+  fs::permissions(garbage_key, fs::perms::owner_read | fs::perms::owner_write);
+  r = foamd(cert.string(), garbage_key.string());
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("--tls-key '" + garbage_key.string() + "': not a PEM private key"),
+            std::string::npos)
+      << r.out;
+  fs::permissions(key, fs::perms::group_read, fs::perm_options::add);
+  r = foamd(cert.string(), key);
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("a private key accessible to other users (mode 0640): chmod 600"),
+            std::string::npos)
+      << r.out;
+  EXPECT_FALSE(fs::exists(dir / "foamd.db"));  // refused before the database is touched
+  r = sh(std::string(FOAM_EXE) + " --server 127.0.0.1:1 --tls-ca " + garbage.string() +
+         " list 2>&1");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("--tls-ca '" + garbage.string() + "': not a PEM certificate"),
+            std::string::npos)
+      << r.out;
+  fs::remove_all(dir);
+}
+
 TEST(Cli, TlsAndTokenFromFlagsAndEnvironment) {
   const fs::path dir = tempDir();
   const std::string cert = std::string(SERVER_TEST_DATA) + "/test-cert.pem";
-  const std::string key = std::string(SERVER_TEST_DATA) + "/test-key.pem";
+  // A private key that others can read is refused as a token file is: a copy only we read.
+  const std::string key = (dir / "key.pem").string();
+  fs::copy_file(std::string(SERVER_TEST_DATA) + "/test-key.pem", key);
+  fs::permissions(key, fs::perms::owner_read | fs::perms::owner_write);
   const fs::path token = dir / "token";
   const std::string secret = "t0ken-of-20-bytes-x";
   std::ofstream(token) << secret << "\n";
