@@ -205,15 +205,31 @@ HttpEndpoint::HttpEndpoint(Store& store, Executor& pool, HttpOptions options)
   srv.set_read_timeout(options_.read_timeout_s, 0);
   srv.set_write_timeout(options_.read_timeout_s, 0);
   srv.set_keep_alive_timeout(options_.keep_alive_timeout_s);
+  // One request per connection: the library closes a connection only after its last allowed
+  // request, so a refusal on a kept-alive one (a GET's unread body, a POST without a length)
+  // left the client waiting out the keep-alive, and an unread body was parsed as the next
+  // request. A read-only endpoint polled every few seconds loses nothing by it.
+  srv.set_keep_alive_max_count(1);
   srv.set_payload_max_length(64 * 1024);  // GET only: a body is never needed
 
   srv.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
-    if (req.target.size() > options_.max_target_bytes) {
-      jsonError(res, 414,
-                "request target of " + std::to_string(req.target.size()) + " bytes; the limit is " +
-                    std::to_string(options_.max_target_bytes));
+    auto refuse = [&res](int code, const std::string& why) {
+      jsonError(res, code, why);
       return httplib::Server::HandlerResponse::Handled;
+    };
+    // Before the library reads any body (it waits up to the read timeout for one without a
+    // length): every write is gRPC's.
+    if (req.method != "GET" && req.method != "HEAD") {
+      res.set_header("Allow", "GET, HEAD");
+      return refuse(405, "read-only endpoint: GET only (submit and cancel through gRPC: foam)");
     }
+    // The library does not read a GET's body at all: a request that has one is refused.
+    if (req.has_header("Transfer-Encoding") ||
+        (req.has_header("Content-Length") && req.get_header_value("Content-Length") != "0"))
+      return refuse(413, "a " + req.method + " request takes no body");
+    if (req.target.size() > options_.max_target_bytes)
+      return refuse(414, "request target of " + std::to_string(req.target.size()) +
+                             " bytes; the limit is " + std::to_string(options_.max_target_bytes));
     if (options_.token.empty() && req.has_header("Host") &&
         !loopbackHostHeader(req.get_header_value("Host"))) {
       jsonError(res, 403,
@@ -240,16 +256,8 @@ HttpEndpoint::HttpEndpoint(Store& store, Executor& pool, HttpOptions options)
     res.status = code;
     res.set_content(std::move(body), type);
   });
-  auto refuse = [](const httplib::Request&, httplib::Response& res) {
-    res.set_header("Allow", "GET, HEAD");
-    jsonError(res, 405, "read-only endpoint: GET only (submit and cancel through gRPC: foam)");
-  };
-  srv.Post(".*", refuse);
-  srv.Put(".*", refuse);
-  srv.Patch(".*", refuse);
-  srv.Delete(".*", refuse);
   srv.set_error_handler([](const httplib::Request&, httplib::Response& res) {
-    // The library's own refusals (a malformed request, a body too large) come without a body.
+    // The library's own refusals (a malformed request, a target too long) come without a body.
     if (!res.body.empty()) return;
     const int c = res.status;
     const char* what = c == 400   ? "malformed request"
