@@ -280,7 +280,15 @@ HttpEndpoint::HttpEndpoint(Store& store, Executor& pool, HttpOptions options)
   }
   if (port < 0 || port > 65535)
     throw std::invalid_argument("--http '" + options_.listen + "': port out of [0, 65535]");
-  // cpp-httplib sets SO_REUSEADDR only: a taken port fails here (no SO_REUSEPORT).
+  // cpp-httplib 0.11 sets SO_REUSEPORT on its listener: a second foamd on a taken port bound
+  // too and the kernel split the requests between the two (issue 39). SO_REUSEADDR only, so a
+  // taken port fails here.
+  srv.set_socket_options([](socket_t sock) {
+    int yes = 1;
+    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+  });
+  if (const std::string why = loopbackSiblingTaken(host, port); !why.empty())
+    throw std::runtime_error("--http: cannot listen on " + options_.listen + ": " + why);
   if (port == 0) {
     port_ = srv.bind_to_any_port(host);
   } else if (srv.bind_to_port(host, port)) {

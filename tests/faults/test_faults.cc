@@ -253,6 +253,37 @@ TEST(Faults, ASecondFoamdOnTheSamePortIsRefused) {
   fs::remove_all(dir);
 }
 
+// Issue 39 item 5: a foamd on [::1]:P started beside one on 127.0.0.1:P (`localhost:P` then
+// reached either), and a second --http on a taken port bound too (cpp-httplib's SO_REUSEPORT:
+// requests alternated between the two servers). Each is refused, naming the other listener.
+TEST(Faults, ListenersBesideAnotherFoamdAreRefused) {
+  const fs::path dir = tempDir();
+  const int port = freePort(), http = freePort();
+  Foamd a(dir / "a.db", port, 1, {"--http", "127.0.0.1:" + std::to_string(http)});
+  ASSERT_FALSE(submitCell(a, 1).empty());  // serving
+  auto foamd = [&](const std::string& listen, const std::string& http_listen, const char* db) {
+    // `timeout`: without the check the second foamd starts and serves (the test then fails).
+    return sh("timeout 10 " + std::string(FOAMD_EXE) + " --listen " + listen + " --db " +
+              (dir / db).string() + (http_listen.empty() ? "" : " --http " + http_listen) +
+              " 2>&1");
+  };
+  Proc r = foamd("[::1]:" + std::to_string(port), "", "b.db");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("port " + std::to_string(port) + " is taken on 127.0.0.1"),
+            std::string::npos)
+      << r.out;
+  r = foamd("127.0.0.1:" + std::to_string(freePort()), "127.0.0.1:" + std::to_string(http), "c.db");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("--http: cannot listen on 127.0.0.1:" + std::to_string(http)),
+            std::string::npos)
+      << r.out;
+  r = foamd("127.0.0.1:" + std::to_string(freePort()), "[::1]:" + std::to_string(http), "d.db");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("is taken on 127.0.0.1"), std::string::npos) << r.out;
+  EXPECT_FALSE(submitCell(a, 1).empty());  // the first still serves
+  fs::remove_all(dir);
+}
+
 // Issue 39: a hang-up stops foamd as SIGTERM does (exit 0, its running job re-queued to resume,
 // a log line saying why) instead of killing it silently (exit 129, no log).
 TEST(Faults, SighupStopsFoamdCleanlyWithALogLine) {
