@@ -284,6 +284,31 @@ TEST(Faults, ListenersBesideAnotherFoamdAreRefused) {
   fs::remove_all(dir);
 }
 
+// Issue 39 item 3: pages of the database overwritten on disk went unnoticed at start (health
+// SERVING, then ListJobs INTERNAL "database disk image is malformed"). foamd checks the store
+// (PRAGMA quick_check) before it serves, and refuses a damaged one naming it.
+TEST(Faults, ADamagedDatabaseIsRefusedAtStart) {
+  const fs::path dir = tempDir();
+  const fs::path db = dir / "foamd.db";
+  {
+    Foamd a(db, freePort());
+    for (int i = 0; i < 30; ++i) ASSERT_FALSE(submitCell(a, 1e6).empty());  // queued jobs: pages
+    a.stop(SIGTERM);                                                        // WAL checkpointed
+  }
+  ASSERT_GT(fs::file_size(db), 4u * 4096);
+  {
+    std::fstream f(db, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(2 * 4096);  // past the header page: b-tree pages of the tables
+    const std::string junk(2 * 4096, '\x55');
+    f.write(junk.data(), static_cast<std::streamsize>(junk.size()));
+  }
+  const Proc r = sh("timeout 10 " + std::string(FOAMD_EXE) + " --listen 127.0.0.1:" +
+                    std::to_string(freePort()) + " --db " + db.string() + " 2>&1");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("database '" + db.string() + "' is damaged"), std::string::npos) << r.out;
+  fs::remove_all(dir);
+}
+
 // Issue 39: a hang-up stops foamd as SIGTERM does (exit 0, its running job re-queued to resume,
 // a log line saying why) instead of killing it silently (exit 129, no log).
 TEST(Faults, SighupStopsFoamdCleanlyWithALogLine) {
