@@ -9,6 +9,7 @@ pkgs=(build-essential cmake ninja-build pkg-config git
       zlib1g-dev bsdextrautils libcpp-httplib-dev libssl-dev libjs-chart.js
       python3-grpcio python3-protobuf python3-pandas python3-pytest  # the Python client's tests
       python3-matplotlib  # study reports (python/activefoam/study.py)
+      python3-tqdm  # progress bars of Job.wait / Sweep.wait (a plain line without it)
       clang libomp-dev  # the tsan preset: clang + LLVM's libomp, whose Archer tool TSan understands
       ccache)  # the compiler launcher (CMakeLists.txt): builds reuse earlier builds' objects
 # Only some tests use these (the dashboard in a real browser, a real Prometheus scraping foamd);

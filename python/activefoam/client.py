@@ -9,7 +9,7 @@ import sys
 import time
 import zlib
 from pathlib import Path
-from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Union
+from typing import Any, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence, Union
 
 import grpc
 import pandas as pd
@@ -123,10 +123,41 @@ def _check_token(token: str) -> None:
                              "ASCII without spaces")
 
 
-def _progress_line(job: Any) -> str:
-    bar = int(20 * job.progress)
-    return (f"\r{job.id} {_state_name(job.state):<9} [{'#' * bar}{'.' * (20 - bar)}] "
-            f"{100 * job.progress:5.1f}%  t = {job.t_s:.6g} s")
+
+class _Progress:
+    """A progress bar on stderr: tqdm where installed (Debian's python3-tqdm), else one line."""
+
+    def __init__(self, label: str, total: int = 0, unit: str = "") -> None:
+        self._label, self._total, self._closed = label, total, False
+        try:
+            from tqdm import tqdm
+            self._bar = tqdm(total=total or 1000, desc=label, unit=unit or "‰", file=sys.stderr,
+                             leave=True, bar_format=None if total else
+                             "{desc}: {percentage:3.0f}%|{bar}| {postfix}")
+        except ImportError:
+            self._bar = None
+
+    def update(self, fraction: float, what: str, t_s: Optional[float] = None) -> None:
+        note = what + ("" if t_s is None else f", t = {t_s:.6g} s")
+        if self._bar is not None:
+            n = round(fraction * (self._total or 1000))
+            self._bar.update(n - self._bar.n)
+            self._bar.set_postfix_str(note)
+        else:
+            bar = int(20 * fraction)
+            print(f"\r{self._label} [{'#' * bar}{'.' * (20 - bar)}] {100 * fraction:5.1f}%  {note}",
+                  end="", file=sys.stderr, flush=True)
+
+    def close(self, final: str = "") -> None:
+        if self._closed:
+            return
+        self._closed = True
+        if self._bar is not None:
+            if final:
+                self._bar.set_postfix_str(final)
+            self._bar.close()
+        else:
+            print(f"  {final}" if final else "", file=sys.stderr)
 
 
 class Client:
@@ -280,23 +311,93 @@ class Job:
     def state(self) -> str:
         return _state_name(self.info().state)
 
+    def _events(self, from_seq: int = 0, timeout_s: Optional[float] = None) -> Iterator[Any]:
+        """The job's events (WatchJob, following) until it ends. A stream that ends before the
+        job did (foamd restarting) is opened again from the last event seen, as `foam watch`
+        does; TimeoutError once timeout_s has passed."""
+        start = time.monotonic()
+        seq = from_seq
+        while True:
+            left = None if timeout_s is None else timeout_s - (time.monotonic() - start)
+            if left is not None and left <= 0:
+                raise TimeoutError(f"job {self.id} had not ended after {timeout_s} s")
+            ended = False
+            try:
+                for ev in self._c._stub.WatchJob(
+                        service_pb2.WatchJobRequest(job_id=self.id, from_seq=seq, follow=True),
+                        timeout=left):
+                    seq = max(seq, ev.seq)
+                    yield ev
+                    if ev.WhichOneof("kind") == "state" and ev.state.terminal:
+                        ended = True
+                        return
+            except grpc.RpcError as e:
+                if e.code() == grpc.StatusCode.DEADLINE_EXCEEDED:
+                    raise TimeoutError(f"job {self.id} had not ended after {timeout_s} s") from None
+                if e.code() != grpc.StatusCode.UNAVAILABLE:
+                    raise _error(e, f"job {self.id}") from None
+            if not ended:
+                if self.info().terminal:  # ended between two streams
+                    return
+                time.sleep(0.5)
+
     def wait(self, progress: bool = False, poll_s: float = 0.5,
              timeout_s: Optional[float] = None) -> str:
-        """Waits until the job ends; returns its final state (succeeded, failed, cancelled).
-        progress=True draws a progress line on stderr."""
-        start = time.monotonic()
-        while True:
-            j = self.info()
-            if progress:
-                print(_progress_line(j), end="", file=sys.stderr, flush=True)
-            state = _state_name(j.state)
-            if j.terminal:  # the server says when a job has ended
-                if progress:
-                    print(f"  {state}" + (f": {j.reason}" if j.reason else ""), file=sys.stderr)
-                return state
-            if timeout_s is not None and time.monotonic() - start > timeout_s:
-                raise TimeoutError(f"job {self.id} is still {state} after {timeout_s} s")
-            time.sleep(poll_s)
+        """Waits until the job ends and returns its final state (succeeded, failed, cancelled),
+        following the server's event stream (nothing is polled; poll_s is kept for old callers).
+        progress=True shows a progress bar on stderr (tqdm where installed, else one line)."""
+        bar = _Progress(self.id) if progress else None
+        state = ""
+        try:
+            for ev in self._events(timeout_s=timeout_s):
+                kind = ev.WhichOneof("kind")
+                if kind == "state":
+                    state = _state_name(ev.state.state)
+                    if bar:
+                        bar.update(ev.state.progress, state, ev.state.t_s)
+                    if ev.state.terminal and bar:
+                        bar.close(state + (f": {ev.state.reason}" if ev.state.reason else ""))
+                elif kind == "progress" and bar:
+                    bar.update(ev.progress.fraction, "running", ev.progress.t_s)
+        finally:
+            if bar:
+                bar.close()
+        return state or self.state()
+
+    def watch(self) -> Iterator[Dict[str, float]]:
+        """Yields the job's samples as they arrive (column name → value, the columns of
+        samples()), from its first, until the job ends: a notebook can plot θ(t) live."""
+        columns: List[str] = []
+        for ev in self._events():
+            if ev.WhichOneof("kind") != "sample":
+                continue
+            if ev.columns:
+                columns = list(ev.columns)
+            yield dict(zip(columns, ev.sample.values))
+
+    def snapshot(self, index: int = -1) -> Dict[str, Any]:
+        """Snapshot `index` (-1: the latest) as numpy arrays: "x" (vertices × 3, µm), "tri"
+        (triangles × 3, vertex indices), "cell" (the cell of each vertex), "pressure" and
+        "label" (per cell), and "t_s", "step"."""
+        import numpy as np
+        if index < 0:
+            snaps = self._results(False).snapshots
+            if not snaps:
+                raise LookupError(f"job {self.id} has no snapshots")
+            index = snaps[-1].index
+        snap = job_pb2.SnapshotData()
+        data = self._snapshot_bytes(index)
+        try:
+            snap.ParseFromString(data)
+        except Exception as e:  # protobuf's DecodeError: damaged, not a client bug
+            raise RuntimeError(f"snapshot {index} of {self.id} is damaged: {len(data)} bytes "
+                               f"that are not a SnapshotData ({e})") from None
+        return {"t_s": snap.t_s, "step": snap.step,
+                "x": np.array(snap.x, dtype=float).reshape(-1, 3),
+                "tri": np.array(snap.tri, dtype=np.int64).reshape(-1, 3),
+                "cell": np.array(snap.vertex_cell, dtype=np.int64),
+                "pressure": np.array(snap.cell_pressure, dtype=float),
+                "label": np.array(snap.cell_label, dtype=np.int64)}
 
     def _results(self, with_samples: bool) -> Any:
         return self._c._call("GetResults",
@@ -382,26 +483,27 @@ class Sweep:
 
     def wait(self, progress: bool = False, poll_s: float = 1.0,
              timeout_s: Optional[float] = None) -> Dict[str, int]:
-        """Waits until every job has ended; returns the count per final state."""
+        """Waits until every job has ended, following each job's event stream in turn (nothing
+        is polled; poll_s is kept for old callers); returns the count per final state."""
         start = time.monotonic()
-        while True:
-            jobs = self._c._list(sweep_id=self.id)
-            counts: Dict[str, int] = {}
-            for j in jobs:
-                counts[_state_name(j.state)] = counts.get(_state_name(j.state), 0) + 1
-            done = sum(1 for j in jobs if j.terminal)
-            if progress:
-                parts = ", ".join(f"{n} {s}" for s, n in sorted(counts.items()))
-                print(f"\rsweep {self.id}: {done}/{len(jobs)} done ({parts})", end="",
-                      file=sys.stderr, flush=True)
-            if done == len(jobs):
-                if progress:
-                    print(file=sys.stderr)
-                return counts
-            if timeout_s is not None and time.monotonic() - start > timeout_s:
-                raise TimeoutError(f"sweep {self.id}: {done} of {len(jobs)} jobs ended after "
-                                   f"{timeout_s} s")
-            time.sleep(poll_s)
+        counts: Dict[str, int] = {}
+        bar = _Progress(f"sweep {self.id}", total=len(self.jobs), unit="jobs") if progress else None
+        try:
+            for k, job in enumerate(self.jobs):
+                left = None if timeout_s is None else timeout_s - (time.monotonic() - start)
+                try:
+                    state = job.wait(timeout_s=left)
+                except TimeoutError:
+                    raise TimeoutError(f"sweep {self.id}: {k} of {len(self.jobs)} jobs ended "
+                                       f"after {timeout_s} s") from None
+                counts[state] = counts.get(state, 0) + 1
+                if bar:
+                    parts = ", ".join(f"{n} {s}" for s, n in sorted(counts.items()))
+                    bar.update((k + 1) / len(self.jobs), parts)
+        finally:
+            if bar:
+                bar.close()
+        return counts
 
     def results(self, metrics: Optional[Sequence[str]] = None) -> pd.DataFrame:
         """One row per job: job_id, state, outcome, seed, the swept keys (dotted), then its

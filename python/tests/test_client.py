@@ -153,3 +153,43 @@ def test_a_damaged_snapshot_is_a_runtime_error_naming_it():
     with pytest.raises(RuntimeError, match="snapshot 3 of j-x is damaged"):
         Job(c, "j-x")._snapshot_bytes(3)
     c.close()
+
+
+def _vtp_array(text, name):
+    """The numbers of a .vtp DataArray, by its Name."""
+    start = text.index(f'Name="{name}"')
+    body = text[text.index(">", start) + 1:text.index("</DataArray>", start)]
+    return [float(v) for v in body.split()]
+
+
+def test_wait_follows_the_stream_watch_yields_the_samples_snapshot_gives_arrays(client, tmp_path,
+                                                                              monkeypatch):
+    # Issue 38 item 3: wait() and Sweep.wait() follow WatchJob instead of polling GetJob;
+    # watch() yields the samples as they arrive; snapshot(i) is the mesh as numpy arrays.
+    from activefoam.client import Job
+
+    def no_polling(self):
+        raise AssertionError("wait() polled GetJob")
+
+    job = client.submit(dict(TINY, duration_s=20))
+    live = []
+    for row in job.watch():  # from the first sample, while the job runs
+        live.append(row)
+    assert [r["t_s"] for r in live] == [float(t) for t in range(21)]
+    monkeypatch.setattr(Job, "info", no_polling)
+    assert job.wait(timeout_s=120) == "succeeded"
+    monkeypatch.undo()
+    pd.testing.assert_frame_equal(pd.DataFrame(list(job.watch())), job.samples())
+    sw = client.sweep(dict(TINY, snapshot_every_s=0), grid={"cells.gamma": [0.4, 0.6]}, seeds=[1])
+    monkeypatch.setattr(Job, "info", no_polling)
+    assert sw.wait(timeout_s=120) == {"succeeded": 2}
+    monkeypatch.undo()
+
+    job.export(tmp_path / "vtk")
+    text = (tmp_path / "vtk" / "snap_000001.vtp").read_text()
+    snap = job.snapshot(1)
+    assert snap["t_s"] == 5.0 and snap["tri"].shape == (80, 3)
+    assert snap["x"].ravel().tolist() == _vtp_array(text, "Points")
+    assert snap["tri"].ravel().tolist() == _vtp_array(text, "connectivity")
+    assert snap["cell"].tolist() == [0] * len(snap["x"])
+    assert job.snapshot()["t_s"] == 20.0  # the latest
