@@ -24,25 +24,27 @@ fs::path tempDb() {
   return dir / "foamd.db";
 }
 
+// A queued cell job as the service would store it.
+NewJob cellJob(int priority = 0) {
+  NewJob j;
+  j.spec.scene = SceneKind::Cell;
+  j.spec = resolve(j.spec);
+  j.spec_json = "{}";
+  j.priority = priority;
+  return j;
+}
+
 }  // namespace
 
 TEST(Store, PriorityThenAgeAndRequeueAfterRestart) {
   const fs::path db = tempDb();
-  auto job = [](int priority) {
-    NewJob j;
-    j.spec.scene = SceneKind::Cell;
-    j.spec = resolve(j.spec);
-    j.spec_json = "{}";
-    j.priority = priority;
-    return j;
-  };
   std::string low, high1, high2;
   {
     Store s(db.string());
     EXPECT_EQ(s.schemaVersion(), kSchemaVersion);
-    low = s.submit(job(0)).first;
-    high1 = s.submit(job(5)).first;
-    high2 = s.submit(job(5)).first;
+    low = s.submit(cellJob(0)).first;
+    high1 = s.submit(cellJob(5)).first;
+    high2 = s.submit(cellJob(5)).first;
     EXPECT_EQ(s.claimNext()->job.id(), high1);
     EXPECT_EQ(s.claimNext()->job.id(), high2);
     s.saveCheckpoint(high2, 3.5, "state");
@@ -69,10 +71,7 @@ TEST(Store, PriorityThenAgeAndRequeueAfterRestart) {
 TEST(Store, CurvesOfAFinishedRunComeBackWithItsResults) {
   const fs::path db = tempDb();
   Store s(db.string());
-  NewJob j;
-  j.spec.scene = SceneKind::Cell;
-  j.spec = resolve(j.spec);
-  j.spec_json = "{}";
+  const NewJob j = cellJob();
   const std::string id = s.submit(j).first;
   ASSERT_EQ(s.claimNext()->job.id(), id);
   const FlatCurve msrd{"msrd", {30, 60, 90.5}, {0.25, 1.0 / 3.0, std::nan("")}};
@@ -127,10 +126,7 @@ TEST(JobStates, OnlyTheLifecycleTransitionsAreAllowed) {
 TEST(Store, StateChangesOutsideTheLifecycleAreRefused) {
   const fs::path db = tempDb();
   Store s(db.string());
-  NewJob j;
-  j.spec.scene = SceneKind::Cell;
-  j.spec = resolve(j.spec);
-  j.spec_json = "{}";
+  const NewJob j = cellJob();
   const std::string a = s.submit(j).first;
   EXPECT_FALSE(s.finish(a, v1::JOB_STATE_SUCCEEDED, "", "", {}, 1, 1));  // queued: not running
   EXPECT_FALSE(s.requeue(a, "x"));
@@ -157,16 +153,9 @@ TEST(Store, StateChangesOutsideTheLifecycleAreRefused) {
 TEST(Store, OutcomeIsStoredAndFiltersJobsAndResults) {
   const fs::path db = tempDb();
   Store s(db.string());
-  auto job = [] {
-    NewJob j;
-    j.spec.scene = SceneKind::Cell;
-    j.spec = resolve(j.spec);
-    j.spec_json = "{}";
-    return j;
-  };
   std::vector<std::string> ids;
   for (const char* outcome : {"fused", "separated", "fused", ""}) {
-    ids.push_back(s.submit(job()).first);
+    ids.push_back(s.submit(cellJob()).first);
     ASSERT_EQ(s.claimNext()->job.id(), ids.back());
     ASSERT_TRUE(s.finish(ids.back(), v1::JOB_STATE_SUCCEEDED, "", "", {{"theta_deg", 40.0}}, 1, 10,
                          outcome));
