@@ -287,8 +287,8 @@ void BM_NarrowPhaseReference(benchmark::State& state) {  // one detection; argum
 }
 BENCHMARK(BM_NarrowPhaseReference)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
-// One step's incomplete-Cholesky factor of Γ (prepareFriction first), as VelocitySolver::solve builds
-// it.
+// One step's incomplete-Cholesky factor of Γ (prepareFriction first), as VelocitySolver::solve
+// builds it.
 bool factorFriction(const Simulation& sim, IncompleteCholesky& ic) {
   return ic.factor(
       sim.cells().numVertices(), [&](const BlockSink& s) { sim.forEachFrictionBlock(s); },
