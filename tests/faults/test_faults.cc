@@ -267,21 +267,32 @@ TEST(Faults, ListenersBesideAnotherFoamdAreRefused) {
               (dir / db).string() + (http_listen.empty() ? "" : " --http " + http_listen) +
               " 2>&1");
   };
-  Proc r = foamd("[::1]:" + std::to_string(port), "", "b.db");
-  EXPECT_EQ(r.rc, 2) << r.out;
-  EXPECT_NE(r.out.find("port " + std::to_string(port) + " is taken on 127.0.0.1"),
-            std::string::npos)
-      << r.out;
-  r = foamd("127.0.0.1:" + std::to_string(freePort()), "127.0.0.1:" + std::to_string(http), "c.db");
+  Proc r =
+      foamd("127.0.0.1:" + std::to_string(freePort()), "127.0.0.1:" + std::to_string(http), "c.db");
   EXPECT_EQ(r.rc, 2) << r.out;
   EXPECT_NE(r.out.find("--http: cannot listen on 127.0.0.1:" + std::to_string(http)),
             std::string::npos)
       << r.out;
-  r = foamd("127.0.0.1:" + std::to_string(freePort()), "[::1]:" + std::to_string(http), "d.db");
-  EXPECT_EQ(r.rc, 2) << r.out;
-  EXPECT_NE(r.out.find("is taken on 127.0.0.1"), std::string::npos) << r.out;
+  // The other loopback family needs ::1 on this machine (containers may lack it).
+  const int probe = socket(AF_INET6, SOCK_STREAM, 0);
+  sockaddr_in6 any6{};
+  any6.sin6_family = AF_INET6;
+  any6.sin6_addr = in6addr_loopback;
+  const bool ipv6 = probe >= 0 && bind(probe, reinterpret_cast<sockaddr*>(&any6), sizeof any6) == 0;
+  if (probe >= 0) close(probe);
+  if (ipv6) {
+    r = foamd("[::1]:" + std::to_string(port), "", "b.db");
+    EXPECT_EQ(r.rc, 2) << r.out;
+    EXPECT_NE(r.out.find("port " + std::to_string(port) + " is taken on 127.0.0.1"),
+              std::string::npos)
+        << r.out;
+    r = foamd("127.0.0.1:" + std::to_string(freePort()), "[::1]:" + std::to_string(http), "d.db");
+    EXPECT_EQ(r.rc, 2) << r.out;
+    EXPECT_NE(r.out.find("is taken on 127.0.0.1"), std::string::npos) << r.out;
+  }
   EXPECT_FALSE(submitCell(a, 1).empty());  // the first still serves
   fs::remove_all(dir);
+  if (!ipv6) GTEST_SKIP() << "no ::1 here: the IPv4/IPv6 half was not checked";
 }
 
 // Issue 39 item 3: pages of the database overwritten on disk went unnoticed at start (health
