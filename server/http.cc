@@ -287,7 +287,7 @@ HttpEndpoint::HttpEndpoint(Store& store, Executor& pool, HttpOptions options)
     int yes = 1;
     ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
   });
-  if (const std::string why = loopbackSiblingTaken(host, port); !why.empty())
+  if (const std::string why = loopbackSiblingTaken(options_.listen); !why.empty())
     throw std::runtime_error("--http: cannot listen on " + options_.listen + ": " + why);
   if (port == 0) {
     port_ = srv.bind_to_any_port(host);

@@ -18,13 +18,20 @@ inline bool isLoopback(const std::string& hostport) {
   return host == "localhost" || host == "[::1]" || host == "::1" || host.rfind("127.", 0) == 0;
 }
 
-// Empty, or why listening on loopback `host` (a loopback name, as isLoopback) at `port` would
-// be ambiguous: the same port on the other loopback family (127.0.0.1 for ::1 and the reverse)
+// Empty, or why listening on `hostport` (HOST:PORT, checked by hostPortError) would be
+// ambiguous: the same port on the other loopback family (127.0.0.1 for ::1 and the reverse)
 // is taken, and `localhost:PORT` — which clients resolve to either — would then reach one
 // server or the other (issue 39: a foamd on [::1]:P started beside one on 127.0.0.1:P, and
 // `foam --server localhost:P` found none of the first's jobs). Port 0 (the system's choice)
 // is never ambiguous.
-inline std::string loopbackSiblingTaken(const std::string& host, int port) {
+inline std::string loopbackSiblingTaken(const std::string& hostport) {
+  const std::size_t colon = hostport.rfind(':');
+  if (colon == std::string::npos) return "";
+  const std::string host = hostport.substr(0, colon), digits = hostport.substr(colon + 1);
+  if (digits.empty() || digits.size() > 5 ||
+      digits.find_first_not_of("0123456789") != std::string::npos)
+    return "";
+  const int port = std::stoi(digits);
   if (port <= 0) return "";
   const bool v6 = host == "::1" || host == "[::1]";
   const bool v4 = host.rfind("127.", 0) == 0 || host == "localhost";

@@ -614,17 +614,8 @@ void FoamServer::start() {
   if (!m.config.token.empty())
     creds->SetAuthMetadataProcessor(std::make_shared<TokenAuth>(m.config.token));
 
-  {
-    const std::string& l = m.config.listen;
-    std::string host = l.substr(0, l.rfind(':'));
-    int port = -1;
-    try {
-      port = std::stoi(l.substr(l.rfind(':') + 1));
-    } catch (const std::exception&) {
-    }
-    if (const std::string why = loopbackSiblingTaken(host, port); !why.empty())
-      throw std::runtime_error("cannot listen on " + l + ": " + why);
-  }
+  if (const std::string why = loopbackSiblingTaken(m.config.listen); !why.empty())
+    throw std::runtime_error("cannot listen on " + m.config.listen + ": " + why);
   grpc::ServerBuilder builder;
   // gRPC sets SO_REUSEPORT by default: a second foamd on a taken port would start and the
   // kernel would split the clients between the two servers (and their databases).

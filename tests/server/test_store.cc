@@ -5,11 +5,12 @@
 
 #include <cmath>
 #include <filesystem>
-#include <random>
 #include <string>
 #include <vector>
 
 #include "store.h"
+// Last: it pulls in <resolv.h>, whose `_res` macro breaks Eigen parameter names.
+#include "process.h"
 
 using namespace activefoam;
 using namespace activefoam::server;
@@ -18,10 +19,7 @@ namespace fs = std::filesystem;
 namespace {
 
 fs::path tempDb() {
-  static std::mt19937_64 rng{std::random_device{}()};
-  const fs::path dir = fs::temp_directory_path() / ("foamd-store-test-" + std::to_string(rng()));
-  fs::create_directories(dir);
-  return dir / "foamd.db";
+  return activefoam::testing::tempDir() / "foamd.db";
 }
 
 // A queued cell job as the service would store it.
