@@ -26,6 +26,7 @@
 
 #include "activefoam/simulation.h"
 #include "activefoam/spheroid.h"
+#include "activefoam/time_scheme.h"
 
 using namespace activefoam;
 
@@ -72,6 +73,9 @@ int main(int argc, char** argv) {
     std::getline(parts, dt, ':');
     std::getline(parts, pre, ':');
     std::getline(parts, tol, ':');
+    // "ros2-centroid": ros2 with contact-implicit's spring in W (makeRos2's second argument).
+    const bool centroid_w = integrator == "ros2-centroid";
+    if (centroid_w) integrator = "ros2";
     std::vector<std::pair<std::string, std::string>> fields = {{"numerics.integrator", integrator},
                                                                {"numerics.dt_s", dt},
                                                                {"numerics.preconditioner", pre}};
@@ -90,7 +94,7 @@ int main(int argc, char** argv) {
       double dt;
     } c{s.numerics.integrator, s.numerics.dt_s};
     s = resolve(s);
-    Simulation sim(s, cells);
+    Simulation sim(s, cells, centroid_w ? makeRos2(s.numerics, false) : makeTimeScheme(s.numerics));
     for (int k = 0; k < 3; ++k) sim.step();
     const PhaseTimes before = sim.phaseTimes();
     long iters = 0;
