@@ -530,6 +530,28 @@ TEST(SpecPresets, ThePresetNameAndTargetsAreNotInTheFingerprint) {
   EXPECT_NE(specFingerprint(b), specFingerprint(SceneSpec{}));  // its values differ
 }
 
+// contact-implicit-consistent: a choice of its own, a spec of its own (checkpoints of the two
+// contact-implicit steps do not mix), and contact-implicit's stability limits, saying so.
+TEST(SpecIntegrator, ContactImplicitConsistentIsAKeyValueWithItsOwnFingerprintAndLimits) {
+  SceneSpec s;
+  s.scene = SceneKind::Doublet;
+  ASSERT_FALSE(
+      setField(s, "numerics.integrator", SpecValue(std::string("contact-implicit-consistent"))));
+  EXPECT_EQ(s.numerics.integrator, IntegratorKind::ContactImplicitConsistent);
+  SceneSpec pair = s;
+  pair.numerics.integrator = IntegratorKind::ContactImplicit;
+  EXPECT_NE(specFingerprint(resolve(s)), specFingerprint(resolve(pair)));
+  s.numerics.dt_s = 1;  // motile doublet (p_a > 0 by default): contact-implicit fails from 1 s
+  const auto e = measuredUnstable(s);
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_EQ(e[0].field, "numerics.dt_s");
+  EXPECT_NE(e[0].message.find("contact-implicit-consistent has no stability map"),
+            std::string::npos)
+      << e[0].message;
+  s.numerics.dt_s = 0.5;
+  EXPECT_TRUE(measuredUnstable(s).empty());
+}
+
 TEST(SpecPresets, MeasuredUnstableSettingsNameTheTimeStepAndItsLimit) {
   SceneSpec s;
   s.scene = SceneKind::Doublet;

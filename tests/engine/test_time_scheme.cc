@@ -110,14 +110,15 @@ TEST(TimeScheme, AThirdSchemeFromATestFileIsSecondOrder) {
 }
 
 TEST(TimeScheme, EachIntegratorOfTheSpecHasItsScheme) {
-  for (IntegratorKind kind :
-       {IntegratorKind::SemiImplicit, IntegratorKind::ContactImplicit, IntegratorKind::Ros2}) {
+  for (IntegratorKind kind : {IntegratorKind::SemiImplicit, IntegratorKind::ContactImplicit,
+                              IntegratorKind::Ros2, IntegratorKind::ContactImplicitConsistent}) {
     NumericsParams n;
     n.integrator = kind;
     const auto scheme = makeTimeScheme(n);
     EXPECT_EQ(scheme->name(), toString(kind));
     EXPECT_EQ(scheme->contactStiffnessDt(1.0) > 0, kind != IntegratorKind::SemiImplicit);
-    EXPECT_EQ(scheme->consistentStiffness(), kind == IntegratorKind::Ros2);
+    EXPECT_EQ(scheme->consistentStiffness(),
+              kind == IntegratorKind::Ros2 || kind == IntegratorKind::ContactImplicitConsistent);
   }
 }
 

@@ -64,6 +64,26 @@ TEST(SpecConvert, TypedFieldsReachTheEngineSpec) {
   EXPECT_EQ(r.spec->numerics.preconditioner, PreconditionerKind::BlockJacobi);
 }
 
+// Every integrator of the engine has its proto value, both ways (the enum names map by spelling).
+TEST(SpecConvert, EveryIntegratorCrossesTheProto) {
+  for (IntegratorKind kind : {IntegratorKind::SemiImplicit, IntegratorKind::ContactImplicit,
+                              IntegratorKind::Ros2, IntegratorKind::ContactImplicitConsistent}) {
+    SceneSpec s;
+    s.scene = SceneKind::Doublet;
+    s.numerics.integrator = kind;
+    s.numerics.dt_s = 0.005;  // within every integrator's stable range
+    const SceneSpec resolved = resolve(s);
+    const ConvertResult r = convertSpec(toProto(resolved));
+    ASSERT_TRUE(r.ok()) << toString(kind) << ": " << errorText(r.errors);
+    EXPECT_EQ(r.spec->numerics.integrator, kind) << toString(kind);
+  }
+  v1::SceneSpec m;
+  m.mutable_numerics()->set_integrator(v1::INTEGRATOR_CONTACT_IMPLICIT_CONSISTENT);
+  const ConvertResult r = convertSpec(m);
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_EQ(r.spec->numerics.integrator, IntegratorKind::ContactImplicitConsistent);
+}
+
 TEST(SpecConvert, RoundTripThroughProto) {
   SceneSpec s;
   s.scene = SceneKind::Doublet;

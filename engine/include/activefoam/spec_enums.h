@@ -7,7 +7,10 @@
 namespace activefoam {
 
 enum class SceneKind { Cell, Doublet, Spheroid, Fusion };
-enum class IntegratorKind { SemiImplicit, ContactImplicit, Ros2 };
+// ContactImplicitConsistent: contact-implicit with the consistent stiffness of the spring field in
+// Γ (ros2's) instead of one spring per pair: the cells' motion converges in Δt
+// (docs/science/motion-convergence.md).
+enum class IntegratorKind { SemiImplicit, ContactImplicit, Ros2, ContactImplicitConsistent };
 enum class PreconditionerKind { Jacobi, BlockJacobi, IncompleteCholesky };
 enum class ContactQuadrature { Exact, Dunavant7, Centroid };
 // Fidelity presets (issue 6, docs/study/): named numerics from the speed/accuracy study.

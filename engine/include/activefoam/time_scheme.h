@@ -90,11 +90,17 @@ class TimeScheme {
 };
 
 // semi-implicit (K_c explicit) and contact-implicit (Γ + Δt K_c): one solve a step.
-std::unique_ptr<TimeScheme> makeOneStage(bool contact_implicit);
+// `consistent_stiffness` (contact-implicit only): the consistent stiffness of the spring field in
+// Γ (ros2's) instead of one spring per pair (docs/science/motion-convergence.md).
+std::unique_ptr<TimeScheme> makeOneStage(bool contact_implicit, bool consistent_stiffness = false);
 // ROS2 (Verwer, Spee, Blom & Hundsdorfer 1999): two linearly implicit stages, order 2,
 // L-stable with γ = kRos2Gamma = 1 + 1/√2 (ros2.cc).
 inline constexpr double kRos2Gamma = 1.7071067811865476;
-std::unique_ptr<TimeScheme> makeRos2(const NumericsParams& numerics);
+// `consistent_stiffness` = false puts contact-implicit's one spring per pair in W instead of the
+// consistent stiffness of the spring field (still order 2: a W-method; block-Jacobi CG converges
+// on it in a fraction of the iterations — docs/benchmarks.md, "ros2's W").
+std::unique_ptr<TimeScheme> makeRos2(const NumericsParams& numerics,
+                                     bool consistent_stiffness = true);
 // The scheme of numerics.integrator.
 std::unique_ptr<TimeScheme> makeTimeScheme(const NumericsParams& numerics);
 

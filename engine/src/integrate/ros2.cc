@@ -20,10 +20,10 @@ namespace {
 
 class Ros2 : public TimeScheme {
  public:
-  explicit Ros2(const NumericsParams& n) : cg_tol_(n.cg_tol) {}
+  Ros2(const NumericsParams& n, bool consistent) : cg_tol_(n.cg_tol), consistent_(consistent) {}
   std::string_view name() const override { return "ros2"; }
   double contactStiffnessDt(double dt) const override { return kRos2Gamma * dt; }
-  bool consistentStiffness() const override { return true; }
+  bool consistentStiffness() const override { return consistent_; }
   // With numerics.max_step_error_um > 0: rejects a step whose error estimate exceeds it.
   void addGuards(const NumericsParams& n,
                  std::vector<std::unique_ptr<StepGuard>>& guards) const override {
@@ -41,6 +41,7 @@ class Ros2 : public TimeScheme {
 
  private:
   double cg_tol_;
+  bool consistent_;
   Eigen::Matrix3Xd x0_, k1_, f2_;  // start positions, first stage, second stage's F
   Eigen::VectorXd g_, k2_;         // Γ* k₁, the second stage
   std::vector<double> pi0_;        // the PI integrals at the start of the step
@@ -116,8 +117,8 @@ SchemeResult Ros2::solve(SchemeState& s, const StepContext& ctx) {
 
 }  // namespace
 
-std::unique_ptr<TimeScheme> makeRos2(const NumericsParams& numerics) {
-  return std::make_unique<Ros2>(numerics);
+std::unique_ptr<TimeScheme> makeRos2(const NumericsParams& numerics, bool consistent_stiffness) {
+  return std::make_unique<Ros2>(numerics, consistent_stiffness);
 }
 
 }  // namespace activefoam

@@ -12,6 +12,8 @@ std::unique_ptr<TimeScheme> makeTimeScheme(const NumericsParams& numerics) {
       return makeOneStage(true);
     case IntegratorKind::Ros2:
       return makeRos2(numerics);
+    case IntegratorKind::ContactImplicitConsistent:
+      return makeOneStage(true, true);
   }
   return makeOneStage(true);  // unreachable: validate() admits the kinds above only
 }

@@ -27,6 +27,8 @@ std::string_view toString(IntegratorKind k) {
       return "contact-implicit";
     case IntegratorKind::Ros2:
       return "ros2";
+    case IntegratorKind::ContactImplicitConsistent:
+      return "contact-implicit-consistent";
   }
   return "?";
 }

@@ -131,11 +131,16 @@ const std::vector<Entry>& entries() {
                  [](SceneSpec& s) -> Slot { return &s.numerics.preset; }});
     t.push_back({real("numerics.dt_s", kOpen, 0, 10, kClosed, "s", "time step Δt"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.dt_s; }});
-    t.push_back({choice("numerics.integrator", {"semi-implicit", "contact-implicit", "ros2"},
-                        "semi-implicit: forces explicit, friction implicit; contact-implicit: "
-                        "also the contact springs' normal stiffness; ros2: contact-implicit in "
-                        "two stages, second order (two solves per step)"),
-                 [](SceneSpec& s) -> Slot { return &s.numerics.integrator; }});
+    t.push_back(
+        {choice("numerics.integrator",
+                {"semi-implicit", "contact-implicit", "ros2", "contact-implicit-consistent"},
+                "semi-implicit: forces explicit, friction implicit; contact-implicit: "
+                "also the contact springs' normal stiffness, one spring per pair (the "
+                "cells' motion depends on Δt); ros2: two stages, second order, the "
+                "consistent stiffness (two solves per step); contact-implicit-consistent: "
+                "one stage with the consistent stiffness (motion converged in Δt; more CG "
+                "iterations)"),
+         [](SceneSpec& s) -> Slot { return &s.numerics.integrator; }});
     t.push_back({real("numerics.cg_tol", kOpen, 0, 0.5, kClosed, "",
                       "relative residual tolerance of the CG solve"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.cg_tol; }});
