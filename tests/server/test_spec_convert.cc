@@ -78,6 +78,8 @@ TEST(SpecConvert, EveryIntegratorCrossesTheProto) {
     EXPECT_EQ(r.spec->numerics.integrator, kind) << toString(kind);
   }
   v1::SceneSpec m;
+  m.mutable_doublet();
+  m.mutable_numerics()->set_dt_s(0.5);
   m.mutable_numerics()->set_integrator(v1::INTEGRATOR_CONTACT_IMPLICIT_CONSISTENT);
   const ConvertResult r = convertSpec(m);
   ASSERT_TRUE(r.ok()) << errorText(r.errors);
