@@ -29,7 +29,7 @@
 #include "activefoam/observables.h"
 #include "activefoam/simulation.h"
 #include "activefoam/spheroid.h"
-#include "activefoam/time_scheme.h"
+#include "scheme_config.h"
 
 using namespace activefoam;
 
@@ -78,30 +78,13 @@ int main(int argc, char** argv) {
   std::printf("config,t_s,msrd_um2,unique_contacts,rms_from_first_um,mean_dt_s,rejected,wall_s\n");
   for (const std::string& config : configs) {
     SceneSpec s = base;
-    std::string integrator, dt, pre, tol;
-    std::stringstream parts(config);
-    std::getline(parts, integrator, ':');
-    std::getline(parts, dt, ':');
-    std::getline(parts, pre, ':');
-    std::getline(parts, tol, ':');
-    // "ros2-centroid": ros2 with contact-implicit's spring in W (makeRos2's second argument).
-    const bool centroid_w = integrator == "ros2-centroid";
-    if (centroid_w) integrator = "ros2";
-    std::vector<std::pair<std::string, std::string>> fields = {{"numerics.integrator", integrator},
-                                                               {"numerics.dt_s", dt},
-                                                               {"numerics.preconditioner", pre}};
-    if (!tol.empty()) fields.emplace_back("numerics.cg_tol", tol);
-    for (const auto& [key, text] : fields) {
-      const bool number = key == "numerics.dt_s" || key == "numerics.cg_tol";
-      const auto error =
-          setField(s, key, number ? SpecValue(std::atof(text.c_str())) : SpecValue(text));
-      if (error) {
-        std::fprintf(stderr, "%s: %s\n", config.c_str(), error->str().c_str());
-        return 2;
-      }
+    bench::SchemeConfig scheme;
+    if (const std::string error = bench::applySchemeConfig(config, s, scheme); !error.empty()) {
+      std::fprintf(stderr, "%s: %s\n", config.c_str(), error.c_str());
+      return 2;
     }
     s = resolve(s);
-    Simulation sim(s, cells, centroid_w ? makeRos2(s.numerics, false) : makeTimeScheme(s.numerics));
+    Simulation sim(s, cells, scheme.scheme(s));
     MsrdTracker msrd;
     ContactHistory history;
     const auto t0 = std::chrono::steady_clock::now();
