@@ -97,8 +97,9 @@ std::unique_ptr<TimeScheme> makeOneStage(bool contact_implicit, bool consistent_
 // L-stable with γ = kRos2Gamma = 1 + 1/√2 (ros2.cc).
 inline constexpr double kRos2Gamma = 1.7071067811865476;
 // `consistent_stiffness` = false puts contact-implicit's one spring per pair in W instead of the
-// consistent stiffness of the spring field (still order 2: a W-method; block-Jacobi CG converges
-// on it in a fraction of the iterations — docs/benchmarks.md, "ros2's W").
+// consistent stiffness of the spring field: still order 2 as Δt → 0 (a W-method), but at the
+// studies' steps it moves motile cells as little as contact-implicit does; the study drivers keep
+// it for that comparison (docs/science/motion-convergence.md).
 std::unique_ptr<TimeScheme> makeRos2(const NumericsParams& numerics,
                                      bool consistent_stiffness = true);
 // The scheme of numerics.integrator.
