@@ -3,11 +3,11 @@
 // `standard` (Δt 0.1 s) over 4 h. Ensembles over hours mix discretisation with the motility's
 // chaos; this driver separates them. Every configuration starts from the same prepared
 // aggregate and is driven by the same polarity noise (one Wiener path per cell, a function of
-// time, not of the steps), so over a short run the trajectories of two Δt stay close and their
-// difference is the discretisation's. Per configuration and sample time it prints the MSRD from
-// the first sample (pairs in contact at t = 0), the normalised unique contacts, the RMS distance
-// of the cell centroids from the first configuration's at the same time (the reference: list
-// the finest first), the mean Δt taken and the wall time.
+// time, not of the steps), so over a short run two configurations differ mostly by their
+// discretisation, not by independent realisations of the motility. Per configuration and sample
+// time it prints the MSRD from the first sample (pairs in contact at t = 0), the normalised unique
+// contacts, the RMS distance of the cell centroids from the first configuration's at the same time
+// (the reference: list the finest first), the mean Δt taken and the wall time.
 //
 //   OMP_NUM_THREADS=1 build/release/bench/study_dt_motion CACHE_DIR n_cells seed T_s sample_s
 //       integrator:Δt:preconditioner[:ε_CG][,…] [key=value …]
@@ -15,7 +15,8 @@
 // integrator: any of numerics.integrator, or ros2-centroid (ros2 with contact-implicit's
 // spring in W).
 //
-// key=value pairs set spec fields of the scene for every configuration (e.g. cells.k_contact=20).
+// key=value pairs set spec fields of the scene for every configuration, as foam-run's --set does
+// (e.g. cells.k_contact=20).
 // CACHE_DIR keeps the prepared spheroids (as foam-run --spheroid-cache); the scene is the
 // reduced base point's (Table 1/2 parameters, p_a r/2γ = 0.33).
 #include <chrono>
@@ -28,6 +29,7 @@
 
 #include "activefoam/observables.h"
 #include "activefoam/simulation.h"
+#include "activefoam/spec_io.h"
 #include "activefoam/spheroid.h"
 #include "scheme_config.h"
 
@@ -50,22 +52,11 @@ int main(int argc, char** argv) {
   base.scene_params.n_cells = n;
   base.cells.pa_reduced = 0.33;
   base.numerics.triangles_per_cell = 320;
-  for (int a = 7; a < argc; ++a) {
-    const std::string item = argv[a];
-    const auto eq = item.find('=');
-    if (eq == std::string::npos) {
-      std::fprintf(stderr, "expected key=value, got '%s'\n", item.c_str());
+  for (int a = 7; a < argc; ++a)
+    if (const auto error = applySetting(base, argv[a])) {  // as foam-run --set
+      std::fprintf(stderr, "%s: %s\n", argv[a], error->str().c_str());
       return 2;
     }
-    const std::string key = item.substr(0, eq), text = item.substr(eq + 1);
-    char* end = nullptr;
-    const double number = std::strtod(text.c_str(), &end);
-    const bool numeric = !text.empty() && end && *end == '\0';
-    if (const auto error = setField(base, key, numeric ? SpecValue(number) : SpecValue(text))) {
-      std::fprintf(stderr, "%s: %s\n", item.c_str(), error->str().c_str());
-      return 2;
-    }
-  }
   base = resolve(base);
   const CellSet cells = buildFusionCells(
       base, &cache, {[](const std::string& l) { std::fprintf(stderr, "%s\n", l.c_str()); }});

@@ -165,14 +165,13 @@ TEST(ActiveMigration, MotileDoubletIsReproducibleFromItsSeed) {
 }
 
 // docs/science/motion-convergence.md: under contact-implicit the cells' motion depends on Δt as
-// 1/(1 + a Δt) — its Γ carries a friction of Δt k_AB on every contact gap, which opposes the gap
-// changes the linearisation does not see — while ros2 re-evaluates the contacts at the predicted
-// end of the step and converges, and so does contact-implicit-consistent, whose Γ carries the
-// consistent stiffness of the spring field instead of one spring per pair. From one motile 3 + 4
-// cell aggregate, driven by the same polarity noise at every Δt (one Wiener path per cell), both
-// move the cells at Δt 0.5 s nearly as far as ros2 at 0.125 s, and closer at 0.25 s;
-// contact-implicit moves them far less even at 0.125 s (the control: the scene is sensitive to
-// the effect the others must not show).
+// 1/(1 + a Δt) — its Γ carries one contact spring per triangle pair, not the spring field's
+// stiffness, and in the springs' stiff directions the step is only as good as that matrix —
+// while ros2 and contact-implicit-consistent, whose Γ carries the consistent stiffness, converge.
+// From one motile 3 + 4 cell aggregate, driven by the same polarity noise at every Δt (one Wiener
+// path per cell), both move the cells at Δt 0.5 s nearly as far as ros2 at 0.125 s, and closer at
+// 0.25 s; contact-implicit moves them far less even at 0.125 s (the control: the scene is sensitive
+// to the effect the others must not show).
 TEST(ActiveMigration, MotionConvergesInTheStepWithTheConsistentStiffnessOnly) {
   SceneSpec base = activefoam::testing::smallFusionSpec(5, 3, 4);
   base.cells.p_a = 3 * base.cells.p_a;  // p_a r/2γ = 1: the effect in minutes
