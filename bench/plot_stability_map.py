@@ -46,7 +46,9 @@ def main():
 
     with tempfile.TemporaryDirectory() as tmp:
         script = [
-            "set terminal pngcairo size 1500,1100 enhanced font 'DejaVu Sans,11'",
+            # ~480 px a column: the axis labels of neighbouring panels must not overlap.
+            f"set terminal pngcairo size {max(1500, 480 * ((len(panels) + 1) // 2))},1100 "
+            "enhanced font 'DejaVu Sans,11'",
             f"set output '{png}'",
             f"set multiplot layout 2,{(len(panels) + 1) // 2} title 'Stability map of the doublet (200 s per run): "
             "outcome of every run, largest stable Δt per motility joined' noenhanced",

@@ -5,6 +5,7 @@
 // Issues 14 and 15 added ros2, softer contacts (k_AB × 1/16, 1/64) and the adaptive step: the
 // fixed-Δt ladders measure where a step fails; the adaptive ladders (numerics.adaptive = true,
 // the default) where a run still finishes, at what mean Δt, with how many rejected tries.
+// Issue 36 added contact-implicit-consistent (its refusals rest on its own rows).
 //
 // A cell of the map: the α = 0.4375 doublet from a gap of min(50 nm, 0.8 h0), equal radii, run for
 // max(1000 steps, `duration` s of simulated time) at each Δt of the integrator's ladder; "stable"
@@ -101,8 +102,10 @@ int main(int argc, char** argv) {
       {IntegratorKind::SemiImplicit, false, {0.0025, 0.005, 0.01, 0.02, 0.04, 0.08, 0.16, 0.32}},
       {IntegratorKind::ContactImplicit, false, implicit},
       {IntegratorKind::Ros2, false, implicit},
+      {IntegratorKind::ContactImplicitConsistent, false, implicit},
       {IntegratorKind::ContactImplicit, true, implicit},
-      {IntegratorKind::Ros2, true, implicit}};
+      {IntegratorKind::Ros2, true, implicit},
+      {IntegratorKind::ContactImplicitConsistent, true, implicit}};
 
   std::ofstream csv(dir / "stability-map.csv");
   csv << "integrator,adaptive,k_factor,k_contact,pa_reduced,dt_s,outcome,t_end_s,steps,"

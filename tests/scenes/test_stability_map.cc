@@ -18,6 +18,18 @@
 
 using namespace activefoam;
 
+namespace {
+
+IntegratorKind integratorNamed(const std::string& name) {
+  for (IntegratorKind k : {IntegratorKind::SemiImplicit, IntegratorKind::ContactImplicit,
+                           IntegratorKind::Ros2, IntegratorKind::ContactImplicitConsistent})
+    if (toString(k) == name) return k;
+  ADD_FAILURE() << "unknown integrator in the map: " << name;
+  return IntegratorKind::ContactImplicit;
+}
+
+}  // namespace
+
 TEST(StabilityMap, StableCellsRunAThousandStepsWithoutFailure) {
   std::ifstream in(std::string(STUDY_DIR) + "/stability-map.csv");
   ASSERT_TRUE(in) << "missing " << STUDY_DIR << "/stability-map.csv";
@@ -60,7 +72,8 @@ TEST(StabilityMap, StableCellsRunAThousandStepsWithoutFailure) {
                                                                           f[c_out] == "stable");
   }
   // Every integrator the refusals speak of has its own measured rows.
-  EXPECT_EQ(integrators, (std::set<std::string>{"semi-implicit", "contact-implicit", "ros2"}));
+  EXPECT_EQ(integrators, (std::set<std::string>{"semi-implicit", "contact-implicit", "ros2",
+                                                "contact-implicit-consistent"}));
   ASSERT_GE(cells.size(), 6u);
   int checked = 0;
   for (const auto& [key, ladder] : cells) {
@@ -74,9 +87,7 @@ TEST(StabilityMap, StableCellsRunAThousandStepsWithoutFailure) {
     NumericsParams n;
     n.dt_s = largest;
     n.adaptive = false;  // stable at this fixed Δt, not by halving it
-    n.integrator = integrator == "semi-implicit" ? IntegratorKind::SemiImplicit
-                   : integrator == "ros2"        ? IntegratorKind::Ros2
-                                                 : IntegratorKind::ContactImplicit;
+    n.integrator = integratorNamed(integrator);
     Simulation sim(doubletStudySpec(n, pa, k_factor));
     StepReport r;
     for (int k = 0; k < 1000 && r.ok(); ++k) r = sim.step();
@@ -90,7 +101,7 @@ TEST(StabilityMap, StableCellsRunAThousandStepsWithoutFailure) {
     NumericsParams n;
     n.dt_s = dt;
     n.adaptive = true;
-    n.integrator = integrator == "ros2" ? IntegratorKind::Ros2 : IntegratorKind::ContactImplicit;
+    n.integrator = integratorNamed(integrator);
     Simulation sim(doubletStudySpec(n, pa, 1));
     StepReport r;
     for (int k = 0; k < 1000 && r.ok(); ++k) r = sim.step();

@@ -233,15 +233,26 @@ std::vector<SpecError> measuredUnstable(const SceneSpec& spec) {
     limit = 4.0;
     why = "ros2 was measured to fail from 4 s (volume-drift at every k_AB and motility of the map)";
     kind = "docs/study/stability-map.md";
+  } else if (n.integrator == IntegratorKind::ContactImplicitConsistent &&
+             n.triangles_per_cell < 1280) {
+    // Its own map (2026-11-26): 1 s ran at every k_AB × 1/64 … 4 and p_a r/2γ 0 … 1, 2 s
+    // oscillated everywhere (the 2 × 20 motile fusion ran 1 s too: docs/science/
+    // motion-convergence.md, and the scheme-fitness study's 4 h runs).
+    limit = 2.0;
+    why =
+        "contact-implicit-consistent was measured to fail from 2 s (contact-oscillation at "
+        "every k_AB and motility of the map)";
+    kind = "docs/study/stability-map.md";
   } else {
-    // contact-implicit-consistent has no map of its own yet: it gets contact-implicit's limits.
-    // The first map (polarity noise keyed by step) failed at 1 s with motility; the map with the
-    // noise keyed by time ran 1 s there and failed at 2 s: the lower limit stays.
+    // contact-implicit. The first map (polarity noise keyed by step) failed at 1 s with
+    // motility; the map with the noise keyed by time ran 1 s there and failed at 2 s: the
+    // lower limit stays. contact-implicit-consistent with 1280 triangles has no map: it gets
+    // contact-implicit's limit there.
     const bool fine = n.triangles_per_cell >= 1280;
     limit = motile || fine ? 1.0 : 2.0;
     why = std::string(n.integrator == IntegratorKind::ContactImplicitConsistent
-                          ? "contact-implicit-consistent has no stability map of its own; "
-                            "contact-implicit was measured to fail from "
+                          ? "contact-implicit-consistent has no stability map with 1280 "
+                            "triangles per cell; contact-implicit was measured to fail from "
                           : "the contact-implicit integrator was measured to fail from ") +
           formatNumber(limit) + " s" +
           (motile ? " with motility"
