@@ -610,10 +610,8 @@ def summary_table(study: Study, runs: Any, metrics: Sequence[str] = tuple(METRIC
     keys = study.swept_keys()
     out = []
     for point in study.points():
-        sel = runs
-        for k, v in point.items():
-            sel = sel[[_same(x, v) for x in sel[k]]]
-        row: Dict[str, Any] = dict(point)
+        sel = _runs_of_point(runs, point, keys)
+        row: Dict[str, Any] = {k: point.get(k) for k in keys}
         row["runs"] = len(sel)
         row["succeeded"] = int((sel["state"] == "succeeded").sum())
         failed = sel[sel["state"] == "failed"]
@@ -632,6 +630,11 @@ def summary_table(study: Study, runs: Any, metrics: Sequence[str] = tuple(METRIC
     return pd.DataFrame(out, columns=list(out[0].keys()) if out else keys)
 
 
+def _cell(v: Any) -> str:
+    """A key's value in a table; a point of another grid leaves it unset."""
+    return "—" if v is None or (isinstance(v, float) and v != v) else str(v)
+
+
 def summary_markdown(study: Study, table: Any) -> str:
     """The summary as a readable table: per point, runs (succeeded / failed, with the failure
     kinds) and each metric as median [q25, q75] over its n runs."""
@@ -639,7 +642,7 @@ def summary_markdown(study: Study, table: Any) -> str:
     head = keys + ["runs", "ok", "failed"] + [METRICS[m] for m in METRICS]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for _, r in table.iterrows():
-        cells = [str(r[k]) for k in keys]
+        cells = [_cell(r.get(k)) for k in keys]
         cells += [str(r["runs"]), str(r["succeeded"]),
                   f"{r['failed']}" + (f" ({r['failures']})" if r["failed"] else "")]
         for m in METRICS:
@@ -813,37 +816,60 @@ def render(study: Study, data: Data, out_dir: os.PathLike) -> List[Path]:
     return written
 
 
+def _runs_of_point(runs: Any, point: Dict[str, Any], keys: List[str]) -> Any:
+    """The rows of `runs` at exactly this grid point: every key it sets has its value, every
+    other swept key is unset (a point of another grid)."""
+    import pandas as pd
+    mask = [True] * len(runs)
+    for k in keys:
+        col = runs[k] if k in runs else pd.Series([None] * len(runs), index=runs.index)
+        if k in point:
+            mask = [m and _same(x, point[k]) for m, x in zip(mask, col)]
+        else:
+            mask = [m and (x is None or (isinstance(x, float) and x != x)) for m, x in
+                    zip(mask, col)]
+    return runs[mask]
+
+
+def _point_label(point: Dict[str, Any], key: str) -> str:
+    return ", ".join(f"{k} = {v}" for k, v in [(key, point[key])] +
+                     [(k, v) for k, v in point.items() if k != key])
+
+
 def fitness_table(study: Study, runs: Any) -> Any:
-    """Per candidate value of fitness.key (and per value of the other swept keys) and metric:
-    the difference of medians against the reference with its bootstrap 95 % interval, the
-    seed-to-seed IQR and the verdict (fit: |Δ| < IQR/2)."""
+    """Per candidate grid point (fitness.key at another value than the reference) and metric:
+    the difference of medians against the reference runs with its bootstrap 95 % interval, the
+    seed-to-seed IQR and the verdict (fit: |Δ| < IQR/2). A candidate's reference runs are those
+    of the reference points that agree with it on every other key they set: a grid of
+    (key × α) is judged α by α, and a candidate from a second grid that also changes another
+    setting (e.g. Δt with ε_CG) against the reference of the first."""
     import pandas as pd
     f = study.fitness or {}
     key, ref = f["key"], f["reference"]
-    others = [k for k in study.swept_keys() if k != key]
+    keys = study.swept_keys()
+    others = [k for k in keys if k != key]
+    points = [p for p in study.points() if key in p]
+    refs = [p for p in points if _same(p[key], ref)]
     rows = []
-    values = list(dict.fromkeys(p[key] for p in study.points() if key in p))
-    contexts = list(dict.fromkeys(tuple((k, p.get(k)) for k in others) for p in study.points()))
-    for ctx in contexts:
-        sel = runs
-        for k, v in ctx:
-            sel = sel[[_same(x, v) for x in sel[k]]]
-        ref_runs = sel[[_same(x, ref) for x in sel[key]]]
-        for cand in values:
-            if _same(cand, ref):
-                continue
-            cand_runs = sel[[_same(x, cand) for x in sel[key]]]
-            for m in f["metrics"]:
-                fit = trends.fitness(ref_runs[m], cand_runs[m])
-                row = dict(ctx)
-                row.update({key: cand, "reference": ref, "metric": m,
-                            "median_ref": trends.median(ref_runs[m]),
-                            "median": trends.median(cand_runs[m]), "diff": fit.diff.diff,
-                            "diff_lo95": fit.diff.lo, "diff_hi95": fit.diff.hi,
-                            "iqr": fit.iqr, "n_ref": fit.diff.n_a, "n": fit.diff.n_b,
-                            "fit": {True: "yes", False: "no", None: "—"}[fit.fit],
-                            "why": fit.why})
-                rows.append(row)
+    for cand in points:
+        if _same(cand[key], ref):
+            continue
+        matching = [r for r in refs
+                    if all(_same(r[k], cand.get(k)) for k in others if k in r)]
+        ref_runs = pd.concat([_runs_of_point(runs, r, keys) for r in matching]) if matching \
+            else runs.iloc[0:0]
+        cand_runs = _runs_of_point(runs, cand, keys)
+        for m in f["metrics"]:
+            fit = trends.fitness(ref_runs[m], cand_runs[m])
+            row = {k: cand.get(k) for k in others}
+            row.update({"candidate": _point_label(cand, key), key: cand[key], "reference": ref,
+                        "metric": m, "median_ref": trends.median(ref_runs[m]),
+                        "median": trends.median(cand_runs[m]), "diff": fit.diff.diff,
+                        "diff_lo95": fit.diff.lo, "diff_hi95": fit.diff.hi,
+                        "iqr": fit.iqr, "n_ref": fit.diff.n_a, "n": fit.diff.n_b,
+                        "fit": {True: "yes", False: "no", None: "—"}[fit.fit],
+                        "why": fit.why})
+            rows.append(row)
     return pd.DataFrame(rows)
 
 
@@ -854,30 +880,30 @@ def render_fitness(study: Study, data: Data, out: Path) -> List[Path]:
     table = fitness_table(study, data.runs)
     table.to_csv(out / "fitness.csv", index=False)
     verdicts = []
-    for cand, g in table.groupby(f["key"], sort=False) if len(table) else []:
+    for cand, g in table.groupby("candidate", sort=False) if len(table) else []:
         judged = g[g["fit"] != "—"]
         if len(judged) < len(g):
-            verdicts.append(f"- `{f['key']} = {cand}`: not decided — "
+            verdicts.append(f"- `{cand}`: not decided — "
                             f"{len(g) - len(judged)} of {len(g)} metrics lack runs")
         elif (judged["fit"] == "yes").all():
-            verdicts.append(f"- `{f['key']} = {cand}`: **fit** — every difference of medians "
+            verdicts.append(f"- `{cand}`: **fit** — every difference of medians "
                             f"is below half the seed-to-seed IQR")
         else:
             bad = ", ".join(judged[judged["fit"] == "no"]["metric"])
-            verdicts.append(f"- `{f['key']} = {cand}`: **not fit** — {bad}")
+            verdicts.append(f"- `{cand}`: **not fit** — {bad}")
     show = table.drop(columns=["why"]) if len(table) else table
     (out / "fitness.md").write_text(
         f"# {study.title}: fitness against `{f['key']} = {f['reference']}`\n\n"
         + "\n".join(verdicts) + "\n\n" + _markdown(show))
     # θ(t) ensemble bands of each value of the key.
     fig, ax = plt.subplots(figsize=(7, 4))
-    values = list(dict.fromkeys(p[f["key"]] for p in study.points()))
-    for c, v in zip(plt.cm.tab10(np.arange(len(values))), values):
-        sel = data.runs[[_same(x, v) for x in data.runs[f["key"]]]]
+    points = [p for p in study.points() if f["key"] in p]
+    for c, p in zip(plt.cm.tab10(np.arange(len(points))), points):
+        sel = _runs_of_point(data.runs, p, study.swept_keys())
         t, med, q25, q75 = _series(study, data, sel, "theta_deg")
         if len(t):
-            ax.plot(t / 3600, med, color=c, label=f"{v} (median, IQR over "
-                    f"{int((sel['state'] == 'succeeded').sum())} seeds)")
+            ax.plot(t / 3600, med, color=c, label=f"{_point_label(p, f['key'])} (median, IQR "
+                    f"over {int((sel['state'] == 'succeeded').sum())} seeds)")
             ax.fill_between(t / 3600, q25, q75, color=c, alpha=0.25, lw=0)
     ax.set(xlabel="t (h)", ylabel="θ (°)", title=f"{study.title}: θ(t) ensembles")
     ax.legend(fontsize=7)

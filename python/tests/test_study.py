@@ -296,3 +296,66 @@ def test_runs_match_jobs_by_their_resolved_spec_reduced_keys_included(tmp_path):
     assert not st._matches(s, runs[1], resolved)     # p_a r/2γ = 1 is another run
     resolved["seed"] = 8
     assert not st._matches(s, runs[0], resolved)
+
+
+def test_fitness_judges_a_candidate_of_a_second_grid_against_the_first_grids_reference(tmp_path):
+    """Δt 0.5 (grid 1) and Δt 1 with ε_CG 1e-2 (grid 2) are both judged against the Δt 0.25
+    runs of grid 1; the two candidates' verdicts are their own (Δt 0.5 fit, Δt 1 not)."""
+    f = tmp_path / "scheme.toml"
+    f.write_text(textwrap.dedent("""\
+        [study]
+        name = "scheme"
+        seeds = [1, 2, 3, 4, 5]
+        x = "numerics.dt_s"
+        [spec]
+        scene = "fusion"
+        duration_s = 7200
+        [[grid]]
+        "numerics.dt_s" = [0.25, 0.5]
+        [[grid]]
+        "numerics.dt_s" = [1.0]
+        "numerics.cg_tol" = [0.01]
+        [fitness]
+        key = "numerics.dt_s"
+        reference = 0.25
+        metrics = ["theta_end_deg"]
+        """))
+    d = tmp_path / "data"
+    d.mkdir()
+    rows, samples, msrd = [], [], []
+    noise = {1: -2.0, 2: -1.0, 3: 0.0, 4: 1.0, 5: 2.0}   # IQR of θ_end: 2
+    shift = {0.25: 0.0, 0.5: 0.4, 1.0: 3.0}
+    for seed in range(1, 6):
+        for dt, tol in ((0.25, None), (0.5, None), (1.0, 0.01)):
+            jid = f"j-{dt}-{seed}"
+            row = {"run": len(rows), "numerics.dt_s": dt, "seed": seed, "job_id": jid,
+                   "state": "succeeded", "failure_kind": "", "eq1_ok": 0,
+                   "mixing_time_s": 7200}
+            if tol is not None:
+                row["numerics.cg_tol"] = tol
+            rows.append(row)
+            for t in range(0, 7201, 600):
+                theta = 40 + 5 * t / 3600 + noise[seed] + shift[dt]
+                samples.append([jid, t, theta, 5.3, 1.0, 3.0])
+            msrd += [[jid, lag, 40.0 * lag / 7200] for lag in (60, 600, 7200)]
+    pd.DataFrame(rows).to_csv(d / "runs.csv", index=False)
+    pd.DataFrame(samples, columns=["job_id", "t_s"] + st.SAMPLE_COLUMNS).to_csv(
+        d / "samples.csv.gz", index=False)
+    pd.DataFrame(msrd, columns=["job_id", "lag_s", "msrd_um2"]).to_csv(d / "msrd.csv.gz",
+                                                                       index=False)
+    out = tmp_path / "out"
+    r = _run(["report", str(f), "--from-data", str(d), "--out", str(out)])
+    assert r.returncode == 0, r.stderr
+    fit = pd.read_csv(out / "fitness.csv").set_index("candidate")
+    assert set(fit.index) == {"numerics.dt_s = 0.5", "numerics.dt_s = 1.0, numerics.cg_tol = 0.01"}
+    half = fit.loc["numerics.dt_s = 0.5"]
+    assert half["n_ref"] == 5 and half["n"] == 5
+    assert half["diff"] == pytest.approx(0.4)
+    assert half["fit"] == "yes"
+    one = fit.loc["numerics.dt_s = 1.0, numerics.cg_tol = 0.01"]
+    assert one["n_ref"] == 5 and one["n"] == 5   # the Δt 0.25 runs, not the 0.5 ones
+    assert one["diff"] == pytest.approx(3.0)
+    assert one["fit"] == "no"
+    md = (out / "fitness.md").read_text()
+    assert "`numerics.dt_s = 0.5`: **fit**" in md
+    assert "`numerics.dt_s = 1.0, numerics.cg_tol = 0.01`: **not fit** — theta_end_deg" in md
