@@ -7,15 +7,22 @@
 // and Jacobi plus a coarse correction on the cells' translations (additive two-level).
 // Eigen's IncompleteCholesky (AMD ordering) is timed once for its setup.
 //
-//   OMP_NUM_THREADS=1 build/release/bench/study_preconditioner CACHE [n] [dt] [warm]
+//   OMP_NUM_THREADS=1 build/release/bench/study_preconditioner CACHE [n] [dt] [warm] [integrator]
 // Results: docs/benchmarks.md, "Preconditioners".
+// Issue 36 (the consistent stiffness, integrator `contact-implicit-consistent`): with
+// AGG="θ:cap:cross;…" it compares, over 30 steps, block-Jacobi, block symmetric Gauss–Seidel and
+// block-Jacobi on aggregates of strongly coupled vertices (coupling ≥ θ, at most `cap` vertices,
+// `cross` = 1: partners in other cells only); CG_TOL overrides the spec's ε_CG. Results:
+// docs/science/motion-convergence.md, "ε_CG at the consistent step".
 #include <Eigen/Cholesky>
 #include <Eigen/IterativeLinearSolvers>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -130,6 +137,93 @@ struct IC0 {
   }
 };
 
+// Block-Jacobi on aggregates of vertices: each vertex joins, in index order, the aggregate of
+// its strongest not-yet-aggregated neighbours (block coupling ‖A_ij‖_F ≥ θ √(‖A_ii‖ ‖A_jj‖)),
+// up to `cap` vertices; each aggregate's dense block inverted (LDLT). Aggregates that pair an
+// interface vertex with its partners across the contact invert the stiff relative mode exactly.
+struct AggregateJacobi {
+  std::vector<int> agg_begin, members;  // members of aggregate a: [agg_begin[a], agg_begin[a+1])
+  std::vector<Eigen::LDLT<Eigen::MatrixXd>> inv;
+  int cross = 0;  // aggregates spanning two cells
+  void build(const SpMat& a, double theta, int cap, const std::vector<int>& vcell,
+             bool cross_only) {
+    const int nb = static_cast<int>(a.rows() / 3);
+    std::vector<std::vector<std::pair<int, double>>> nbr(nb);
+    std::vector<double> dn(nb, 0);
+    {
+      std::vector<std::map<int, Eigen::Matrix3d>> rows(nb);
+      for (int i = 0; i < a.rows(); ++i)
+        for (SpMat::InnerIterator it(a, i); it; ++it) {
+          auto& m = rows[i / 3]
+                        .try_emplace(static_cast<int>(it.col() / 3), Eigen::Matrix3d::Zero())
+                        .first->second;
+          m(i % 3, it.col() % 3) = it.value();
+        }
+      for (int i = 0; i < nb; ++i) dn[i] = rows[i].at(i).norm();
+      for (int i = 0; i < nb; ++i)
+        for (const auto& [j, m] : rows[i])
+          if (j != i && (!cross_only || vcell[i] != vcell[j])) {
+            const double w = m.norm() / std::sqrt(dn[i] * dn[j]);
+            if (w >= theta) nbr[i].emplace_back(j, w);
+          }
+      for (auto& v : nbr)
+        std::sort(v.begin(), v.end(), [](auto& x, auto& y) { return x.second > y.second; });
+    }
+    std::vector<int> of(nb, -1);
+    agg_begin.assign(1, 0);
+    members.clear();
+    cross = 0;
+    for (int i = 0; i < nb; ++i) {
+      if (of[i] >= 0) continue;
+      const int id = static_cast<int>(agg_begin.size()) - 1;
+      of[i] = id;
+      members.push_back(i);
+      int size = 1;
+      bool spans = false;
+      for (const auto& [j, w] : nbr[i]) {
+        if (size >= cap) break;
+        if (of[j] >= 0) continue;
+        of[j] = id;
+        members.push_back(j);
+        spans = spans || vcell[j] != vcell[i];
+        ++size;
+      }
+      cross += spans;
+      agg_begin.push_back(static_cast<int>(members.size()));
+    }
+    inv.clear();
+    const int na = static_cast<int>(agg_begin.size()) - 1;
+    inv.reserve(na);
+    std::vector<int> local(nb, -1);
+    for (int g = 0; g < na; ++g) {
+      const int b0 = agg_begin[g], sz = agg_begin[g + 1] - b0;
+      for (int k = 0; k < sz; ++k) local[members[b0 + k]] = k;
+      Eigen::MatrixXd d = Eigen::MatrixXd::Zero(3 * sz, 3 * sz);
+      for (int k = 0; k < sz; ++k) {
+        const int v = members[b0 + k];
+        for (int r = 0; r < 3; ++r)
+          for (SpMat::InnerIterator it(a, 3 * v + r); it; ++it) {
+            const int l = local[it.col() / 3];
+            if (l >= 0) d(3 * k + r, 3 * l + it.col() % 3) = it.value();
+          }
+      }
+      inv.emplace_back(d);
+      for (int k = 0; k < sz; ++k) local[members[b0 + k]] = -1;
+    }
+  }
+  void apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
+    z.resize(r.size());
+    const int na = static_cast<int>(agg_begin.size()) - 1;
+    for (int g = 0; g < na; ++g) {
+      const int b0 = agg_begin[g], sz = agg_begin[g + 1] - b0;
+      Eigen::VectorXd rg(3 * sz);
+      for (int k = 0; k < sz; ++k) rg.segment<3>(3 * k) = r.segment<3>(3 * members[b0 + k]);
+      const Eigen::VectorXd zg = inv[g].solve(rg);
+      for (int k = 0; k < sz; ++k) z.segment<3>(3 * members[b0 + k]) = zg.segment<3>(3 * k);
+    }
+  }
+};
+
 int main(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr, "usage: study_preconditioner CACHE [n] [dt] [warm] [integrator]\n");
@@ -147,8 +241,10 @@ int main(int argc, char** argv) {
   base.scene_params.prep_max_s = 600;
   base.numerics.triangles_per_cell = 320;
   base.numerics.dt_s = dt;
-  base.numerics.integrator =
-      integ == "ros2" ? IntegratorKind::Ros2 : IntegratorKind::ContactImplicit;
+  base.numerics.integrator = integ == "ros2" ? IntegratorKind::Ros2
+                             : integ == "contact-implicit-consistent"
+                                 ? IntegratorKind::ContactImplicitConsistent
+                                 : IntegratorKind::ContactImplicit;
   base = resolve(base);
   const CellSet cells = buildFusionCells(
       base, &cache, {[](const std::string& l) { std::fprintf(stderr, "%s\n", l.c_str()); }});
@@ -170,7 +266,8 @@ int main(int argc, char** argv) {
   const Eigen::Index m = a0.rows();
   std::printf("unknowns %ld nnz %ld pairs %zu\n", long(m), long(a0.nonZeros()),
               sim.contacts().pairs.size());
-  const double tol = base.numerics.cg_tol;
+  const double tol =
+      std::getenv("CG_TOL") ? std::atof(std::getenv("CG_TOL")) : base.numerics.cg_tol;
   // Fresh IC(0)
   auto t1 = Clock::now();
   IC0 ic;
@@ -203,6 +300,117 @@ int main(int argc, char** argv) {
     for (Eigen::Index i = 0; i < r.size(); ++i) z[i] += zc[3 * vcell[i / 3] + i % 3];
   };
 
+  if (const char* spec = std::getenv("AGG")) {
+    // AGG="θ:cap:cross_only;…": block-Jacobi (3×3) against aggregate block-Jacobi, 30 steps.
+    struct Cfg {
+      double theta;
+      int cap;
+      bool cross;
+    };
+    std::vector<Cfg> cfgs;
+    for (std::string rest = spec; !rest.empty();) {
+      const auto semi = rest.find(';');
+      const std::string one = rest.substr(0, semi);
+      rest = semi == std::string::npos ? "" : rest.substr(semi + 1);
+      Cfg c{};
+      int cr = 0;
+      if (std::sscanf(one.c_str(), "%lf:%d:%d", &c.theta, &c.cap, &cr) == 3) {
+        c.cross = cr != 0;
+        cfgs.push_back(c);
+      }
+    }
+    std::vector<long> its(cfgs.size() + 1, 0);
+    std::vector<double> ms(cfgs.size() + 1, 0), setup(cfgs.size() + 1, 0), sizes(cfgs.size(), 0);
+    int steps = 0;
+    long sgs_it = 0;
+    double sgs_ms = 0;
+    Eigen::VectorXd xprev;
+    for (int k = 1; k <= 30; ++k) {
+      if (!sim.step().ok()) return 1;
+      SpMat a;
+      Eigen::VectorXd b;
+      system(a, b);
+      if (xprev.size() != a.rows()) xprev = Eigen::VectorXd::Zero(a.rows());
+      const int nb = static_cast<int>(a.rows() / 3);
+      // 3×3 block-Jacobi (the presets')
+      t1 = Clock::now();
+      std::vector<Eigen::Matrix3d> bj(nb);
+      for (int i = 0; i < nb; ++i) {
+        Eigen::Matrix3d d;
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) d(r, c) = a.coeff(3 * i + r, 3 * i + c);
+        bj[i] = d.inverse();
+      }
+      setup[0] += 1e3 * secs(t1);
+      Eigen::VectorXd x = xprev;
+      const Res r0 = pcg(
+          a, b, x,
+          [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) {
+            z.resize(r.size());
+            for (int i = 0; i < nb; ++i) z.segment<3>(3 * i) = bj[i] * r.segment<3>(3 * i);
+          },
+          tol);
+      const Eigen::VectorXd xs = x;
+      its[0] += r0.it;
+      ms[0] += r0.ms;
+      std::printf("step %d pairs %zu: block-jacobi %d", k, sim.contacts().pairs.size(), r0.it);
+      {
+        // Block symmetric Gauss–Seidel: M = (D + L) D⁻¹ (D + L)ᵀ, natural order, no factor.
+        x = xprev;
+        const Res rs = pcg(
+            a, b, x,
+            [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) {
+              z.resize(r.size());
+              Eigen::VectorXd y(r.size());
+              for (int i = 0; i < nb; ++i) {  // (D + L) y = r
+                Eigen::Vector3d s = r.segment<3>(3 * i);
+                for (int rr = 0; rr < 3; ++rr)
+                  for (SpMat::InnerIterator it(a, 3 * i + rr); it; ++it)
+                    if (it.col() < 3 * i) s[rr] -= it.value() * y[it.col()];
+                y.segment<3>(3 * i) = bj[i] * s;
+              }
+              for (int i = nb - 1; i >= 0; --i) {  // (D + U) z = D y
+                Eigen::Vector3d s = Eigen::Vector3d::Zero();
+                for (int rr = 0; rr < 3; ++rr)
+                  for (SpMat::InnerIterator it(a, 3 * i + rr); it; ++it)
+                    if (it.col() >= 3 * i + 3) s[rr] += it.value() * z[it.col()];
+                z.segment<3>(3 * i) = y.segment<3>(3 * i) - bj[i] * s;
+              }
+            },
+            tol);
+        sgs_it += rs.it;
+        sgs_ms += rs.ms;
+        std::printf(" | block-SGS %d", rs.it);
+      }
+      for (std::size_t c = 0; c < cfgs.size(); ++c) {
+        AggregateJacobi ag;
+        t1 = Clock::now();
+        ag.build(a, cfgs[c].theta, cfgs[c].cap, vcell, cfgs[c].cross);
+        setup[c + 1] += 1e3 * secs(t1);
+        x = xprev;
+        const Res rc = pcg(
+            a, b, x, [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) { ag.apply(r, z); }, tol);
+        its[c + 1] += rc.it;
+        ms[c + 1] += rc.ms;
+        sizes[c] += double(nb) / (ag.agg_begin.size() - 1);
+        std::printf(" | agg(%g,%d,%d) %d (%d cross of %zu)", cfgs[c].theta, cfgs[c].cap,
+                    int(cfgs[c].cross), rc.it, ag.cross, ag.agg_begin.size() - 1);
+      }
+      std::printf("\n");
+      std::fflush(stdout);
+      xprev = xs;
+      ++steps;
+    }
+    std::printf(
+        "mean over %d steps: block-jacobi %.1f it (%.1f ms solve); block-SGS %.1f it (%.1f ms)",
+        steps, double(its[0]) / steps, ms[0] / steps, double(sgs_it) / steps, sgs_ms / steps);
+    for (std::size_t c = 0; c < cfgs.size(); ++c)
+      std::printf("; agg(θ %g, cap %d, cross %d) %.1f it (%.1f ms solve, mean size %.2f)",
+                  cfgs[c].theta, cfgs[c].cap, int(cfgs[c].cross), double(its[c + 1]) / steps,
+                  ms[c + 1] / steps, sizes[c] / steps);
+    std::printf("\n");
+    return 0;
+  }
   std::printf("| step | pairs | jacobi | IC0 fresh | IC0 stale (age) | jacobi + coarse |\n");
   Eigen::VectorXd xprev;
   int built_at = 0;
