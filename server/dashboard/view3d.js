@@ -13,7 +13,8 @@ const View3D = (() => {
   // Why the view cannot be shown here, or '' when it can.
   function unavailable() {
     if (window.FOAMD_NO_THREE) return window.FOAMD_NO_THREE;
-    if (typeof THREE === 'undefined') return 'three.js did not load';
+    // OrbitControls makes an empty THREE of its own when three.js is missing.
+    if (typeof THREE === 'undefined' || typeof THREE.WebGLRenderer !== 'function') return 'three.js did not load';
     if (typeof THREE.OrbitControls !== 'function') return 'three.js OrbitControls did not load';
     return '';
   }
