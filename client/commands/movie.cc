@@ -148,8 +148,8 @@ void drawLegend(Image& img, ColorBy by, double lo, double hi, bool two_spheroids
   if (by == ColorBy::Spheroid) {
     for (int label = 0; label < (two_spheroids ? 2 : 1); ++label) {
       fillRect(img, x, y, box, box, cellColor(ColorBy::Spheroid, 0, label, 0, 0, 0));
-      x += box + 2 * scale;
-      x += drawText(img, x, y, label == 0 ? "spheroid A" : "spheroid B", scale, ink) + 5 * scale;
+      x += box + 3 * scale;
+      x += drawText(img, x, y, label == 0 ? "spheroid A" : "spheroid B", scale, ink) + 12 * scale;
     }
   } else if (by == ColorBy::Cell) {
     drawText(img, x, y, "colour: cell id", scale, ink);
