@@ -181,6 +181,9 @@ const View3D = (() => {
       this.mesh.name = 'cells';
       this.scene.add(this.mesh);
       this.controls = new THREE.OrbitControls(this.camera, this.canvas);
+      // r111's controls listen for arrow keys on the whole window: they would pan the view while
+      // the slider (or a text field) takes the same keys.
+      this.controls.enableKeys = false;
       this.controls.addEventListener('change', () => this.render());
       this.controls.addEventListener('start', () => (this.userMoved = true));
       this.canvas.dataset.state = 'empty';
@@ -406,6 +409,8 @@ const View3D = (() => {
       this.geometry.dispose();
       this.material.dispose();
       this.renderer.dispose();
+      // Browsers keep a handful of WebGL contexts per page: free this one now, not at GC.
+      this.renderer.forceContextLoss();
       this.renderer = null;
     }
   }

@@ -457,6 +457,10 @@ def view_3d(foamd: Foamd, browser: cdp.Browser, fusion: str) -> None:
     time.sleep(0.3)
     check(page.evaluate(CANVAS_PIXELS)["sum"] not in (px0["sum"], pxc["sum"]), "recoloured by cell id")
     check(page.evaluate("document.querySelector('#error').hidden"), "no error shown")
+    # Leaving the page gives the WebGL context back (the console check at the end sees errors).
+    page.evaluate("location.hash = '#/'")
+    page.wait_for("document.querySelectorAll('#jobs tr[data-job-id]').length > 0")
+    check(page.evaluate("window.foamdView3D.renderer") is None, "leaving the job page disposes of the view")
     page.close()
 
     say("    three.js failing to load: the page says so and keeps its charts")
