@@ -45,6 +45,7 @@ std::string findOnPath(const std::string& name) {
 // ffmpeg reading raw RGB frames on its stdin and writing `out`.
 class Ffmpeg {
  public:
+  // `out` gets the container named by `gif` whatever its own name ends with.
   Ffmpeg(const std::string& exe, const std::string& out, int w, int h, double fps, bool gif) {
     std::vector<std::string> args = {
         exe,        "-hide_banner", "-nostdin", "-loglevel",
@@ -53,21 +54,22 @@ class Ffmpeg {
         "-r",       fpsText(fps),   "-i",       "-"};
     if (gif) {
       // One palette for the whole movie, made from its own frames: GIF has 256 colours.
-      args.insert(
-          args.end(),
-          {"-vf", "split[a][b];[a]palettegen=stats_mode=full[p];[b][p]paletteuse", "-loop", "0"});
+      args.insert(args.end(),
+                  {"-vf", "split[a][b];[a]palettegen=stats_mode=full[p];[b][p]paletteuse", "-loop",
+                   "0", "-f", "gif"});
     } else {
       // yuv420p: what players and browsers decode; +faststart: playable while downloading.
-      args.insert(args.end(), {"-pix_fmt", "yuv420p", "-movflags", "+faststart"});
+      args.insert(args.end(), {"-pix_fmt", "yuv420p", "-movflags", "+faststart", "-f", "mp4"});
     }
     args.push_back(out);
     int fds[2];
-    if (::pipe(fds) != 0) throw std::runtime_error(std::string("pipe: ") + std::strerror(errno));
+    // Close-on-exec: neither end may leak into ffmpeg (it would never see the end of its input)
+    // or into anything else started meanwhile; dup2 onto its stdin clears the flag there.
+    if (::pipe2(fds, O_CLOEXEC) != 0)
+      throw std::runtime_error(std::string("pipe: ") + std::strerror(errno));
     posix_spawn_file_actions_t fa;
     posix_spawn_file_actions_init(&fa);
     posix_spawn_file_actions_adddup2(&fa, fds[0], 0);
-    posix_spawn_file_actions_addclose(&fa, fds[0]);
-    posix_spawn_file_actions_addclose(&fa, fds[1]);
     std::vector<char*> argv;
     for (std::string& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
@@ -79,7 +81,6 @@ class Ffmpeg {
       throw std::runtime_error("cannot start " + exe + ": " + std::strerror(rc));
     }
     fd_ = fds[1];
-    ::fcntl(fd_, F_SETFD, FD_CLOEXEC);
   }
   ~Ffmpeg() {
     if (fd_ >= 0) ::close(fd_);
@@ -238,8 +239,18 @@ int runMovie(Conn& conn, const ExportOptions& o) {
   const int scale = std::max(1, height / 200);
   const Rgb background{0xf4, 0xf6, 0xf9}, ink{0x1f, 0x23, 0x28};
   int frames = 0;
+  // ffmpeg writes next to FILE and the result is renamed onto it once complete: a failure half
+  // way leaves no truncated movie, and an older FILE stays until a new one replaces it.
+  const fs::path part = fs::path(o.movie_file).concat(".part");
+  struct RemovePart {
+    fs::path path;
+    ~RemovePart() {
+      std::error_code ec;
+      fs::remove(path, ec);
+    }
+  } remove_part{part};
   try {
-    Ffmpeg encoder(ffmpeg, o.movie_file, width, height, o.fps, ext == ".gif");
+    Ffmpeg encoder(ffmpeg, part.string(), width, height, o.fps, ext == ".gif");
     for (const v1::SnapshotInfo& info : r.snapshots()) {
       VtkMesh mesh;
       if (std::string err = fetchSnapshot(*conn.stub, newCtx, o.id, info, mesh); !err.empty())
@@ -259,6 +270,9 @@ int runMovie(Conn& conn, const ExportOptions& o) {
   } catch (const std::exception& e) {
     return fail(kJobNotOk, e.what());
   }
+  std::error_code ec;
+  fs::rename(part, o.movie_file, ec);
+  if (ec) return fail(kJobNotOk, "cannot write " + o.movie_file + ": " + ec.message());
   std::cerr << "foam: " << frames << " frame" << (frames == 1 ? "" : "s") << " at " << o.fps
             << " fps\n";
   std::cout << o.movie_file << "\n";

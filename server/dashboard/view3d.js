@@ -147,7 +147,6 @@ const View3D = (() => {
       this.playing = false;
       this.framedBox = null;      // the bounds the camera was placed for
       this.userMoved = false;     // orbited, zoomed or panned: the camera is the user's
-      this.pending = 0;
 
       const why = unavailable();
       if (why) {
@@ -215,7 +214,10 @@ const View3D = (() => {
     // The job's snapshot list (GetResults' snapshots: index, t_s, ...), as of this refresh.
     setSnapshots(snaps) {
       if (!this.usable) return;
-      const grew = snaps.length !== this.snaps.length;
+      // By the newest index, not the count: with keep_snapshots foamd drops the oldest as new
+      // ones come, and the count stays put.
+      const newest = snaps.length ? snaps[snaps.length - 1].index : -1;
+      const grew = newest !== (this.snaps.length ? this.snaps[this.snaps.length - 1].index : -1);
       this.snaps = snaps;
       this.slider.max = String(Math.max(0, snaps.length - 1));
       this.slider.disabled = snaps.length < 2;
@@ -239,7 +241,6 @@ const View3D = (() => {
       let mesh = this.cache.get(info.index);
       if (!mesh) {
         this.canvas.dataset.state = 'loading';
-        this.pending++;
         try {
           const buffer = await this.fetchBuffer(`jobs/${encodeURIComponent(this.jobId)}/snapshots/${info.index}.mesh`);
           mesh = parseMesh(buffer);
@@ -250,8 +251,6 @@ const View3D = (() => {
             this.onError(e);
           }
           return;
-        } finally {
-          this.pending--;
         }
         this.cache.set(info.index, mesh);
         if (this.cache.size > CACHE_FRAMES) this.cache.delete(this.cache.keys().next().value);
