@@ -10,7 +10,9 @@ dashboard-job.png and dashboard-sweep.png there (1280x900).
 A 2 x 8-cell fusion job (examples/fusion.toml, five snapshots) checks the 3D view last (issue
 38): the binary mesh route and its token, the three.js scene's triangles against the snapshot's,
 drawn pixels of both spheroids' colours read back from the canvas, the slider's first snapshot,
-the clip plane. With SCREENSHOT_DIR it also saves dashboard-3d.png and dashboard-3d-clip.png.
+the clip plane, the page without three.js; then a longer fusion job's page while it runs (the
+view follows its newest snapshot). With SCREENSHOT_DIR it also saves dashboard-3d.png and
+dashboard-3d-clip.png.
 
 Exit status: 0 passed, 1 failed, 2 misconfigured, 77 skipped (no usable /usr/bin/chromium, or
 this Chromium cannot create a WebGL context: then every check before the 3D view has passed).
@@ -479,6 +481,43 @@ def view_3d(foamd: Foamd, browser: cdp.Browser, fusion: str) -> None:
     page.close()
     # The blocked requests are the console errors this step causes.
     browser.console[:] = [m for m in browser.console if "ERR_BLOCKED_BY_CLIENT" not in m]
+
+    say("(6) a running fusion job: the 3D view follows its newest snapshot")
+    # Three times as long as the first (its spheroids are cached now): a snapshot every 100
+    # simulated seconds gives the page several to follow while the job runs.
+    running = foamd.foam("submit", str(EXAMPLES / "fusion.toml"), "--tag", "dash-follow",
+                         "--set", "duration_s=1800", "--set", "snapshot_every_s=100").splitlines()[0].strip()
+    deadline = time.monotonic() + 120
+    while True:
+        res = foamd.json(f"/jobs/{running}/results")
+        if res.get("snapshots") and not res["job"].get("terminal"):
+            break
+        if res["job"].get("terminal") or time.monotonic() > deadline:
+            raise AssertionError(f"job {running} never ran with a snapshot: {res['job'].get('state')}")
+        time.sleep(0.2)
+    page = browser.new_page(WIDTH, HEIGHT)
+    page.navigate(f"{foamd.base}/#token={foamd.token}")
+    page.navigate(f"{foamd.base}/#/job/{running}")
+    shown = set()
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline:
+        state, snapshot, ready = page.evaluate(
+            "[document.querySelector('#job-state')?.textContent, document.querySelector('#view3d-canvas')?.dataset.snapshot,"
+            " document.querySelector('#view3d-canvas')?.dataset.state]")
+        if state in TERMINAL:
+            break
+        if state == "running" and ready == "ready":
+            shown.add(int(snapshot))
+        time.sleep(0.5)
+    wait_done(foamd, [running])
+    last = foamd.json(f"/jobs/{running}/results")["snapshots"][-1]
+    check(len(shown) >= 2, f"while the job ran the view followed it through snapshots {sorted(shown)}")
+    page.wait_for(f"document.querySelector('#view3d-canvas').dataset.snapshot === {js(str(last['index']))}"
+                  " && document.querySelector('#view3d-canvas').dataset.state === 'ready'", 30)
+    label = page.evaluate("document.querySelector('.view3d-time').textContent")
+    check(label.endswith("(latest)") and f"snapshot {len(foamd.json(f'/jobs/{running}/results')['snapshots'])} of" in label,
+          f"it ends on the last one: {label}")
+    page.close()
 
 
 def main() -> int:
