@@ -1,5 +1,6 @@
 // foamd's HTTP side for dashboards and scrapers: the dashboard page at `/`, read-only JSON of
-// jobs, samples and results, CSV and VTK downloads, /metrics and /healthz. Served by
+// jobs, samples and results, CSV and VTK downloads, snapshots as binary meshes for the 3D view
+// (mesh_frame.h), /metrics and /healthz. Served by
 // cpp-httplib (a pool of worker threads, read and keep-alive timeouts), with the gRPC
 // listener's rules: a token guards every data route, and a non-loopback address needs a token
 // and TLS.
