@@ -541,21 +541,30 @@ TEST(SpecIntegrator, ContactImplicitConsistentIsAKeyValueWithItsOwnFingerprintAn
   SceneSpec pair = s;
   pair.numerics.integrator = IntegratorKind::ContactImplicit;
   EXPECT_NE(specFingerprint(resolve(s)), specFingerprint(resolve(pair)));
-  // Its own stability map: 1 s ran at every k_AB and motility, 2 s oscillated everywhere; on a
-  // motile doublet (p_a > 0 by default) contact-implicit is refused from 1 s.
+  // Its own stability map: 1 s ran at every k_AB and motility, 2 s oscillated everywhere; but
+  // the motile fusion failed at 1 s, so with motility (p_a > 0 by default) the limit is 1 s.
   s.numerics.dt_s = 1;
-  EXPECT_TRUE(measuredUnstable(s).empty());
-  EXPECT_EQ(measuredUnstable(pair).size(), 0u);  // pair: Δt 0.1 s
-  pair.numerics.dt_s = 1;
-  EXPECT_EQ(measuredUnstable(pair).size(), 1u);
-  s.numerics.dt_s = 2;
   auto e = measuredUnstable(s);
   ASSERT_EQ(e.size(), 1u);
   EXPECT_EQ(e[0].field, "numerics.dt_s");
+  EXPECT_NE(e[0].message.find("contact-implicit-consistent was measured to fail from 1 s with "
+                              "motility"),
+            std::string::npos)
+      << e[0].message;
+  EXPECT_NE(e[0].message.find("allowed (0, 1) s"), std::string::npos) << e[0].message;
+  s.numerics.dt_s = 0.75;
+  EXPECT_TRUE(measuredUnstable(s).empty());
+  // Passive cells: the map's 2 s.
+  SceneSpec passive = s;
+  passive.cells.p_a = 0;
+  passive.numerics.dt_s = 1;
+  EXPECT_TRUE(measuredUnstable(passive).empty());
+  passive.numerics.dt_s = 2;
+  e = measuredUnstable(passive);
+  ASSERT_EQ(e.size(), 1u);
   EXPECT_NE(e[0].message.find("contact-implicit-consistent was measured to fail from 2 s"),
             std::string::npos)
       << e[0].message;
-  EXPECT_NE(e[0].message.find("allowed (0, 2) s"), std::string::npos) << e[0].message;
   // No map with 1280 triangles: contact-implicit's limit there, and the message says so.
   s.numerics.dt_s = 1;
   s.numerics.triangles_per_cell = 1280;
