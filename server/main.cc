@@ -117,7 +117,7 @@ int main(int argc, char** argv) {
   bool metrics_public = false, insecure_public = false;
   int http_threads = HttpOptions{}.threads;
   app.add_option("--http-threads", http_threads,
-                 "HTTP worker threads (each open connection holds one while it is kept alive)")
+                 "HTTP worker threads (they answer whole requests: headers are read by one epoll thread)")
       ->check(CLI::Range(4, 1024))
       ->capture_default_str();
   app.add_flag("--metrics-public", metrics_public,
