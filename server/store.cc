@@ -165,6 +165,10 @@ void checkIntegrity(sqlite3* db, const std::string& path) {
     Stmt q(db, "PRAGMA quick_check(1)");
     if (q.step()) result = q.text(0);
   } catch (const SqliteError& e) {
+    if (e.code == SQLITE_BUSY)
+      throw std::runtime_error("database '" + path +
+                               "' is open in another process (SQLite: database is locked): "
+                               "foamd must be the only program using its database");
     result = e.what();
   }
   if (result == "ok") return;
