@@ -5,9 +5,12 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "activefoam/vtk.h"
 #include "common.h"
 #include "report.h"
 
@@ -90,9 +93,21 @@ int runPlot(Conn& conn, const PlotOptions& o);
 struct ExportOptions {
   std::string id;
   std::string dir;  // empty: job-ID
+  // --movie: FILE (.mp4 or .gif) rendered from the snapshots instead of the VTK files.
+  bool movie = false;
+  std::string movie_file;
+  double fps = 4;
+  std::string size = "1280x720";
+  std::string color = "spheroid";
 };
 CLI::App* setupExport(CLI::App& app, ExportOptions& o);
 int runExport(Conn& conn, const ExportOptions& o);
+int runMovie(Conn& conn, const ExportOptions& o);  // export --movie (commands/movie.cc)
+
+// Snapshot `info` of a job, fetched (GetSnapshot) and decoded; an error text, empty on success.
+std::string fetchSnapshot(v1::Foam::Stub& stub,
+                          const std::function<std::unique_ptr<grpc::ClientContext>()>& newCtx,
+                          const std::string& job_id, const v1::SnapshotInfo& info, VtkMesh& mesh);
 
 struct SweepOptions {
   SpecOptions spec;

@@ -20,6 +20,7 @@
 #include "dashboard_assets.h"
 #include "http_front.h"
 #include "listen.h"
+#include "mesh_frame.h"
 
 #include <openssl/err.h>
 #include <openssl/ssl.h>
@@ -456,10 +457,11 @@ std::string HttpEndpoint::handle(const std::string& target, int& code, std::stri
           csv += csvLine(std::vector<double>(smp.values().begin(), smp.values().end())) + '\n';
         return csv;
       }
-      if (what.rfind("snapshots/", 0) == 0 && what.size() > 14 &&
-          what.compare(what.size() - 4, 4, ".vtp") == 0) {
-        // snapshots/N.vtp (N = an index of the job's results) or snapshots/latest.vtp
-        const std::string which = what.substr(10, what.size() - 14);
+      // snapshots/N.vtp or snapshots/N.mesh (N = an index of the job's results, or latest)
+      const bool vtp = what.size() > 14 && what.compare(what.size() - 4, 4, ".vtp") == 0;
+      const bool binary = what.size() > 15 && what.compare(what.size() - 5, 5, ".mesh") == 0;
+      if (what.rfind("snapshots/", 0) == 0 && (vtp || binary)) {
+        const std::string which = what.substr(10, what.size() - 10 - (vtp ? 4 : 5));
         int index = -1;
         if (which != "latest") {
           if (which.empty() || which.size() > 9 ||
@@ -480,10 +482,14 @@ std::string HttpEndpoint::handle(const std::string& target, int& code, std::stri
         if (std::string err = decodeSnapshot(info, compression, std::move(data), mesh);
             !err.empty())
           throw std::runtime_error(err);
-        std::ostringstream vtp;
-        writeVtp(vtp, mesh);
+        if (binary) {
+          type = "application/octet-stream";
+          return encodeMeshFrame(mesh, info.index());
+        }
+        std::ostringstream out;
+        writeVtp(out, mesh);
         type = "application/xml";
-        return vtp.str();
+        return out.str();
       }
       if (what == "samples") {
         const v1::JobResults r = store_.results(rest, true);

@@ -1,9 +1,9 @@
 // foamd's HTTP side for dashboards and scrapers: the dashboard page at `/`, read-only JSON of
-// jobs, samples and results, CSV and VTK downloads, /metrics and /healthz. Requests are parsed
-// and answered by cpp-httplib on a pool of worker threads; connections are accepted and their
-// headers read by HttpFront (http_front.h), which hands a worker only whole requests. With the
-// gRPC listener's rules: a token guards every data route, and a non-loopback address needs a
-// token and TLS.
+// jobs, samples and results, CSV and VTK downloads, snapshots as binary meshes for the 3D view
+// (mesh_frame.h), /metrics and /healthz. Requests are parsed and answered by cpp-httplib on a
+// pool of worker threads; connections are accepted and their headers read by HttpFront
+// (http_front.h), which hands a worker only whole requests. With the gRPC listener's rules: a
+// token guards every data route, and a non-loopback address needs a token and TLS.
 #pragma once
 
 #include <cstddef>

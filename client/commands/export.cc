@@ -12,6 +12,29 @@
 #include "activefoam/vtk.h"
 
 namespace activefoam::client {
+
+std::string fetchSnapshot(v1::Foam::Stub& stub,
+                          const std::function<std::unique_ptr<grpc::ClientContext>()>& newCtx,
+                          const std::string& job_id, const v1::SnapshotInfo& info,
+                          activefoam::VtkMesh& mesh) {
+  v1::GetSnapshotRequest req;
+  req.set_job_id(job_id);
+  req.set_index(info.index());
+  auto ctx = newCtx();
+  auto reader = stub.GetSnapshot(ctx.get(), req);
+  v1::SnapshotChunk chunk;
+  std::string data, compression;
+  bool first = true;
+  while (reader->Read(&chunk)) {
+    if (first) compression = chunk.compression();
+    first = false;
+    data += chunk.data();
+  }
+  if (const grpc::Status st = reader->Finish(); !st.ok())
+    return "snapshot " + std::to_string(info.index()) + ": " + st.error_message();
+  return activefoam::decodeSnapshot(info, compression, std::move(data), mesh);
+}
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -28,24 +51,8 @@ std::string exportSnapshots(v1::Foam::Stub& stub,
   if (ec) return "cannot create " + dir.string() + ": " + ec.message();
   std::vector<std::pair<double, std::string>> series;
   for (const v1::SnapshotInfo& info : r.snapshots()) {
-    v1::GetSnapshotRequest req;
-    req.set_job_id(r.job().id());
-    req.set_index(info.index());
-    auto ctx = newCtx();
-    auto reader = stub.GetSnapshot(ctx.get(), req);
-    v1::SnapshotChunk chunk;
-    std::string data, compression;
-    bool first = true;
-    while (reader->Read(&chunk)) {
-      if (first) compression = chunk.compression();
-      first = false;
-      data += chunk.data();
-    }
-    if (const grpc::Status st = reader->Finish(); !st.ok())
-      return "snapshot " + std::to_string(info.index()) + ": " + st.error_message();
     activefoam::VtkMesh snap;
-    if (std::string err = activefoam::decodeSnapshot(info, compression, std::move(data), snap);
-        !err.empty())
+    if (std::string err = fetchSnapshot(stub, newCtx, r.job().id(), info, snap); !err.empty())
       return err;
     char name[32];
     std::snprintf(name, sizeof name, "snap_%06d.vtp", info.index());
@@ -68,13 +75,34 @@ std::string exportSnapshots(v1::Foam::Stub& stub,
 
 CLI::App* setupExport(CLI::App& app, ExportOptions& o) {
   auto* exportc = app.add_subcommand(
-      "export", "write a job's snapshots as VTK PolyData (.vtp) + series.pvd for ParaView");
+      "export",
+      "write a job's snapshots as VTK PolyData (.vtp) + series.pvd for ParaView, or with "
+      "--movie as a video (ffmpeg)");
   exportc->add_option("ID", o.id)->required();
+  exportc->add_option("FILE", o.movie_file, "with --movie: the video to write (.mp4 or .gif)");
   exportc->add_option("--out,-o", o.dir, "folder (default: job-ID)");
+  exportc->add_flag("--movie", o.movie,
+                    "render the snapshots to FILE (.mp4 or .gif) with ffmpeg: one frame a "
+                    "snapshot, a fixed camera on both spheroids, the time in a corner");
+  exportc->add_option("--fps", o.fps, "with --movie: frames (snapshots) a second")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 120.0));
+  exportc->add_option("--size", o.size, "with --movie: WIDTHxHEIGHT in pixels")
+      ->capture_default_str();
+  exportc
+      ->add_option("--color", o.color,
+                   "with --movie: spheroid | cell | pressure | volume (as the dashboard)")
+      ->capture_default_str();
   return exportc;
 }
 
 int runExport(Conn& conn, const ExportOptions& o) {
+  if (o.movie) return runMovie(conn, o);
+  if (!o.movie_file.empty()) {
+    std::cerr << "foam: export " << o.id << ": FILE " << o.movie_file
+              << " is for --movie (the VTK files go to --out DIR)\n";
+    return kUsage;
+  }
   v1::GetResultsRequest req;
   req.set_job_id(o.id);
   v1::JobResults r;

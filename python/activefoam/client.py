@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import math
 import os
+import shutil
+import subprocess
 import sys
 import time
 import zlib
@@ -176,6 +178,7 @@ class Client:
             _check_token(token)
         tls_ca = tls_ca if tls_ca is not None else os.environ.get("FOAM_TLS_CA") or None
         self.timeout_s = timeout_s
+        self._token, self._tls_ca = token, tls_ca  # for `foam` run on this client's behalf
         options = [("grpc.max_receive_message_length", 64 << 20)]
         if tls_ca:
             creds = grpc.ssl_channel_credentials(root_certificates=Path(tls_ca).read_bytes())
@@ -447,6 +450,50 @@ class Job:
             written.append(out / name)
         (out / "series.pvd").write_text(vtk.collection(series))
         return written + [out / "series.pvd"]
+
+    def movie(self, path: Union[str, os.PathLike], fps: float = 4, size: Sequence[int] = (1280, 720),
+              color: str = "spheroid", foam: Optional[str] = None) -> Path:
+        """Renders the snapshots to a video, `path` ending in .mp4 or .gif: one frame a snapshot,
+        a fixed camera on both spheroids, the simulated time in a corner; `color` is spheroid,
+        cell, pressure or volume, as on the dashboard. It runs `foam export --movie` (its
+        renderer, and Debian's ffmpeg), connected as this client is; `foam` names the
+        executable (default: $FOAM_EXE, else foam on PATH). Returns the path.
+
+        LookupError when the job has no snapshots (or does not exist), FileNotFoundError when
+        foam or ffmpeg is missing, ValueError for a bad argument, RuntimeError otherwise; each
+        with foam's message."""
+        exe = foam or os.environ.get("FOAM_EXE") or shutil.which("foam")
+        if not exe:
+            raise FileNotFoundError("Job.movie runs `foam export --movie`: no foam executable "
+                                    "(pass foam=..., set FOAM_EXE or put foam on PATH)")
+        width, height = size
+        args = [exe, "--server", self._c.server]
+        env = dict(os.environ)
+        # The token goes by the environment: a command line is readable by every local user.
+        env.pop("FOAM_TOKEN", None)
+        env.pop("FOAM_TLS_CA", None)
+        if self._c._token:
+            env["FOAM_TOKEN"] = self._c._token
+        if self._c._tls_ca:
+            args += ["--tls-ca", str(self._c._tls_ca)]
+        args += ["export", "--movie", self.id, str(path), "--fps", str(fps),
+                 "--size", f"{int(width)}x{int(height)}", "--color", color]
+        try:
+            r = subprocess.run(args, capture_output=True, text=True, env=env)
+        except OSError as e:
+            raise FileNotFoundError(f"cannot run {exe}: {e}") from None
+        if r.returncode != 0:
+            message = (r.stderr.strip() or r.stdout.strip()).removeprefix("foam: ")
+            if "no snapshots" in message or r.returncode == 5:
+                raise LookupError(message)
+            if "ffmpeg is not on PATH" in message:
+                raise FileNotFoundError(message)
+            if r.returncode == 2:
+                raise ValueError(message)
+            if r.returncode == 4:
+                raise PermissionError(message)
+            raise RuntimeError(message)
+        return Path(path)
 
     def _snapshot_bytes(self, index: int) -> bytes:
         chunks, compression = [], ""

@@ -114,6 +114,15 @@ def test_token_auth(tmp_path):
                 assert job.wait(timeout_s=120) == "succeeded"
         finally:
             del os.environ["FOAM_TOKEN"]
+        if os.environ.get("FOAM_EXE"):
+            # Job.movie hands the client's token to foam: the job is found (and has no
+            # snapshots); with a wrong token foam is refused.
+            with Client(d.address, token=secret, timeout_s=5) as c:
+                with pytest.raises(LookupError, match="no snapshots"):
+                    c.job(job.id).movie(tmp_path / "m.mp4")
+            with Client(d.address, token="wrong-token-0123456789", timeout_s=5) as wrong:
+                with pytest.raises(PermissionError):
+                    wrong.job(job.id).movie(tmp_path / "m.mp4")
     finally:
         d.stop()
 
@@ -193,3 +202,35 @@ def test_wait_follows_the_stream_watch_yields_the_samples_snapshot_gives_arrays(
     assert snap["tri"].ravel().tolist() == _vtp_array(text, "connectivity")
     assert snap["cell"].tolist() == [0] * len(snap["x"])
     assert job.snapshot()["t_s"] == 20.0  # the latest
+
+
+def _frames(path) -> int:
+    import subprocess
+    r = subprocess.run(["ffprobe", "-v", "error", "-count_frames", "-select_streams", "v:0",
+                        "-show_entries", "stream=nb_read_frames", "-of", "csv=p=0", str(path)],
+                       capture_output=True, text=True, check=True)
+    return int(r.stdout.strip())
+
+
+def test_movie_runs_foam_export_movie_one_frame_a_snapshot(client, tmp_path):
+    # Issue 38 item 2: Job.movie is `foam export --movie` (the CLI's renderer, Debian's ffmpeg).
+    import shutil
+    if not os.environ.get("FOAM_EXE"):
+        pytest.skip("FOAM_EXE does not name a built foam (ctest sets it)")
+    if not (shutil.which("ffmpeg") and shutil.which("ffprobe")):
+        pytest.skip("ffmpeg/ffprobe missing (apt-get install ffmpeg)")
+    job = client.submit(dict(TINY, duration_s=10))
+    assert job.wait(timeout_s=120) == "succeeded"
+    snaps = len(job._results(False).snapshots)
+    assert snaps == 3
+    out = job.movie(tmp_path / "cell.mp4", size=(320, 240))
+    assert out == tmp_path / "cell.mp4" and out.stat().st_size > 0
+    assert _frames(out) == snaps
+    assert _frames(job.movie(tmp_path / "cell.gif", size=(160, 120), color="pressure")) == snaps
+    none = client.submit(dict(TINY, snapshot_every_s=0))
+    assert none.wait(timeout_s=120) == "succeeded"
+    with pytest.raises(LookupError, match="no snapshots"):
+        none.movie(tmp_path / "none.mp4")
+    assert not (tmp_path / "none.mp4").exists()
+    with pytest.raises(ValueError, match="mp4 or .gif"):
+        job.movie(tmp_path / "cell.avi")

@@ -190,6 +190,15 @@ def test_points_are_the_union_of_the_grids(tmp_path):
     assert st.load(_study(tmp_path, [1])).run_id(run) == s.run_id(run)
 
 
+def _write_data(d: Path, rows, samples, msrd):
+    """A report's data folder (what `collect` writes) from plain rows."""
+    pd.DataFrame(rows).to_csv(d / "runs.csv", index=False)
+    pd.DataFrame(samples, columns=["job_id", "t_s"] + st.SAMPLE_COLUMNS).to_csv(
+        d / "samples.csv.gz", index=False)
+    pd.DataFrame(msrd, columns=["job_id", "lag_s", "msrd_um2"]).to_csv(d / "msrd.csv.gz",
+                                                                       index=False)
+
+
 def _synthetic(tmp: Path, shift_theta: float, failed_seed: int = 0):
     """A preset-fitness study's data folder with known answers: θ(t) = 40 + 5 t/h + seed noise
     (draft shifted by shift_theta), and one failed draft run."""
@@ -229,11 +238,7 @@ def _synthetic(tmp: Path, shift_theta: float, failed_seed: int = 0):
                 # MSRD at the end / r²: 0.5 + 0.1·seed, draft 10 % higher (IQR 0.2, Δ ≈ 0.08).
                 end = (0.5 + 0.1 * seed) * (1.1 if preset == "draft" else 1.0) * 8.88**2
                 msrd.append([jid, lag, end * lag / 7200])
-    pd.DataFrame(rows).to_csv(d / "runs.csv", index=False)
-    pd.DataFrame(samples, columns=["job_id", "t_s"] + st.SAMPLE_COLUMNS).to_csv(
-        d / "samples.csv.gz", index=False)
-    pd.DataFrame(msrd, columns=["job_id", "lag_s", "msrd_um2"]).to_csv(d / "msrd.csv.gz",
-                                                                       index=False)
+    _write_data(d, rows, samples, msrd)
     return f, d
 
 
@@ -338,11 +343,7 @@ def test_fitness_judges_a_candidate_of_a_second_grid_against_the_first_grids_ref
                 theta = 40 + 5 * t / 3600 + noise[seed] + shift[dt]
                 samples.append([jid, t, theta, 5.3, 1.0, 3.0])
             msrd += [[jid, lag, 40.0 * lag / 7200] for lag in (60, 600, 7200)]
-    pd.DataFrame(rows).to_csv(d / "runs.csv", index=False)
-    pd.DataFrame(samples, columns=["job_id", "t_s"] + st.SAMPLE_COLUMNS).to_csv(
-        d / "samples.csv.gz", index=False)
-    pd.DataFrame(msrd, columns=["job_id", "lag_s", "msrd_um2"]).to_csv(d / "msrd.csv.gz",
-                                                                       index=False)
+    _write_data(d, rows, samples, msrd)
     out = tmp_path / "out"
     r = _run(["report", str(f), "--from-data", str(d), "--out", str(out)])
     assert r.returncode == 0, r.stderr

@@ -1,5 +1,6 @@
 // foamd's dashboard: the job list, one job, one sweep. Plain ES2020 over foamd's read-only
-// JSON routes, charts by Chart.js 3 (served by foamd as chart.js). Routes live in the fragment:
+// JSON routes, charts by Chart.js 3 (served by foamd as chart.js), a job's cells in 3D by
+// view3d.js (three.js). Routes live in the fragment:
 // #/ (jobs, with ?state=&tag=&sweep= filters), #/job/ID, #/sweep/ID; #token=T hands over a token.
 'use strict';
 
@@ -192,7 +193,7 @@ async function refreshHealth() {
 
 let generation = 0;  // bumped whenever a view (re)starts: answers meant for an older one are dropped
 let pollTimer = 0;
-let charts = [];     // the current view's Chart.js instances, destroyed when it is left
+let charts = [];     // the current view's Chart.js instances and 3D view, destroyed when it is left
 
 function stopPolling() {
   generation++;
@@ -480,7 +481,14 @@ function showJob(view, id) {
       {id: 'y', position: 'left', title: 'CG iterations / rejected steps'},
       {id: 'y1', position: 'right', title: 'volume error'}]),
     data: null,
+    view: new View3D.View($('#view3d'), id, async path => (await request(path)).arrayBuffer(), e => {
+      if (e instanceof AuthError) askForToken(e.message);
+      else showError(e.message);
+    }),
   };
+  charts.push(ctx.view);
+  // For tests and scripts: the 3D view (its three.js scene, camera and renderer).
+  window.foamdView3D = ctx.view;
   $('#main-column').addEventListener('change', e => {
     ctx.column = e.target.value;
     if (ctx.data) drawJobCharts(ctx);
@@ -517,6 +525,7 @@ async function refreshJob(live, ctx) {
   const vtk = $('#vtk-export');
   vtk.setAttribute('aria-disabled', String(!snaps.length));
   vtk.title = snaps.length ? '' : 'the job has no snapshot yet';
+  ctx.view.setSnapshots(snaps);
   const last = snaps[snaps.length - 1];
   $('#job-snapshots').textContent = last
     ? `${snaps.length} snapshot${snaps.length > 1 ? 's' : ''}, latest at t = ${formatNumber(last.t_s)} s` : '';

@@ -7,7 +7,15 @@ rendered DOM: the token prompt, the job list, a job's chart against its samples,
 download, and the sweep page. With SCREENSHOT_DIR set it saves dashboard-jobs.png,
 dashboard-job.png and dashboard-sweep.png there (1280x900).
 
-Exit status: 0 passed, 1 failed, 2 misconfigured, 77 skipped (no usable /usr/bin/chromium).
+A 2 x 8-cell fusion job (examples/fusion.toml, five snapshots) checks the 3D view last (issue
+38): the binary mesh route and its token, the three.js scene's triangles against the snapshot's,
+drawn pixels of both spheroids' colours read back from the canvas, the slider's first snapshot,
+the clip plane, the page without three.js; then a longer fusion job's page while it runs (the
+view follows its newest snapshot). With SCREENSHOT_DIR it also saves dashboard-3d.png and
+dashboard-3d-clip.png.
+
+Exit status: 0 passed, 1 failed, 2 misconfigured, 77 skipped (no usable /usr/bin/chromium, or
+this Chromium cannot create a WebGL context: then every check before the 3D view has passed).
 Standard library only; run it as  FOAMD=... FOAM=... /usr/bin/python3 test_dashboard.py
 """
 
@@ -17,6 +25,7 @@ import os
 import secrets
 import signal
 import socket
+import struct
 import subprocess
 import sys
 import tempfile
@@ -33,6 +42,10 @@ SKIP = 77
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 TERMINAL = {"succeeded", "failed", "cancelled"}
 WIDTH, HEIGHT = 1280, 900
+
+
+class Skip(Exception):
+    """A check that cannot run here (no WebGL): the test reports skipped, not passed."""
 
 
 def say(message: str) -> None:
@@ -188,7 +201,7 @@ def run(foamd: Foamd, browser: cdp.Browser, tmp: Path) -> None:
     say("foamd's routes:")
     status, ctype, body = foamd.get("/", token=False)
     check(status == 200 and ctype.startswith("text/html"), f"/ without a token: {status} {ctype}")
-    for asset in ("/app.js", "/style.css", "/chart.js"):
+    for asset in ("/app.js", "/style.css", "/chart.js", "/view3d.js", "/three.js", "/orbit-controls.js"):
         status, ctype, _ = foamd.get(asset, token=False)
         check(status == 200, f"{asset} without a token: {status} {ctype}")
     status, _, body = foamd.get("/jobs", token=False)
@@ -202,14 +215,16 @@ def run(foamd: Foamd, browser: cdp.Browser, tmp: Path) -> None:
     sweep = foamd.foam("sweep", str(EXAMPLES / "doublet.toml"), "--grid", "cells.alpha=0.3,0.6",
                        "--seeds", "1", "2", "--set", "duration_s=60", "--set", "sample_every_s=10",
                        "--tag", "dash-sweep").splitlines()[0].strip()
-    say(f"  cell {cell}, doublet {doublet}, sweep {sweep}")
+    fusion = foamd.foam("submit", str(EXAMPLES / "fusion.toml"), "--tag", "dash-3d",
+                        "--set", "snapshot_every_s=150").splitlines()[0].strip()
+    say(f"  cell {cell}, doublet {doublet}, sweep {sweep}, fusion {fusion}")
     sweep_jobs = []
     deadline = time.monotonic() + 30
     while len(sweep_jobs) < 4 and time.monotonic() < deadline:
         sweep_jobs = [j["id"] for j in foamd.json(f"/jobs?sweep={sweep}")["jobs"]]
         time.sleep(0.2)
     check(len(sweep_jobs) == 4, f"the sweep has 4 jobs: {sweep_jobs}")
-    wait_done(foamd, [cell, doublet, *sweep_jobs])
+    wait_done(foamd, [cell, doublet, *sweep_jobs, fusion])
 
     say("(1) / without a token: the prompt, then the jobs")
     page = browser.new_page(WIDTH, HEIGHT)
@@ -311,10 +326,198 @@ def run(foamd: Foamd, browser: cdp.Browser, tmp: Path) -> None:
     check(same_points(points, want), f"the sweep chart's medians {points} match /results")
     screenshot(page, "dashboard-sweep.png")
 
+    view_3d(foamd, browser, fusion)
+
     say("the browser's console:")
     # The 401s of step (1) are expected; anything else is a defect of the page.
     unexpected = [m for m in browser.console if "401" not in m]
     check(not unexpected, "no script errors" + ("" if not unexpected else ": " + "; ".join(unexpected)))
+
+
+def mesh_header(body: bytes) -> dict:
+    """The JSON header of a .mesh answer (server/mesh_frame.h), its layout checked."""
+    check(body[:4] == b"AFM1", f"the mesh starts with AFM1 ({body[:4]!r})")
+    (n,) = struct.unpack_from("<I", body, 4)
+    h = json.loads(body[8:8 + n])
+    check(h["positions_offset"] == 8 + n and h["positions_offset"] % 4 == 0
+          and h["triangles_offset"] == h["positions_offset"] + 12 * h["vertices"]
+          and len(body) == h["triangles_offset"] + 12 * h["triangles"],
+          f"{len(body)} bytes: header, {h['vertices']} float32 vertices, {h['triangles']} uint32 triangles")
+    return h
+
+
+# The canvas read back (it keeps its drawing buffer): pixels unlike the background, of spheroid
+# A's blue and B's orange, and a checksum that changes with the picture.
+CANVAS_PIXELS = """(async () => {
+  const c = document.querySelector('#view3d-canvas');
+  const img = new Image();
+  img.src = c.toDataURL('image/png');
+  await img.decode();
+  const cv = document.createElement('canvas');
+  cv.width = img.width; cv.height = img.height;
+  const g = cv.getContext('2d');
+  g.drawImage(img, 0, 0);
+  const d = g.getImageData(0, 0, cv.width, cv.height).data;
+  let drawn = 0, blue = 0, orange = 0, sum = 0;
+  for (let i = 0; i < d.length; i += 4) {
+    const r = d[i], gr = d[i + 1], b = d[i + 2];
+    if (Math.abs(r - 0xf4) + Math.abs(gr - 0xf6) + Math.abs(b - 0xf9) > 24) drawn++;
+    if (b > r + 40 && b > gr + 10) blue++;
+    if (r > b + 60 && r > gr + 20) orange++;
+    sum = (sum * 31 + r * 7 + gr * 3 + b) % 1000000007;
+  }
+  return {width: cv.width, height: cv.height, drawn, blue, orange, sum};
+})()"""
+
+# The three.js scene as the test sees it: its meshes' triangles, and a sum over their positions.
+SCENE = """(() => {
+  const v = window.foamdView3D;
+  let triangles = 0, meshes = 0, xsum = 0;
+  v.scene.traverse(o => {
+    if (!o.isMesh) return;
+    meshes++;
+    const g = o.geometry, p = g.getAttribute('position');
+    triangles += (g.index ? g.index.count : p.count) / 3;
+    for (let i = 0; i < p.array.length; i += 3) xsum += p.array[i];
+  });
+  return {triangles, meshes, xsum, clipping: v.material.clippingPlanes.length,
+    snapshot: v.canvas.dataset.snapshot, time: document.querySelector('.view3d-time').textContent};
+})()"""
+
+
+def view_3d(foamd: Foamd, browser: cdp.Browser, fusion: str) -> None:
+    say("(5) the fusion job's 3D view")
+    snaps = foamd.json(f"/jobs/{fusion}/results")["snapshots"]
+    check(len(snaps) == 5, f"the fusion job has 5 snapshots: t = {[s['t_s'] for s in snaps]}")
+    first, last = snaps[0], snaps[-1]
+    path = f"/jobs/{fusion}/snapshots/{first['index']}.mesh"
+    status, _, body = foamd.get(path, token=False)
+    check(status == 401 and "error" in json.loads(body), f"{path} without the token: {status}")
+    status, _, body = foamd.get(path.replace(".mesh", ".vtp"), token=False)
+    check(status == 401, f"its .vtp without the token: {status}")
+    meshes = {}
+    for snap in (first, last):
+        status, ctype, body = foamd.get(f"/jobs/{fusion}/snapshots/{snap['index']}.mesh")
+        check(status == 200 and ctype == "application/octet-stream", f"snapshot {snap['index']}.mesh: {status} {ctype}")
+        h = mesh_header(body)
+        check(h["index"] == snap["index"] and h["triangles"] == snap["triangles"]
+              and h["vertices"] == snap["vertices"] and h["cells"] == 16 and sorted(set(h["spheroid"])) == [0, 1],
+              f"its header: {h['cells']} cells of spheroids 0 and 1, {h['triangles']} triangles as the snapshot list says")
+        meshes[snap["index"]] = h
+
+    page = browser.new_page(WIDTH, HEIGHT)
+    page.navigate(f"{foamd.base}/#token={foamd.token}")
+    page.wait_for("document.querySelectorAll('#jobs tr[data-job-id]').length > 0")
+    page.navigate(f"{foamd.base}/#/job/{fusion}")
+    state = page.wait_for("['ready', 'unavailable', 'error'].includes(document.querySelector('#view3d-canvas')"
+                          "?.dataset.state) && document.querySelector('#view3d-canvas').dataset.state", 30)
+    if state == "unavailable":
+        raise Skip("no 3D view in this Chromium: "
+                   + page.evaluate("document.querySelector('.view3d-message').textContent"))
+    check(state == "ready", f"the 3D view loaded a snapshot (state {state})")
+    page.wait_for("Number(document.querySelector('#view3d-canvas').dataset.renders) > 0")
+    time.sleep(0.3)
+    scene = page.evaluate(SCENE)
+    check(scene["snapshot"] == str(last["index"]), f"a finished job opens on its latest snapshot ({scene['time']})")
+    check(scene["meshes"] == 1 and scene["triangles"] == last["triangles"],
+          f"the scene holds {scene['triangles']} triangles, the snapshot {last['triangles']}")
+    px = page.evaluate(CANVAS_PIXELS)
+    total = px["width"] * px["height"]
+    check(px["drawn"] > 0.03 * total, f"{px['drawn']} of {total} canvas pixels are drawn (not background)")
+    check(px["blue"] > 0.005 * total and px["orange"] > 0.005 * total,
+          f"both spheroids' colours show: {px['blue']} blue, {px['orange']} orange pixels")
+    check(page.evaluate("document.querySelector('.view3d-legend').textContent").count("spheroid") == 2,
+          "the legend names spheroids A and B")
+    screenshot(page, "dashboard-3d.png")
+
+    say("    the slider to the first snapshot")
+    page.evaluate("(() => { const s = document.querySelector('.view3d-slider'); s.value = 0;"
+                  " s.dispatchEvent(new Event('input')); })()")
+    page.wait_for(f"document.querySelector('#view3d-canvas').dataset.snapshot === {js(str(first['index']))}"
+                  " && document.querySelector('#view3d-canvas').dataset.state === 'ready'")
+    time.sleep(0.3)
+    scene0 = page.evaluate(SCENE)
+    check(scene0["triangles"] == first["triangles"], f"the scene holds snapshot {first['index']}'s {first['triangles']} triangles")
+    check(scene0["xsum"] != scene["xsum"], "its vertices are the first snapshot's, not the last's")
+    check(scene0["time"].startswith("t = 0 s") and "snapshot 1 of 5" in scene0["time"], f"the label: {scene0['time']}")
+    px0 = page.evaluate(CANVAS_PIXELS)
+    check(px0["sum"] != px["sum"] and px0["drawn"] > 0.03 * total, "the picture changed")
+
+    say("    the clip plane through the fusion axis")
+    page.evaluate("document.querySelector('.view3d-clip').click()")
+    page.wait_for("window.foamdView3D.material.clippingPlanes.length === 1")
+    time.sleep(0.3)
+    pxc = page.evaluate(CANVAS_PIXELS)
+    check(pxc["sum"] != px0["sum"] and pxc["drawn"] > 0.03 * total, "the clipped picture differs and is drawn")
+    screenshot(page, "dashboard-3d-clip.png")
+    page.evaluate("document.querySelector('.view3d-clip').click()")
+
+    say("    colour by cell id")
+    page.evaluate("(() => { const s = document.querySelector('.view3d-color'); s.value = 'cell';"
+                  " s.dispatchEvent(new Event('change')); })()")
+    page.wait_for("document.querySelector('.view3d-legend').textContent.includes('16 cells')")
+    time.sleep(0.3)
+    check(page.evaluate(CANVAS_PIXELS)["sum"] not in (px0["sum"], pxc["sum"]), "recoloured by cell id")
+    check(page.evaluate("document.querySelector('#error').hidden"), "no error shown")
+    # Leaving the page gives the WebGL context back (the console check at the end sees errors).
+    page.evaluate("location.hash = '#/'")
+    page.wait_for("document.querySelectorAll('#jobs tr[data-job-id]').length > 0")
+    check(page.evaluate("window.foamdView3D.renderer") is None, "leaving the job page disposes of the view")
+    page.close()
+
+    say("    three.js failing to load: the page says so and keeps its charts")
+    page = browser.new_page(WIDTH, HEIGHT)
+    page.send("Network.enable")
+    # Both: Debian's OrbitControls.js throws on load without three.js before it.
+    page.send("Network.setBlockedURLs", {"urls": ["*/three.js", "*/orbit-controls.js"]})
+    page.navigate(f"{foamd.base}/#token={foamd.token}")
+    page.navigate(f"{foamd.base}/#/job/{fusion}")
+    page.wait_for("document.querySelector('canvas#main-chart')?.dataset.points")
+    check(page.evaluate("document.querySelector('#view3d-canvas').dataset.state") == "unavailable"
+          and page.evaluate("document.querySelector('.view3d-message').textContent")
+          == "No 3D view: three.js did not load.", "the 3D view says three.js did not load")
+    check(len(json.loads(page.evaluate("document.querySelector('canvas#main-chart').dataset.points"))) > 10,
+          "the θ(t) chart is drawn all the same")
+    page.close()
+    # The blocked requests are the console errors this step causes.
+    browser.console[:] = [m for m in browser.console if "ERR_BLOCKED_BY_CLIENT" not in m]
+
+    say("(6) a running fusion job: the 3D view follows its newest snapshot")
+    # Three times as long as the first (its spheroids are cached now): a snapshot every 100
+    # simulated seconds gives the page several to follow while the job runs.
+    running = foamd.foam("submit", str(EXAMPLES / "fusion.toml"), "--tag", "dash-follow",
+                         "--set", "duration_s=1800", "--set", "snapshot_every_s=100").splitlines()[0].strip()
+    deadline = time.monotonic() + 120
+    while True:
+        res = foamd.json(f"/jobs/{running}/results")
+        if res.get("snapshots") and not res["job"].get("terminal"):
+            break
+        if res["job"].get("terminal") or time.monotonic() > deadline:
+            raise AssertionError(f"job {running} never ran with a snapshot: {res['job'].get('state')}")
+        time.sleep(0.2)
+    page = browser.new_page(WIDTH, HEIGHT)
+    page.navigate(f"{foamd.base}/#token={foamd.token}")
+    page.navigate(f"{foamd.base}/#/job/{running}")
+    shown = set()
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline:
+        state, snapshot, ready = page.evaluate(
+            "[document.querySelector('#job-state')?.textContent, document.querySelector('#view3d-canvas')?.dataset.snapshot,"
+            " document.querySelector('#view3d-canvas')?.dataset.state]")
+        if state in TERMINAL:
+            break
+        if state == "running" and ready == "ready":
+            shown.add(int(snapshot))
+        time.sleep(0.5)
+    wait_done(foamd, [running])
+    last = foamd.json(f"/jobs/{running}/results")["snapshots"][-1]
+    check(len(shown) >= 2, f"while the job ran the view followed it through snapshots {sorted(shown)}")
+    page.wait_for(f"document.querySelector('#view3d-canvas').dataset.snapshot === {js(str(last['index']))}"
+                  " && document.querySelector('#view3d-canvas').dataset.state === 'ready'", 30)
+    label = page.evaluate("document.querySelector('.view3d-time').textContent")
+    check(label.endswith("(latest)") and f"snapshot {len(foamd.json(f'/jobs/{running}/results')['snapshots'])} of" in label,
+          f"it ends on the last one: {label}")
+    page.close()
 
 
 def main() -> int:
@@ -328,7 +531,8 @@ def main() -> int:
         say(f"skipped: {cdp.CHROMIUM} is missing (apt-get install chromium)")
         return SKIP
     try:
-        browser = cdp.Browser()
+        # WebGL on the CPU (SwiftShader), which newer Chromiums offer only when asked.
+        browser = cdp.Browser(extra_args=("--enable-unsafe-swiftshader",))
     except cdp.BrowserUnavailable as e:
         say(f"skipped: Chromium cannot start: {e}")
         return SKIP
@@ -341,6 +545,9 @@ def main() -> int:
             run(foamd, browser, Path(tmp))
             say("PASSED")
             return 0
+        except Skip as e:
+            say(f"SKIPPED: {e}")
+            return SKIP
         except (AssertionError, cdp.CDPError, TimeoutError) as e:
             say(f"FAILED: {e}")
             if browser.console:

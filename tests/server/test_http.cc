@@ -337,6 +337,7 @@ TEST_F(HttpTest, TheTokenGuardsEveryDataRouteButNotThePageOrHealth) {
   o.token = "s3cret-token";
   start(o);
   for (const char* path : {"/jobs", "/jobs/j-1", "/jobs/j-1/samples", "/jobs/j-1/samples.csv",
+                           "/jobs/j-1/snapshots/0.vtp", "/jobs/j-1/snapshots/latest.mesh",
                            "/results", "/metrics", "/nowhere"}) {
     auto res = client().Get(path);
     ASSERT_TRUE(res) << path;
@@ -353,7 +354,8 @@ TEST_F(HttpTest, TheTokenGuardsEveryDataRouteButNotThePageOrHealth) {
   EXPECT_EQ(res->status, 200) << res->body;
   EXPECT_EQ(client("s3cret-token").Get("/metrics")->status, 200);
   // The page carries no data: the browser loads it, then asks for the token.
-  for (const char* path : {"/healthz", "/", "/index.html", "/app.js", "/style.css", "/chart.js"}) {
+  for (const char* path : {"/healthz", "/", "/index.html", "/app.js", "/style.css", "/chart.js",
+                           "/view3d.js", "/three.js", "/orbit-controls.js"}) {
     res = client().Get(path);
     ASSERT_TRUE(res) << path;
     EXPECT_EQ(res->status, 200) << path;

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <future>
@@ -1023,7 +1024,47 @@ TEST_F(ServiceTest, HttpServesJobsResultsAndMetricsWithFilters) {
     const activefoam::VtkMesh mesh = activefoam::readVtp(vtp);
     EXPECT_EQ(mesh.tri.size(), 80u);
     EXPECT_DOUBLE_EQ(mesh.t_s, which == "latest" ? res.snapshots().rbegin()->t_s() : 0.0);
+    // The same snapshot in the 3D view's binary form (server/mesh_frame.h): one cell, so its
+    // vertices and triangles keep their order; positions as float32.
+    const std::string bin =
+        http.handle("/jobs/" + ids[0] + "/snapshots/" + which + ".mesh", code, type);
+    ASSERT_EQ(code, 200) << bin;
+    EXPECT_EQ(type, "application/octet-stream");
+    ASSERT_GT(bin.size(), 8u);
+    EXPECT_EQ(bin.substr(0, 4), "AFM1");
+    std::uint32_t hlen = 0;
+    std::memcpy(&hlen, bin.data() + 4, 4);
+    const nlohmann::json h = nlohmann::json::parse(bin.substr(8, hlen));
+    EXPECT_EQ(h.at("index").get<int>(), which == "latest" ? res.snapshots().rbegin()->index() : 0);
+    EXPECT_DOUBLE_EQ(h.at("t_s").get<double>(), mesh.t_s);
+    const std::size_t nv = mesh.points.size() / 3, nt = mesh.tri.size();
+    EXPECT_EQ(h.at("vertices").get<std::size_t>(), nv);
+    EXPECT_EQ(h.at("triangles").get<std::size_t>(), nt);
+    EXPECT_EQ(h.at("cells").get<int>(), 1);
+    EXPECT_EQ(h.at("vertex_start"), nlohmann::json({0, nv}));
+    EXPECT_EQ(h.at("triangle_start"), nlohmann::json({0, nt}));
+    EXPECT_EQ(h.at("pressure_kPa").size(), 1u);
+    const auto pos_off = h.at("positions_offset").get<std::size_t>();
+    const auto tri_off = h.at("triangles_offset").get<std::size_t>();
+    EXPECT_EQ(pos_off, 8 + hlen);
+    EXPECT_EQ(pos_off % 4, 0u);
+    EXPECT_EQ(tri_off, pos_off + 12 * nv);
+    ASSERT_EQ(bin.size(), tri_off + 12 * nt);
+    for (std::size_t k = 0; k < 3 * nv; ++k) {
+      float x = 0;
+      std::memcpy(&x, bin.data() + pos_off + 4 * k, 4);
+      ASSERT_EQ(x, static_cast<float>(mesh.points[k])) << k;
+    }
+    for (std::size_t k = 0; k < 3 * nt; ++k) {
+      std::uint32_t v = 0;
+      std::memcpy(&v, bin.data() + tri_off + 4 * k, 4);
+      ASSERT_EQ(v, static_cast<std::uint32_t>(mesh.tri[k / 3][k % 3])) << k;
+    }
   }
+  http.handle("/jobs/" + ids[0] + "/snapshots/99.mesh", code, type);
+  EXPECT_EQ(code, 404);
+  http.handle("/jobs/" + ids[0] + "/snapshots/x.mesh", code, type);
+  EXPECT_EQ(code, 400);
   http.handle("/jobs/" + ids[0] + "/snapshots/99.vtp", code, type);
   EXPECT_EQ(code, 404);
   http.handle("/jobs/" + ids[0] + "/snapshots/-1.vtp", code, type);
