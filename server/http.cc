@@ -18,8 +18,12 @@
 #include "activefoam/snapshot_vtk.h"
 #include "activefoam/vtk.h"
 #include "dashboard_assets.h"
+#include "http_front.h"
 #include "listen.h"
 #include "mesh_frame.h"
+
+#include <openssl/err.h>
+#include <openssl/ssl.h>
 
 // Last: it pulls in <resolv.h>, whose `_res` macro breaks Eigen parameter names.
 #include <httplib.h>
@@ -145,6 +149,9 @@ void checkHttpOptions(const HttpOptions& o) {
   if (o.threads < 4 || o.threads > 1024)
     throw std::invalid_argument("--http-threads " + std::to_string(o.threads) +
                                 ": allowed range [4, 1024]");
+  if (o.header_timeout_s < 1 || o.read_timeout_s < 1 || o.max_connections_per_client < 1 ||
+      o.max_connections < o.max_connections_per_client)
+    throw std::invalid_argument("HTTP limits out of range (timeouts >= 1 s, connections >= 1)");
 }
 
 namespace {
@@ -186,31 +193,48 @@ void jsonError(httplib::Response& res, int code, const std::string& what) {
 
 }  // namespace
 
+namespace {
+
+// The library's request parsing and routing, fed a connection by HttpFront.
+class Router : public httplib::Server {
+ public:
+  void serveOne(httplib::Stream& strm) {
+    bool closed = true;
+    // One request per connection (the answer says `Connection: close`): a refusal on a
+    // kept-alive one (a GET's unread body, a POST without a length) left the client waiting
+    // out the keep-alive, and an unread body was parsed as the next request. A read-only
+    // endpoint polled every few seconds loses nothing by it.
+    (void)process_request(strm, true, closed, nullptr);
+  }
+};
+
+std::string sslError() {
+  char buf[256] = "";
+  ERR_error_string_n(ERR_get_error(), buf, sizeof buf);
+  return buf;
+}
+
+}  // namespace
+
 HttpEndpoint::HttpEndpoint(Store& store, Executor& pool, HttpOptions options)
     : store_(store), pool_(pool), options_(std::move(options)) {
   checkHttpOptions(options_);
   const bool tls = !options_.tls_cert_path.empty();
+  std::unique_ptr<SSL_CTX, void (*)(SSL_CTX*)> ctx(nullptr, SSL_CTX_free);
   if (tls) {
-    auto ssl = std::make_unique<httplib::SSLServer>(options_.tls_cert_path.c_str(),
-                                                    options_.tls_key_path.c_str());
-    if (!ssl->is_valid())
+    ctx.reset(SSL_CTX_new(TLS_server_method()));
+    SSL_CTX* c = ctx.get();
+    if (c == nullptr || SSL_CTX_set_min_proto_version(c, TLS1_2_VERSION) != 1 ||
+        SSL_CTX_use_certificate_chain_file(c, options_.tls_cert_path.c_str()) != 1 ||
+        SSL_CTX_use_PrivateKey_file(c, options_.tls_key_path.c_str(), SSL_FILETYPE_PEM) != 1 ||
+        SSL_CTX_check_private_key(c) != 1)
       throw std::runtime_error("--http: cannot use the TLS certificate '" + options_.tls_cert_path +
-                               "' with the key '" + options_.tls_key_path + "'");
-    http_ = std::move(ssl);
-  } else {
-    http_ = std::make_unique<httplib::Server>();
+                               "' with the key '" + options_.tls_key_path + "': " + sslError());
+    SSL_CTX_set_options(c, SSL_OP_NO_COMPRESSION | SSL_OP_NO_RENEGOTIATION);
+    SSL_CTX_set_mode(c, SSL_MODE_ENABLE_PARTIAL_WRITE | SSL_MODE_ACCEPT_MOVING_WRITE_BUFFER);
   }
+  http_ = std::make_unique<Router>();
   httplib::Server& srv = *http_;
-  const int threads = options_.threads;
-  srv.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<size_t>(threads)); };
-  srv.set_read_timeout(options_.read_timeout_s, 0);
-  srv.set_write_timeout(options_.read_timeout_s, 0);
-  srv.set_keep_alive_timeout(options_.keep_alive_timeout_s);
-  // One request per connection: the library closes a connection only after its last allowed
-  // request, so a refusal on a kept-alive one (a GET's unread body, a POST without a length)
-  // left the client waiting out the keep-alive, and an unread body was parsed as the next
-  // request. A read-only endpoint polled every few seconds loses nothing by it.
-  srv.set_keep_alive_max_count(1);
   srv.set_payload_max_length(64 * 1024);  // GET only: a body is never needed
 
   srv.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
@@ -281,28 +305,26 @@ HttpEndpoint::HttpEndpoint(Store& store, Executor& pool, HttpOptions options)
   }
   if (port < 0 || port > 65535)
     throw std::invalid_argument("--http '" + options_.listen + "': port out of [0, 65535]");
-  // cpp-httplib 0.11 sets SO_REUSEPORT on its listener: a second foamd on a taken port bound
-  // too and the kernel split the requests between the two (issue 39). SO_REUSEADDR only, so a
-  // taken port fails here.
-  srv.set_socket_options([](socket_t sock) {
-    int yes = 1;
-    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
-  });
+  // cpp-httplib 0.11 set SO_REUSEPORT on its listener: a second foamd on a taken port bound
+  // too and the kernel split the requests between the two (issue 39). bindHttpListener sets
+  // SO_REUSEADDR only, so a taken port fails here.
   if (const std::string why = loopbackSiblingTaken(options_.listen); !why.empty())
     throw std::runtime_error("--http: cannot listen on " + options_.listen + ": " + why);
-  if (port == 0) {
-    port_ = srv.bind_to_any_port(host);
-  } else if (srv.bind_to_port(host, port)) {
-    port_ = port;
-  }
-  if (port_ <= 0)
+  const int fd = bindHttpListener(host, port);
+  if (fd < 0)
     throw std::runtime_error("--http: cannot listen on " + options_.listen +
                              ": the port is taken or the address is not this machine's");
-  thread_ = std::thread([this] { http_->listen_after_bind(); });
-  // stop() is a no-op until the loop runs: a destructor right after construction (a failed
-  // start elsewhere, a test) would otherwise wait on a loop that never ends.
-  for (int i = 0; i < 5000 && !http_->is_running(); ++i)
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  port_ = port;
+  FrontOptions front;
+  front.workers = options_.threads;
+  front.header_timeout_s = options_.header_timeout_s;
+  front.io_timeout_s = options_.read_timeout_s;
+  front.max_per_client = options_.max_connections_per_client;
+  front.max_connections = options_.max_connections;
+  front_ = std::make_unique<HttpFront>(fd, ctx.get(), front, [this](httplib::Stream& strm) {
+    static_cast<Router&>(*http_).serveOne(strm);
+  });
+  tls_ = ctx.release();
   spdlog::info("foamd: HTTP (dashboard at /, JSON, /metrics) on {} (port {}){}{}{}",
                options_.listen, port_, tls ? ", TLS" : "",
                options_.token.empty() ? "" : ", token required",
@@ -310,8 +332,8 @@ HttpEndpoint::HttpEndpoint(Store& store, Executor& pool, HttpOptions options)
 }
 
 HttpEndpoint::~HttpEndpoint() {
-  if (http_) http_->stop();
-  if (thread_.joinable()) thread_.join();
+  front_.reset();  // its workers answer through http_ and tls_
+  SSL_CTX_free(tls_);
 }
 std::string HttpEndpoint::handle(const std::string& target, int& code, std::string& type) {
   code = 200;

@@ -116,8 +116,9 @@ int main(int argc, char** argv) {
                  "/healthz");
   bool metrics_public = false, insecure_public = false;
   int http_threads = HttpOptions{}.threads;
-  app.add_option("--http-threads", http_threads,
-                 "HTTP worker threads (each open connection holds one while it is kept alive)")
+  app.add_option(
+         "--http-threads", http_threads,
+         "HTTP worker threads (they answer whole requests: headers are read by one epoll thread)")
       ->check(CLI::Range(4, 1024))
       ->capture_default_str();
   app.add_flag("--metrics-public", metrics_public,
@@ -239,7 +240,8 @@ int main(int argc, char** argv) {
     // The pool's runs died with the last foamd (they resume from their checkpoints); Slurm
     // tasks outlive it and are reconciled by the executor.
     if (executor == "pool")
-      if (const int n = store.requeueRunning("foamd restarted while it was running; re-queued"))
+      if (const int n =
+              store.requeueRunningInBackground("foamd restarted while it was running; re-queued"))
         spdlog::warn("store: {} job(s) were running when foamd stopped; re-queued", n);
 
     PoolOptions po;

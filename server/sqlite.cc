@@ -1,6 +1,8 @@
 // SQLite helpers (see sqlite.h).
 #include "sqlite.h"
 
+#include "heap_shm_vfs.h"
+
 namespace activefoam::server::sql {
 
 // Failures of the storage, not of the statement: the same write may succeed later.
@@ -48,7 +50,7 @@ sqlite3* openDb(const std::string& path, int busy_ms) {
   sqlite3* db = nullptr;
   if (sqlite3_open_v2(path.c_str(), &db,
                       SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX,
-                      nullptr) != SQLITE_OK) {
+                      heapShmVfs()->zName) != SQLITE_OK) {
     std::string msg = db ? sqlite3_errmsg(db) : "out of memory";
     sqlite3_close(db);
     throw std::runtime_error("cannot open database '" + path + "': " + msg);

@@ -165,6 +165,10 @@ void checkIntegrity(sqlite3* db, const std::string& path) {
     Stmt q(db, "PRAGMA quick_check(1)");
     if (q.step()) result = q.text(0);
   } catch (const SqliteError& e) {
+    if (e.code == SQLITE_BUSY)
+      throw std::runtime_error("database '" + path +
+                               "' is open in another process (SQLite: database is locked): "
+                               "foamd must be the only program using its database");
     result = e.what();
   }
   if (result == "ok") return;
@@ -627,20 +631,28 @@ bool Store::requeue(const std::string& id, const std::string& reason) {
   });
 }
 
+int Store::requeueAll(Tx& tx, const std::string& reason) {
+  std::vector<std::string> ids;
+  Stmt q(tx.db, "SELECT id FROM jobs WHERE state = ?");
+  q.bind(1, static_cast<int>(v1::JOB_STATE_RUNNING));
+  while (q.step()) ids.push_back(q.text(0));
+  for (const std::string& id : ids) {
+    tx.changeState(id, v1::JOB_STATE_RUNNING, v1::JOB_STATE_QUEUED);
+    Stmt up(tx.db, "UPDATE jobs SET reason = ?, executor_ref = '' WHERE id = ?");
+    up.bind(1, reason).bind(2, id).run();
+    tx.stateEvent(id);
+  }
+  return static_cast<int>(ids.size());
+}
+
 int Store::requeueRunning(const std::string& reason) {
-  return write([&](Tx& tx) {
-    std::vector<std::string> ids;
-    Stmt q(tx.db, "SELECT id FROM jobs WHERE state = ?");
-    q.bind(1, static_cast<int>(v1::JOB_STATE_RUNNING));
-    while (q.step()) ids.push_back(q.text(0));
-    for (const std::string& id : ids) {
-      tx.changeState(id, v1::JOB_STATE_RUNNING, v1::JOB_STATE_QUEUED);
-      Stmt up(tx.db, "UPDATE jobs SET reason = ?, executor_ref = '' WHERE id = ?");
-      up.bind(1, reason).bind(2, id).run();
-      tx.stateEvent(id);
-    }
-    return static_cast<int>(ids.size());
-  });
+  return write([&](Tx& tx) { return requeueAll(tx, reason); });
+}
+
+int Store::requeueRunningInBackground(const std::string& reason) {
+  const int n = static_cast<int>(runningJobs().size());
+  post([reason](Tx& tx) { requeueAll(tx, reason); });
+  return n;
 }
 
 void Store::resetOutputs(const std::string& id, std::optional<double> keep_until) {

@@ -140,6 +140,11 @@ class Store {
   bool requeue(const std::string& id, const std::string& reason);
   // At startup: every job left running by a previous process → queued. Returns how many.
   int requeueRunning(const std::string& reason);
+  // The same without waiting for the write (foamd's start): queued ahead of any later write, so
+  // no job is claimed before it, and retried like every write while the storage fails — a
+  // server restarted on a full disk listens at once, degraded, instead of blocking here
+  // (issue 39). Returns how many jobs it will re-queue (a read).
+  int requeueRunningInBackground(const std::string& reason);
   // Before a (re)start: drops outputs after the checkpoint time (all of them without one).
   void resetOutputs(const std::string& id, std::optional<double> keep_until_t_s);
   void dropCheckpoint(const std::string& id);
@@ -190,6 +195,7 @@ class Store {
   void post(std::function<void(Tx&)> fn);  // fire and forget (errors logged)
   void writerLoop();
   void notifyHealth(bool writable);
+  static int requeueAll(Tx& tx, const std::string& reason);
 
   std::string path_;
   StoreOptions options_;

@@ -824,6 +824,63 @@ TEST_F(ServiceTest, StoreWriteFailuresAreRetriedAndTheJobEndsIntact) {
   }
 }
 
+// Issue 39 item 2: foamd restarted (after kill -9) on a full disk re-queued the jobs left running
+// with a write that waited for space, before it listened: neither gRPC nor /healthz answered
+// until space returned. Now the start's re-queue is one more write of the writer thread: retried
+// while the storage fails, the server listens at once and is degraded (NOT_SERVING, submits
+// refused, reads served) until the write commits; then the job resumes and ends.
+TEST_F(ServiceTest, StoreWriteFailuresAtStartLeaveTheServerListeningDegraded) {
+  faulty_vfs::install();
+  startServer(false);
+  const std::string id = submit(tinyCell());
+  ASSERT_TRUE(store_->claimNext()) << "the job is running when the server dies";
+  server_->shutdown();
+  server_.reset();
+  pool_.reset();  // never started: it re-queues nothing, as kill -9 does not
+  store_.reset();
+
+  faulty_vfs::fail_writes = true;
+  // What foamd's main does at a start, on a thread: the old start never returned.
+  auto started = std::async(std::launch::async, [&] {
+    store_ = std::make_unique<Store>(db_.string());
+    EXPECT_EQ(store_->requeueRunningInBackground("restarted"), 1);
+    PoolOptions po;
+    po.workers = 2;
+    pool_ = std::make_unique<Pool>(*store_, po);
+    ServerConfig config;
+    config.listen = "127.0.0.1:0";
+    server_ = std::make_unique<FoamServer>(*store_, *pool_, config);
+    server_->start();
+    pool_->start();
+  });
+  if (started.wait_for(3s) != std::future_status::ready) {
+    faulty_vfs::fail_writes = false;  // let it finish, to fail cleanly
+    started.get();
+    FAIL() << "the server did not start within 3 s while writes failed";
+  }
+  started.get();
+  channel_ = grpc::CreateChannel("127.0.0.1:" + std::to_string(server_->port()),
+                                 grpc::InsecureChannelCredentials());
+  stub_ = v1::Foam::NewStub(channel_);
+  for (int i = 0; i < 200 && !store_->degraded(); ++i) std::this_thread::sleep_for(10ms);
+  ASSERT_TRUE(store_->degraded());
+  grpc::GenericStub generic(channel_);
+  std::string reply;
+  ASSERT_TRUE(healthCheck(generic, "activefoam.v1.Foam", &reply).ok());
+  EXPECT_EQ(reply, std::string("\x08\x02", 2)) << "NOT_SERVING";
+  v1::SubmitJobResponse resp;
+  auto c = ctx();
+  EXPECT_EQ(stub_->SubmitJob(c.get(), tinyCell(), &resp).error_code(),
+            grpc::StatusCode::UNAVAILABLE);
+  EXPECT_EQ(get(id).state(), v1::JOB_STATE_RUNNING) << "reads are served; not re-queued yet";
+
+  faulty_vfs::fail_writes = false;
+  const v1::Job done = waitFor(id, terminal);
+  EXPECT_EQ(done.state(), v1::JOB_STATE_SUCCEEDED) << done.reason();
+  ASSERT_TRUE(healthCheck(generic, "activefoam.v1.Foam", &reply).ok());
+  EXPECT_EQ(reply, std::string("\x08\x01", 2)) << "SERVING again";
+}
+
 TEST_F(ServiceTest, HealthAndReflectionAnswer) {
   startServer(false);
   grpc::GenericStub generic(channel_);
