@@ -552,6 +552,8 @@ TEST(SpecIntegrator, ContactImplicitConsistentIsAKeyValueWithItsOwnFingerprintAn
             std::string::npos)
       << e[0].message;
   EXPECT_NE(e[0].message.find("allowed (0, 1) s"), std::string::npos) << e[0].message;
+  // The failing run was adaptive: the refusal must not suggest the adaptive step runs it.
+  EXPECT_EQ(e[0].message.find("adaptive step would run it"), std::string::npos) << e[0].message;
   s.numerics.dt_s = 0.75;
   EXPECT_TRUE(measuredUnstable(s).empty());
   // Passive cells: the map's 2 s.

@@ -246,6 +246,7 @@ std::vector<SpecError> measuredUnstable(const SceneSpec& spec) {
                  : "contact-implicit-consistent was measured to fail from 2 s (contact-oscillation "
                    "at every k_AB of the map)";
     kind = motile ? "docs/science/motion-convergence.md" : "docs/study/stability-map.md";
+    adaptive_settles = !motile;  // that run was adaptive: rejecting tries did not save it
   } else {
     // contact-implicit. The first map (polarity noise keyed by step) failed at 1 s with
     // motility; the map with the noise keyed by time ran 1 s there and failed at 2 s: the
