@@ -708,6 +708,16 @@ grpc::Status healthCheck(grpc::GenericStub& stub, const std::string& service, st
   return st;
 }
 
+// activefoam.v1.Foam's serving status as the health reply encodes it (kServing, kNotServing),
+// or the call's error.
+const std::string kServing("\x08\x01", 2), kNotServing("\x08\x02", 2);
+std::string foamHealth(const std::shared_ptr<grpc::Channel>& channel) {
+  grpc::GenericStub generic(channel);
+  std::string reply;
+  const grpc::Status st = healthCheck(generic, "activefoam.v1.Foam", &reply);
+  return st.ok() ? reply : "error: " + st.error_message();
+}
+
 }  // namespace
 
 // Strings that are not UTF-8, and bytes that are not a message at all: protobuf refuses both,
@@ -794,10 +804,7 @@ TEST_F(ServiceTest, StoreWriteFailuresAreRetriedAndTheJobEndsIntact) {
   std::this_thread::sleep_for(300ms);
   EXPECT_GT(store_->storeErrors(), 0);
   EXPECT_NE(store_->lastError().find("full"), std::string::npos) << store_->lastError();
-  grpc::GenericStub generic(channel_);
-  std::string reply;
-  ASSERT_TRUE(healthCheck(generic, "activefoam.v1.Foam", &reply).ok());
-  EXPECT_EQ(reply, std::string("\x08\x02", 2)) << "NOT_SERVING";
+  EXPECT_EQ(foamHealth(channel_), kNotServing);
   v1::SubmitJobResponse resp;
   auto c = ctx();
   const grpc::Status refused = stub_->SubmitJob(c.get(), tinyCell(), &resp);
@@ -810,8 +817,7 @@ TEST_F(ServiceTest, StoreWriteFailuresAreRetriedAndTheJobEndsIntact) {
   const v1::Job done = waitFor(id, terminal);
   EXPECT_EQ(done.state(), v1::JOB_STATE_SUCCEEDED) << done.reason();
   EXPECT_FALSE(store_->degraded());
-  ASSERT_TRUE(healthCheck(generic, "activefoam.v1.Foam", &reply).ok());
-  EXPECT_EQ(reply, std::string("\x08\x01", 2)) << "SERVING again";
+  EXPECT_EQ(foamHealth(channel_), kServing) << "SERVING again";
   const v1::JobResults a = store_->results(ref, true), b = store_->results(id, true);
   ASSERT_EQ(a.samples_size(), 81);
   ASSERT_EQ(b.samples_size(), a.samples_size());
@@ -864,10 +870,7 @@ TEST_F(ServiceTest, StoreWriteFailuresAtStartLeaveTheServerListeningDegraded) {
   stub_ = v1::Foam::NewStub(channel_);
   for (int i = 0; i < 200 && !store_->degraded(); ++i) std::this_thread::sleep_for(10ms);
   ASSERT_TRUE(store_->degraded());
-  grpc::GenericStub generic(channel_);
-  std::string reply;
-  ASSERT_TRUE(healthCheck(generic, "activefoam.v1.Foam", &reply).ok());
-  EXPECT_EQ(reply, std::string("\x08\x02", 2)) << "NOT_SERVING";
+  EXPECT_EQ(foamHealth(channel_), kNotServing);
   v1::SubmitJobResponse resp;
   auto c = ctx();
   EXPECT_EQ(stub_->SubmitJob(c.get(), tinyCell(), &resp).error_code(),
@@ -877,8 +880,7 @@ TEST_F(ServiceTest, StoreWriteFailuresAtStartLeaveTheServerListeningDegraded) {
   faulty_vfs::fail_writes = false;
   const v1::Job done = waitFor(id, terminal);
   EXPECT_EQ(done.state(), v1::JOB_STATE_SUCCEEDED) << done.reason();
-  ASSERT_TRUE(healthCheck(generic, "activefoam.v1.Foam", &reply).ok());
-  EXPECT_EQ(reply, std::string("\x08\x01", 2)) << "SERVING again";
+  EXPECT_EQ(foamHealth(channel_), kServing) << "SERVING again";
 }
 
 TEST_F(ServiceTest, HealthAndReflectionAnswer) {
