@@ -49,7 +49,8 @@ MAX_ATTEMPTS = 5         # jobs per run before a run counts as failed for good
 STUDY_KEYS = {"name", "title", "base", "preset", "seeds", "x", "x_label", "x_log", "by",
               "by_label", "priority", "scale"}
 FITNESS_KEYS = {"key", "reference", "metrics"}
-TOP_KEYS = {"study", "spec", "grid", "fitness"}
+TOP_KEYS = {"study", "spec", "grid", "fitness", "share"}
+SHARE_KEYS = {"file", "this", "that"}
 PRESETS = {"draft", "standard", "reference"}
 
 # Per-run metrics of a fusion study: name → (label, where it comes from).
@@ -112,6 +113,23 @@ class Run:
 
 
 @dataclass
+class Share:
+    """A point this study has in common with another study (same base, [spec] and preset): its
+    runs take that study's jobs at `that` point instead of running again."""
+    other: "Study"
+    this: Dict[str, Any]
+    that: Dict[str, Any]
+    index: int
+
+    def covers(self, point: Dict[str, Any]) -> bool:
+        return _same_point(point, self.this)
+
+
+def _same_point(a: Dict[str, Any], b: Dict[str, Any]) -> bool:
+    return set(a) == set(b) and all(_same(a[k], b[k]) for k in a)
+
+
+@dataclass
 class Study:
     path: Path
     name: str
@@ -130,6 +148,7 @@ class Study:
     priority: int = 0
     scale: str = ""
     fitness: Optional[Dict[str, Any]] = None
+    shares: List["Share"] = field(default_factory=list)
 
     @property
     def tag(self) -> str:
@@ -177,7 +196,7 @@ class Study:
         return keys
 
 
-def load(path: os.PathLike) -> Study:
+def load(path: os.PathLike, _shares: bool = True) -> Study:
     """Reads and checks a study file; StudyError names the key."""
     p = Path(path)
     if not p.is_file():
@@ -282,7 +301,61 @@ def load(path: os.PathLike) -> Study:
                              + (f"; unknown {bad[0]!r}{_closest(bad[0], list(METRICS))}"
                                 if bad else ""))
         study.fitness = {"key": f["key"], "reference": f["reference"], "metrics": metrics}
+    shares = doc.get("share", [])
+    if not isinstance(shares, list):
+        raise StudyError("share: [[share]] tables (file, this, that)")
+    if _shares:
+        for i, sh in enumerate(shares):
+            study.shares.append(_load_share(study, i, sh))
     return study
+
+
+def _load_share(study: Study, i: int, sh: Any) -> Share:
+    """[[share]]: file = another study file (relative to this one), this = one of this study's
+    points, that = the same run's point in the other study. Both studies must submit the same
+    base, [spec] and preset, so that a job of one is a run of the other; the keys each point
+    leaves to the base are checked against the jobs' resolved specs when the jobs are matched."""
+    where = f"share[{i}]"
+    if not isinstance(sh, dict):
+        raise StudyError(f"{where}: a table of file, this, that")
+    _unknown(sh, SHARE_KEYS, f"{where}.")
+    for k in ("file", "this", "that"):
+        if k not in sh:
+            raise StudyError(f"{where}.{k}: missing (file = the other study, this = one of this "
+                             "study's points, that = the same run's point there)")
+    if not isinstance(sh["file"], str):
+        raise StudyError(f"{where}.file: the path of a study file, got {sh['file']!r}")
+    other_path = (study.path.parent / sh["file"]).resolve()
+    if other_path == study.path.resolve():
+        raise StudyError(f"{where}.file: the study itself")
+    try:
+        other = load(other_path, _shares=False)
+    except StudyError as e:
+        raise StudyError(f"{where}.file: {e}") from None
+    for k in ("this", "that"):
+        if not isinstance(sh[k], dict) or not sh[k]:
+            raise StudyError(f"{where}.{k}: a table of KEY = value, got {sh[k]!r}")
+    this = {k: _scalar(f"{where}.this.{k}", v) for k, v in _flatten(sh["this"]).items()}
+    that = {k: _scalar(f"{where}.that.{k}", v) for k, v in _flatten(sh["that"]).items()}
+    if not any(_same_point(this, pt) for pt in study.points()):
+        raise StudyError(f"{where}.this: {this} is not one of this study's points")
+    if not any(_same_point(that, pt) for pt in other.points()):
+        raise StudyError(f"{where}.that: {that} is not one of {other.name}'s points")
+    for k in set(this) & set(that):
+        if not _same(this[k], that[k]):
+            raise StudyError(f"{where}: {k} is {this[k]} here and {that[k]} there: not one run")
+    if other.base_text != study.base_text:
+        raise StudyError(f"{where}.file: {other.name} runs another base spec "
+                         f"({other.base}); a job of it is not a run of this study")
+    if other.preset != study.preset or not _same_point(other.spec, study.spec):
+        diff = sorted(k for k in set(other.spec) | set(study.spec)
+                      if k not in other.spec or k not in study.spec
+                      or not _same(other.spec[k], study.spec[k]))
+        raise StudyError(f"{where}.file: {other.name} sets other [spec] keys or preset "
+                         f"({', '.join(diff) or 'preset'}); a job of it is not a run of this study")
+    if any(sh2.covers(this) for sh2 in study.shares):
+        raise StudyError(f"{where}.this: {this} is shared twice")
+    return Share(other=other, this=this, that=that, index=i)
 
 
 # ---- matching jobs to runs -------------------------------------------------------------------
@@ -346,6 +419,79 @@ def _jobs_by_run(study: Study, jobs: Sequence[Any]) -> Tuple[Dict[int, List[Any]
     return found, stale
 
 
+def _share_of(study: Study, run: Run) -> Optional[Share]:
+    return next((sh for sh in study.shares if sh.covers(run.point)), None)
+
+
+def _shared_jobs(study: Study, client: Any, own: Dict[int, List[Any]]) -> Dict[int, List[Any]]:
+    """Run index → the other study's jobs of that run, for the shared runs that have no job of
+    their own. A job is taken only when its resolved spec shows it is this run: this study's
+    keys (the point, the seed, [spec]) have their values in it, and the keys only the other
+    point sets have, in this study's own jobs, the values the base gives them. Until this study
+    has a job of its own to read the base from, nothing is shared (the run is submitted)."""
+    runs = study.runs()
+    out: Dict[int, List[Any]] = {}
+    if not study.shares:
+        return out
+    own_specs = [(runs[i], json.loads(j.spec_json) if j.spec_json else {})
+                 for i, js in own.items() for j in js]
+    listed: Dict[str, List[Any]] = {}
+    for sh in study.shares:
+        if sh.other.tag not in listed:
+            listed[sh.other.tag] = client._list(tag=sh.other.tag)
+        other_jobs, _ = _jobs_by_run(sh.other, listed[sh.other.tag])
+        other_runs = sh.other.runs()
+        for i, run in enumerate(runs):
+            if own.get(i) or not sh.covers(run.point):
+                continue
+            k_other = next((k for k, r in enumerate(other_runs)
+                            if r.seed == run.seed and _same_point(r.point, sh.that)), None)
+            jobs = other_jobs.get(k_other, []) if k_other is not None else []
+            if not jobs:
+                continue
+            verified = True
+            for key in (k for k in sh.that if k not in sh.this):
+                base = [_resolved_value(spec, key) for r, spec in own_specs
+                        if key not in r.point]
+                base = [v for v in base if v is not None]
+                if not base:
+                    verified = False  # no job of this study shows the base's value yet
+                    break
+                if not _same(base[0], sh.that[key]):
+                    raise StudyError(
+                        f"{study.path}: share[{sh.index}]: {key} is {base[0]} in this study's "
+                        f"runs (its base) but {sh.that[key]} at the shared point of "
+                        f"{sh.other.name}: not one run")
+            if not verified:
+                continue
+            for j in jobs:
+                spec = json.loads(j.spec_json) if j.spec_json else {}
+                if not _matches(study, run, spec):
+                    bad = next((k for k, v in study.settings(run).items()
+                                if _resolved_value(spec, k) is not None
+                                and not _same(_resolved_value(spec, k), v)), "?")
+                    raise StudyError(
+                        f"{study.path}: share[{sh.index}]: job {j.id} of {sh.other.name} has "
+                        f"{bad} = {_resolved_value(spec, bad)}, this run sets "
+                        f"{study.settings(run).get(bad)}: not one run")
+            out[i] = list(jobs)
+    return out
+
+
+def _run_jobs(study: Study, client: Any) -> Tuple[Dict[int, List[Any]], Dict[int, str],
+                                                  List[Any]]:
+    """Run index → its jobs (its own, else the shared study's); run index → the study the jobs
+    belong to, for shared runs; and this study's stale jobs."""
+    own, stale = _jobs_by_run(study, client._list(tag=study.tag))
+    shared = _shared_jobs(study, client, own)
+    found = dict(own)
+    source: Dict[int, str] = {}
+    for i, js in shared.items():
+        found[i] = js
+        source[i] = _share_of(study, study.runs()[i]).other.name
+    return found, source, stale
+
+
 def _needs_job(jobs: List[Any], retry_failed: bool) -> bool:
     from activefoam.client import _state_name
     if not jobs:
@@ -368,13 +514,20 @@ def submit_missing(study: Study, client: Any, retry_failed: bool = False,
     attempt number. A spec foamd refuses stops the submission and cancels what this call
     submitted (a study is submitted whole or not at all), then raises StudyError."""
     from activefoam.client import _setting
-    jobs = client._list(tag=study.tag)
-    found, _ = _jobs_by_run(study, jobs)
     runs = study.runs()
     submitted: List[str] = []
     held = 0
     from activefoam.v1 import service_pb2
-    for i, run in enumerate(runs):
+    # The runs of their own first: a shared run is matched against the other study's jobs with
+    # the base's values that this study's own jobs show.
+    order = ([i for i, r in enumerate(runs) if _share_of(study, r) is None] +
+             [i for i, r in enumerate(runs) if _share_of(study, r) is not None])
+    found: Dict[int, List[Any]] = {}
+    for n, i in enumerate(order):
+        if n == 0 or (_share_of(study, runs[i]) is not None and
+                      _share_of(study, runs[order[n - 1]]) is None):
+            found, _, _ = _run_jobs(study, client)
+        run = runs[i]
         have = found.get(i, [])
         if not _needs_job(have, retry_failed):
             held += 1
@@ -410,8 +563,7 @@ def submit_missing(study: Study, client: Any, retry_failed: bool = False,
 
 def _progress(study: Study, client: Any) -> Tuple[Dict[str, int], float, List[Any]]:
     from activefoam.client import _state_name
-    jobs = client._list(tag=study.tag)
-    found, _ = _jobs_by_run(study, jobs)
+    found, _, _ = _run_jobs(study, client)
     counts: Dict[str, int] = {}
     done_fraction = 0.0
     latest = []
@@ -491,8 +643,7 @@ def collect(study: Study, client: Any, out_dir: os.PathLike) -> Path:
     from activefoam.client import _state_name
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    jobs = client._list(tag=study.tag)
-    found, stale = _jobs_by_run(study, jobs)
+    found, source, stale = _run_jobs(study, client)
     rows, samples, curves = [], [], []
     for i, run in enumerate(study.runs()):
         row: Dict[str, Any] = {"run": i, **run.point, "seed": run.seed}
@@ -502,6 +653,8 @@ def collect(study: Study, client: Any, out_dir: os.PathLike) -> Path:
             rows.append(row)
             continue
         j = have[-1]
+        if i in source:
+            row["shared_from"] = source[i]
         row.update(job_id=j.id, state=_state_name(j.state), failure_kind=j.failure_kind,
                    reason=j.reason, outcome=j.outcome, attempts=len(have), t_end_s=j.t_s)
         if row["state"] in ("succeeded", "failed"):
@@ -525,7 +678,8 @@ def collect(study: Study, client: Any, out_dir: os.PathLike) -> Path:
         out / "msrd.csv.gz", index=False)
     meta = {"study": study.name, "file": str(study.path), "tag": study.tag,
             "collected_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-            "runs": len(rows), "stale_jobs": [j.id for j in stale]}
+            "runs": len(rows), "stale_jobs": [j.id for j in stale],
+            "shared_runs": {str(i): src for i, src in source.items()}}
     (out / "collected.json").write_text(json.dumps(meta, indent=1) + "\n")
     return out
 
@@ -960,7 +1114,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             print(f"study {study.name}: {len(study.points())} points × {len(study.seeds)} seeds "
                   f"= {len(runs)} runs, tag {study.tag}")
             for p in study.points():
-                print("  " + ", ".join(f"{k}={v}" for k, v in p.items()))
+                sh = next((x for x in study.shares if x.covers(p)), None)
+                print("  " + ", ".join(f"{k}={v}" for k, v in p.items()) +
+                      (f"  (shared: {sh.other.name}'s " +
+                       ", ".join(f"{k}={v}" for k, v in sh.that.items()) + ")" if sh else ""))
             return 0
         if args.cmd == "run":
             with _client(args) as c:
@@ -990,6 +1147,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except PermissionError as e:
         print(f"error: {e}", file=sys.stderr)
         return 4
+    except BrokenPipeError:  # a ConnectionError too, but of stdout (`check | head`)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except ConnectionError as e:
         print(f"error: {e} (is foamd running? --server / FOAM_SERVER)", file=sys.stderr)
         return 3

@@ -1,6 +1,7 @@
 """Studies as files (activefoam.study) through a real foamd: run, interrupt, rerun, report; and
 bad study files."""
 
+import json
 import os
 import signal
 import subprocess
@@ -360,3 +361,143 @@ def test_fitness_judges_a_candidate_of_a_second_grid_against_the_first_grids_ref
     md = (out / "fitness.md").read_text()
     assert "`numerics.dt_s = 0.5`: **fit**" in md
     assert "`numerics.dt_s = 1.0, numerics.cg_tol = 0.01`: **not fit** — theta_end_deg" in md
+
+
+# ---- shared runs: a point two studies have in common runs once --------------------------------
+
+class _FakeJob:
+    def __init__(self, jid, seed, spec, state="SUCCEEDED", failure_kind=""):
+        from activefoam.v1 import job_pb2
+        self.id, self.seed, self.spec_json = jid, seed, json.dumps(spec)
+        self.created_utc = jid
+        self.state = job_pb2.JobState.Value("JOB_STATE_" + state)
+        self.failure_kind, self.progress = failure_kind, 1.0
+
+
+class _FakeFoamd:
+    """What the study code asks of foamd: jobs by tag, and SubmitJob, which resolves a spec the
+    way foamd does for these keys (defaults α = 0.4375, τ_p = 600 s unless the base sets them)."""
+
+    def __init__(self, defaults):
+        self.jobs, self.submitted, self.defaults = {}, [], defaults
+
+    def add(self, tag, job):
+        self.jobs.setdefault(tag, []).append(job)
+
+    def _list(self, tag):
+        return list(self.jobs.get(tag, []))
+
+    def _call(self, method, req, what):
+        assert method == "SubmitJob"
+        spec = {"cells": dict(self.defaults)}
+        for s in req.settings:
+            k, v = s.split("=", 1)
+            node = spec
+            *path, leaf = k.split(".")
+            for p in path:
+                node = node.setdefault(p, {})
+            node[leaf] = json.loads(v) if v[0].isdigit() or v[0] == "-" else v
+        jid = f"j-{len(self.submitted):04d}"
+        self.add(req.tag, _FakeJob(jid, spec["seed"], spec, state="QUEUED"))
+        self.submitted.append(dict(s.split("=", 1) for s in req.settings))
+
+        class R:
+            created, job_id = True, jid
+        return R()
+
+
+def _shared_studies(tmp: Path, base_alpha_line=""):
+    (tmp / "base.toml").write_text('scene = "fusion"\n' + base_alpha_line)
+    common = '[spec]\nduration_s = 240\n'
+    (tmp / "alpha.toml").write_text(textwrap.dedent("""\
+        [study]
+        name = "alpha"
+        base = "base.toml"
+        seeds = [1, 2]
+        """) + common + '[[grid]]\n"cells.alpha" = [0.4375, 0.6]\n')
+    (tmp / "taup.toml").write_text(textwrap.dedent("""\
+        [study]
+        name = "taup"
+        base = "base.toml"
+        seeds = [1, 2]
+        """) + common + textwrap.dedent("""\
+        [[grid]]
+        "cells.tau_p_s" = [150, 600]
+        [[share]]
+        file = "alpha.toml"
+        this = { "cells.tau_p_s" = 600 }
+        that = { "cells.alpha" = 0.4375 }
+        """))
+    return st.load(tmp / "taup.toml")
+
+
+def _alpha_jobs(foamd, states=("SUCCEEDED", "SUCCEEDED"), tau_p=600):
+    for seed, state in zip((1, 2), states):
+        for a in (0.4375, 0.6):
+            spec = {"seed": seed, "duration_s": 240, "cells": {"alpha": a, "tau_p_s": tau_p}}
+            foamd.add("study:alpha", _FakeJob(f"j-a{a}-{seed}", seed, spec, state=state))
+
+
+
+def test_a_shared_point_takes_the_other_studys_job_and_is_not_run_again(tmp_path):
+    taup = _shared_studies(tmp_path)
+    foamd = _FakeFoamd({"alpha": 0.4375, "tau_p_s": 600})
+    _alpha_jobs(foamd)
+    n, held = st.submit_missing(taup, foamd)
+    # τ_p = 150 at both seeds runs; τ_p = 600 is the α study's α = 0.4375 run of each seed.
+    assert (n, held) == (2, 2)
+    assert sorted(s["cells.tau_p_s"] for s in foamd.submitted) == ["150", "150"]
+    found, source, _ = st._run_jobs(taup, foamd)
+    shared = [i for i, r in enumerate(taup.runs()) if r.point["cells.tau_p_s"] == 600]
+    assert sorted(source) == shared and set(source.values()) == {"alpha"}
+    assert [found[i][0].id for i in shared] == ["j-a0.4375-1", "j-a0.4375-2"]
+    # Rerun: nothing new.
+    assert st.submit_missing(taup, foamd) == (0, 4)
+
+
+def test_a_shared_run_whose_job_was_cancelled_runs_on_its_own(tmp_path):
+    taup = _shared_studies(tmp_path)
+    foamd = _FakeFoamd({"alpha": 0.4375, "tau_p_s": 600})
+    _alpha_jobs(foamd, states=("SUCCEEDED", "CANCELLED"))
+    n, _ = st.submit_missing(taup, foamd)
+    assert n == 3
+    assert sorted((s["cells.tau_p_s"], s["seed"]) for s in foamd.submitted) == [
+        ("150", "1"), ("150", "2"), ("600", "2")]
+
+
+def test_a_share_whose_runs_differ_is_an_error_naming_the_key(tmp_path):
+    # The other study's job ran another τ_p (its base is not ours): not this run.
+    taup = _shared_studies(tmp_path)
+    foamd = _FakeFoamd({"alpha": 0.4375, "tau_p_s": 600})
+    _alpha_jobs(foamd, tau_p=300)
+    with pytest.raises(st.StudyError, match=r"share\[0\].*cells\.tau_p_s = 300"):
+        st.submit_missing(taup, foamd)
+    # This study's base gives another α than the shared point's: its own jobs show it.
+    foamd = _FakeFoamd({"alpha": 0.5, "tau_p_s": 600})
+    _alpha_jobs(foamd)
+    with pytest.raises(st.StudyError, match=r"share\[0\]: cells\.alpha is 0\.5"):
+        st.submit_missing(taup, foamd)
+
+
+@pytest.mark.parametrize("share, message", [
+    ('file = "nope.toml"\nthis = { "cells.tau_p_s" = 600 }\nthat = { "cells.alpha" = 0.4375 }',
+     "share[0].file: study: no such file"),
+    ('file = "alpha.toml"\nthis = { "cells.tau_p_s" = 601 }\nthat = { "cells.alpha" = 0.4375 }',
+     "share[0].this: {'cells.tau_p_s': 601} is not one of this study's points"),
+    ('file = "alpha.toml"\nthis = { "cells.tau_p_s" = 600 }\nthat = { "cells.alpha" = 0.5 }',
+     "share[0].that: {'cells.alpha': 0.5} is not one of alpha's points"),
+    ('file = "alpha.toml"\nthis = { "cells.tau_p_s" = 600 }', "share[0].that: missing"),
+    ('file = "alpha.toml"\nthis = { "cells.tau_p_s" = 600 }\nthat = { "cells.alpha" = 0.4375 }'
+     '\nthose = 1', "share[0].those"),
+    ('file = "other-spec.toml"\nthis = { "cells.tau_p_s" = 600 }\n'
+     'that = { "cells.alpha" = 0.4375 }', "sets other [spec] keys or preset (duration_s)"),
+])
+def test_bad_shares_exit_2_naming_the_key(tmp_path, share, message):
+    _shared_studies(tmp_path)
+    (tmp_path / "other-spec.toml").write_text((tmp_path / "alpha.toml").read_text().replace(
+        "duration_s = 240", "duration_s = 480"))
+    text = (tmp_path / "taup.toml").read_text().split("[[share]]")[0]
+    (tmp_path / "taup.toml").write_text(text + "[[share]]\n" + share + "\n")
+    r = _run(["check", str(tmp_path / "taup.toml")])
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert message in r.stderr, r.stderr
