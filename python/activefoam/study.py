@@ -1106,8 +1106,19 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                             "samples.csv.gz, msrd.csv.gz) instead of the store")
     p_chk = sub.add_parser("check", help="read the study file and list its runs")
     p_chk.add_argument("study")
+    p_ver = sub.add_parser("verdicts", help="judge the supplement's trend statements (a "
+                           "verdicts file) on the studies' committed data")
+    p_ver.add_argument("study", metavar="VERDICTS", help="verdicts file (studies/verdicts.toml)")
+    p_ver.add_argument("--data", required=True, metavar="DIR",
+                       help="folder of the studies' reports: DIR/NAME/data for each study")
+    p_ver.add_argument("--out", required=True, metavar="DIR", help="writes verdicts.md and .csv")
     args = ap.parse_args(argv)
     try:
+        if args.cmd == "verdicts":
+            from activefoam import verdicts
+            for f in verdicts.write(verdicts.load(args.study), args.data, args.out):
+                print(f)
+            return 0
         study = load(args.study)
         if args.cmd == "check":
             runs = study.runs()

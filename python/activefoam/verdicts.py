@@ -1,0 +1,273 @@
+"""The verdict table: the supplement's trend statements, each judged on a study's committed data.
+
+A verdicts file (TOML, `studies/verdicts.toml`) lists the statements; each names the study that
+measures it, the metric, the two ensembles it compares (`low` → `high`: the effect is
+median(high) − median(low)), what the supplement says (`expect`) and where it says it:
+
+    [[trend]]
+    figure = "Fig. 9C"
+    statement = "θ_eq increases with τ_p"
+    source = "caption"            # caption | implied | none (what the supplement states)
+    study = "fig9-reduced.toml"   # relative to the verdicts file
+    metric = "theta_eq_deg"       # a study metric (activefoam.study.METRICS) or "failed"
+    expect = "increase"           # increase | decrease | none | below | above | report
+    low = { "cells.tau_p_s" = 150 }
+    high = { "cells.tau_p_s" = 2400 }
+    per = "cells.alpha"           # optional: one row per value of this key
+    band_rel = 0.25               # "none": |effect| ≤ band_rel × |median(low)| (or band, absolute)
+    value = 90                    # "below" / "above": the median's interval against this value
+
+`below` / `above` judge one ensemble (`high`) against a level. `report` shows the effect with no
+verdict (the supplement draws it but states no trend). The metric `failed` is 1 for a run that
+failed in the simulation itself, 0 for one that succeeded (the supplement's hatched cells).
+
+The rules are activefoam.trends' (no verdict from fewer than 3 runs a side). A study whose data
+folder (DATA/NAME/data, written by `study report --out DATA/NAME`) is missing gives its rows the
+verdict "not run yet".
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Dict, List, Optional
+
+import numpy as np
+
+from activefoam import study as st
+from activefoam import trends
+
+TREND_KEYS = {"figure", "statement", "source", "study", "metric", "expect", "low", "high", "per",
+              "band", "band_rel", "value"}
+EXPECT = ("increase", "decrease", "none", "below", "above", "report")
+SOURCES = ("caption", "implied", "none")
+
+
+@dataclass
+class TrendSpec:
+    index: int
+    figure: str
+    statement: str
+    source: str
+    study: st.Study
+    metric: str
+    expect: str
+    low: Dict[str, Any] = field(default_factory=dict)
+    high: Dict[str, Any] = field(default_factory=dict)
+    per: str = ""
+    band: Optional[float] = None
+    band_rel: Optional[float] = None
+    value: Optional[float] = None
+
+
+def load(path: os.PathLike) -> List[TrendSpec]:
+    """Reads and checks a verdicts file; StudyError names the entry and key."""
+    p = Path(path)
+    if not p.is_file():
+        raise st.StudyError(f"verdicts: no such file {str(p)!r}")
+    try:
+        doc = tomllib.loads(p.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise st.StudyError(f"verdicts: {p}: not TOML: {e}") from None
+    st._unknown(doc, {"trend"}, "")
+    items = doc.get("trend")
+    if not isinstance(items, list) or not items:
+        raise st.StudyError("trend: at least one [[trend]] table")
+    studies: Dict[Path, st.Study] = {}
+    out = []
+    for i, t in enumerate(items):
+        w = f"trend[{i}]"
+        if not isinstance(t, dict):
+            raise st.StudyError(f"{w}: a table")
+        st._unknown(t, TREND_KEYS, f"{w}.")
+        for k in ("figure", "statement", "study", "metric", "expect"):
+            if not isinstance(t.get(k), str) or not t[k]:
+                raise st.StudyError(f"{w}.{k}: a non-empty string, got {t.get(k)!r}")
+        if t["expect"] not in EXPECT:
+            raise st.StudyError(f"{w}.expect: one of {', '.join(EXPECT)}, got {t['expect']!r}")
+        source = t.get("source", "caption")
+        if source not in SOURCES:
+            raise st.StudyError(f"{w}.source: one of {', '.join(SOURCES)}, got {source!r}")
+        if t["metric"] != "failed" and t["metric"] not in st.METRICS:
+            raise st.StudyError(f"{w}.metric: 'failed' or one of {', '.join(st.METRICS)}"
+                                f"{st._closest(t['metric'], list(st.METRICS) + ['failed'])}, "
+                                f"got {t['metric']!r}")
+        sp = (p.parent / t["study"]).resolve()
+        if sp not in studies:
+            try:
+                studies[sp] = st.load(sp)
+            except st.StudyError as e:
+                raise st.StudyError(f"{w}.study: {e}") from None
+        study = studies[sp]
+        keys = study.swept_keys()
+        spec = TrendSpec(i, t["figure"], t["statement"], source, study, t["metric"], t["expect"])
+        for side in ("low", "high"):
+            v = t.get(side, {})
+            if not isinstance(v, dict):
+                raise st.StudyError(f"{w}.{side}: a table of KEY = value")
+            for k in v:
+                if k not in keys:
+                    raise st.StudyError(f"{w}.{side}.{k}: not a grid key of {study.name}"
+                                        f"{st._closest(k, keys)}; grid keys: {', '.join(keys)}")
+            setattr(spec, side, dict(v))
+        if not spec.high:
+            raise st.StudyError(f"{w}.high: the ensemble judged (a table of KEY = value)")
+        if spec.expect in ("increase", "decrease", "none", "report") and not spec.low:
+            raise st.StudyError(f"{w}.low: the ensemble compared against (a table of KEY = value)")
+        per = t.get("per", "")
+        if per and per not in keys:
+            raise st.StudyError(f"{w}.per: not a grid key of {study.name}{st._closest(per, keys)}")
+        spec.per = per
+        for k in ("band", "band_rel", "value"):
+            if k in t:
+                if not isinstance(t[k], (int, float)) or isinstance(t[k], bool) or \
+                        not math.isfinite(t[k]) or (k != "value" and t[k] < 0):
+                    raise st.StudyError(f"{w}.{k}: a finite number{' ≥ 0' if k != 'value' else ''}"
+                                        f", got {t[k]!r}")
+                setattr(spec, k, float(t[k]))
+        if spec.expect in ("below", "above") and spec.value is None:
+            raise st.StudyError(f"{w}.value: the level that '{spec.expect}' compares with")
+        if spec.expect == "none" and spec.band is None and spec.band_rel is None:
+            raise st.StudyError(f"{w}.band: 'none' needs band (absolute) or band_rel (relative to "
+                                "the low median)")
+        out.append(spec)
+    return out
+
+
+def _values(runs: Any, point: Dict[str, Any], metric: str) -> List[float]:
+    sel = runs
+    for k, v in point.items():
+        if k not in sel:
+            return []
+        sel = sel[[st._same(x, v) for x in sel[k]]]
+    if metric == "failed":
+        ended = sel[sel["state"].isin(["succeeded", "failed"])]
+        return [1.0 if (s == "failed" and f in st.SIMULATION_FAILURES) else 0.0
+                for s, f in zip(ended["state"], ended["failure_kind"].fillna(""))
+                if s == "succeeded" or f in st.SIMULATION_FAILURES]
+    if metric not in sel:
+        return []
+    return [float(x) for x in sel[metric] if x == x]
+
+
+def _median_interval(x: List[float]) -> trends.Difference:
+    """The median of one ensemble with its percentile-bootstrap interval (as a difference
+    against 0)."""
+    return trends.diff_of_medians([0.0], x)
+
+
+def _fmt(v: float) -> str:
+    if v is None or not np.isfinite(v):
+        return "—"
+    return f"{v:.3g}"
+
+
+def evaluate(items: List[TrendSpec], data_root: os.PathLike) -> Any:
+    """One row per statement (and value of `per`): the two ensembles' medians and counts, the
+    effect with its 95 % interval, and the verdict."""
+    import pandas as pd
+    rows = []
+    cache: Dict[str, Any] = {}
+    for t in items:
+        d = Path(data_root) / t.study.name / "data"
+        if t.study.name not in cache:
+            cache[t.study.name] = st.load_data(t.study, d).runs if (d / "runs.csv").is_file() \
+                else None
+        runs = cache[t.study.name]
+        pers: List[Any] = [None]
+        if t.per:
+            pers = []
+            for pt in t.study.points():
+                v = pt.get(t.per)
+                if v is not None and not any(st._same(v, w) for w in pers):
+                    pers.append(v)
+        for pv in pers:
+            low = dict(t.low, **({t.per: pv} if t.per else {}))
+            high = dict(t.high, **({t.per: pv} if t.per else {}))
+            row = {"figure": t.figure, "statement": t.statement, "source": t.source,
+                   "study": t.study.name, "metric": t.metric, "expect": t.expect,
+                   "at": f"{t.per} = {pv}" if t.per else "",
+                   "low": ", ".join(f"{k} = {v}" for k, v in t.low.items()),
+                   "high": ", ".join(f"{k} = {v}" for k, v in t.high.items())}
+            if runs is None:
+                row.update(verdict="not run yet", n_low=0, n_high=0)
+                rows.append(row)
+                continue
+            xl, xh = _values(runs, low, t.metric), _values(runs, high, t.metric)
+            row.update(n_low=len(xl), n_high=len(xh), median_low=trends.median(xl),
+                       median_high=trends.median(xh))
+            if t.expect in ("below", "above"):
+                m = _median_interval(xh)
+                row.update(effect=m.diff, lo=m.lo, hi=m.hi, value=t.value)
+                if len(xh) < trends.MIN_SEEDS:
+                    verdict = "too few runs"
+                elif (m.hi < t.value) if t.expect == "below" else (m.lo > t.value):
+                    verdict = "agrees"
+                elif (m.lo > t.value) if t.expect == "below" else (m.hi < t.value):
+                    verdict = "disagrees"
+                else:
+                    verdict = "not resolved"
+            else:
+                band = t.band if t.band is not None else (
+                    (t.band_rel or 0.0) * abs(trends.median(xl)) if xl else 0.0)
+                tr = trends.trend(xl, xh, "none" if t.expect == "report" else t.expect,
+                                  band=band)
+                row.update(effect=tr.diff.diff, lo=tr.diff.lo, hi=tr.diff.hi)
+                if t.expect == "none":
+                    row["band"] = band
+                verdict = "no statement" if (t.expect == "report" and
+                                             tr.verdict != "too few runs") else tr.verdict
+            row["verdict"] = verdict
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def markdown(table: Any) -> str:
+    head = ["figure", "statement", "at", "metric", "low → high", "median low (n)",
+            "median high (n)", "effect [95 %]", "verdict"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for _, r in table.iterrows():
+        expect = r["expect"]
+        if expect in ("below", "above"):
+            cmp = f"{r['high']} ({expect} {_fmt(r.get('value'))})"
+            eff = f"median {_fmt(r.get('effect'))} [{_fmt(r.get('lo'))}, {_fmt(r.get('hi'))}]"
+        else:
+            cmp = f"{r['low']} → {r['high']}"
+            eff = f"{_fmt(r.get('effect'))} [{_fmt(r.get('lo'))}, {_fmt(r.get('hi'))}]"
+            if expect == "none" and r.get("band") == r.get("band"):
+                eff += f" (band ±{_fmt(r.get('band'))})"
+        src = "" if r["source"] == "caption" else f" ({r['source']})"
+        verdict = r["verdict"]
+        if verdict in ("agrees", "disagrees"):
+            verdict = f"**{verdict}**"
+        lines.append("| " + " | ".join([
+            r["figure"], r["statement"] + src, r["at"] or "—", r["metric"], cmp,
+            f"{_fmt(r.get('median_low'))} ({int(r.get('n_low', 0) or 0)})"
+            if expect not in ("below", "above") else "—",
+            f"{_fmt(r.get('median_high'))} ({int(r.get('n_high', 0) or 0)})", eff, verdict])
+            + " |")
+    return "\n".join(lines) + "\n"
+
+
+def write(items: List[TrendSpec], data_root: os.PathLike, out: os.PathLike) -> List[Path]:
+    table = evaluate(items, data_root)
+    o = Path(out)
+    o.mkdir(parents=True, exist_ok=True)
+    table.to_csv(o / "verdicts.csv", index=False)
+    counts = table["verdict"].value_counts()
+    summary = ", ".join(f"{n} {v}" for v, n in counts.items())
+    (o / "verdicts.md").write_text(
+        "# The supplement's trend statements, judged\n\n"
+        f"{len(table)} rows: {summary}.\n\n"
+        "Effect: median(high) − median(low) over seeds with its percentile-bootstrap 95 % "
+        "interval; *agrees* when the interval excludes 0 on the supplement's side (for "
+        "`none`: lies within the band; for `below`/`above`: the median's interval lies on "
+        "the stated side of the level), *disagrees* when it excludes it on the other, *not "
+        "resolved* otherwise; no verdict from fewer than 3 runs a side. Source: *caption* — "
+        "stated in the supplement's figure caption; *implied* — follows from a stated "
+        "result (named in the statement); *none* — drawn, no trend stated.\n\n"
+        + markdown(table))
+    return [o / "verdicts.md", o / "verdicts.csv"]

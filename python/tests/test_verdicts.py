@@ -1,0 +1,185 @@
+"""The verdict table (activefoam.verdicts) on synthetic study data with known answers."""
+
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from activefoam import study as st
+from activefoam import verdicts as vd
+
+STUDY = """\
+[study]
+name = "syn"
+seeds = [1, 2, 3]
+x = "cells.tau_p_s"
+by = "cells.alpha"
+[spec]
+scene = "fusion"
+duration_s = 3600
+[[grid]]
+"cells.tau_p_s" = [150, 2400]
+"cells.alpha" = [0.3, 0.75]
+"""
+
+
+def _data(root: Path, theta, failed=()):
+    """The study's data folder: θ at the end = theta(τ_p, α, seed); runs in `failed` (τ_p, α,
+    seed, kind) failed."""
+    d = root / "syn" / "data"
+    d.mkdir(parents=True)
+    rows, samples, msrd = [], [], []
+    fails = {(t, a, s): k for t, a, s, k in failed}
+    for seed in (1, 2, 3):
+        for tau in (150, 2400):
+            for a in (0.3, 0.75):
+                jid = f"j-{tau}-{a}-{seed}"
+                kind = fails.get((tau, a, seed), "")
+                rows.append({"run": len(rows), "cells.tau_p_s": tau, "cells.alpha": a,
+                             "seed": seed, "job_id": jid,
+                             "state": "failed" if kind else "succeeded", "failure_kind": kind,
+                             "eq1_ok": 0, "mixing_time_s": 3600})
+                for t in (0, 1800, 3600):
+                    samples.append([jid, t, theta(tau, a, seed), 5.4, 1.0, 3.0])
+                msrd.append([jid, 3600, 40.0])
+    pd.DataFrame(rows).to_csv(d / "runs.csv", index=False)
+    pd.DataFrame(samples, columns=["job_id", "t_s"] + st.SAMPLE_COLUMNS).to_csv(
+        d / "samples.csv.gz", index=False)
+    pd.DataFrame(msrd, columns=["job_id", "lag_s", "msrd_um2"]).to_csv(d / "msrd.csv.gz",
+                                                                       index=False)
+
+
+def _table(tmp: Path, trends_toml: str) -> Path:
+    (tmp / "syn.toml").write_text(STUDY)
+    f = tmp / "verdicts.toml"
+    f.write_text(textwrap.dedent(trends_toml))
+    return f
+
+
+RISE = """\
+    [[trend]]
+    figure = "F1"
+    statement = "θ rises with τ_p"
+    study = "syn.toml"
+    metric = "theta_end_deg"
+    expect = "{expect}"
+    low = {{ "cells.tau_p_s" = 150 }}
+    high = {{ "cells.tau_p_s" = 2400 }}
+    per = "cells.alpha"
+    band = 1.0
+    """
+
+
+@pytest.mark.parametrize("expect, verdicts", [
+    # At α = 0.3 θ rises by 10° (seed noise ±1°); at α = 0.75 it does not move (±1° noise,
+    # the same per seed at both τ_p, so the effect is 0 with an interval of ±2).
+    ("increase", ["agrees", "not resolved"]),
+    ("decrease", ["disagrees", "not resolved"]),
+    ("none", ["disagrees", "not resolved"]),
+])
+def test_trends_are_judged_per_value_with_their_interval(tmp_path, expect, verdicts):
+    f = _table(tmp_path, RISE.format(expect=expect))
+    noise = {1: -1.0, 2: 0.0, 3: 1.0}
+    _data(tmp_path / "data", lambda tau, a, s: 80 + (10 if (a == 0.3 and tau == 2400) else 0)
+          + noise[s] * (1 if tau == 150 else -1))
+    t = vd.evaluate(vd.load(f), tmp_path / "data")
+    assert list(t["at"]) == ["cells.alpha = 0.3", "cells.alpha = 0.75"]
+    assert list(t["verdict"]) == verdicts
+    assert t["effect"].iloc[0] == pytest.approx(10.0)
+    assert t["effect"].iloc[1] == pytest.approx(0.0)
+    assert list(t["n_low"]) == [3, 3] and list(t["n_high"]) == [3, 3]
+    # The interval of a 3-against-3 median difference spans the extremes' differences.
+    assert t["lo"].iloc[1] == pytest.approx(-2.0) and t["hi"].iloc[1] == pytest.approx(2.0)
+
+
+def test_a_flat_effect_within_the_band_agrees_with_no_change(tmp_path):
+    f = _table(tmp_path, RISE.format(expect="none").replace("band = 1.0", "band = 3.0"))
+    noise = {1: -1.0, 2: 0.0, 3: 1.0}
+    _data(tmp_path / "data", lambda tau, a, s: 80 + noise[s] * (1 if tau == 150 else -1))
+    t = vd.evaluate(vd.load(f), tmp_path / "data")
+    assert list(t["verdict"]) == ["agrees", "agrees"]
+
+
+def test_too_few_runs_give_no_verdict(tmp_path):
+    f = _table(tmp_path, RISE.format(expect="increase"))
+    _data(tmp_path / "data", lambda tau, a, s: 80 + (10 if tau == 2400 else 0),
+          failed=[(2400, 0.3, 3, "volume-drift")])
+    t = vd.evaluate(vd.load(f), tmp_path / "data")
+    assert list(t["verdict"]) == ["too few runs", "agrees"]
+    assert t["n_high"].iloc[0] == 2
+
+
+def test_a_level_and_the_failures_are_judged(tmp_path):
+    f = _table(tmp_path, """\
+        [[trend]]
+        figure = "F2"
+        statement = "a granular pile: θ below 90°"
+        study = "syn.toml"
+        metric = "theta_end_deg"
+        expect = "below"
+        value = 90
+        high = { "cells.tau_p_s" = 150, "cells.alpha" = 0.75 }
+
+        [[trend]]
+        figure = "F3"
+        statement = "runs fail at long τ_p and low α"
+        study = "syn.toml"
+        metric = "failed"
+        expect = "increase"
+        low = { "cells.tau_p_s" = 150, "cells.alpha" = 0.3 }
+        high = { "cells.tau_p_s" = 2400, "cells.alpha" = 0.3 }
+        """)
+    _data(tmp_path / "data", lambda tau, a, s: 85 + s,
+          failed=[(2400, 0.3, s, "interpenetration") for s in (1, 2, 3)]
+          + [(150, 0.3, 1, "engine-error")])   # not the simulation's: not counted
+    t = vd.evaluate(vd.load(f), tmp_path / "data")
+    assert list(t["verdict"]) == ["agrees", "too few runs"]
+    assert t["effect"].iloc[0] == pytest.approx(87.0)       # the median, below 90 at [86, 88]
+    assert t["hi"].iloc[0] == pytest.approx(88.0)
+    assert (t["n_low"].iloc[1], t["n_high"].iloc[1]) == (2, 3)
+    _data(tmp_path / "data2", lambda tau, a, s: 85 + s,
+          failed=[(2400, 0.3, s, "interpenetration") for s in (1, 2, 3)])
+    t = vd.evaluate(vd.load(f), tmp_path / "data2")
+    assert t["verdict"].iloc[1] == "agrees" and t["effect"].iloc[1] == 1.0
+
+
+def test_missing_data_is_not_run_yet_and_the_command_writes_the_table(tmp_path):
+    f = _table(tmp_path, RISE.format(expect="increase"))
+    r = subprocess.run([sys.executable, "-m", "activefoam.study", "verdicts", str(f), "--data",
+                        str(tmp_path / "nothing"), "--out", str(tmp_path / "out")],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    md = (tmp_path / "out" / "verdicts.md").read_text()
+    assert "2 rows: 2 not run yet" in md
+    assert pd.read_csv(tmp_path / "out" / "verdicts.csv")["verdict"].tolist() == [
+        "not run yet", "not run yet"]
+
+
+@pytest.mark.parametrize("edit, message", [
+    (('metric = "theta_end_deg"', 'metric = "theta_end"'),
+     "trend[0].metric: 'failed' or one of"),
+    (('per = "cells.alpha"', 'per = "cells.alfa"'), "trend[0].per: not a grid key of syn"),
+    (('expect = "increase"', 'expect = "up"'), "trend[0].expect: one of increase"),
+    (('low = { "cells.tau_p_s" = 150 }', 'low = { "cells.tau_q" = 150 }'),
+     "trend[0].low.cells.tau_q: not a grid key of syn"),
+    (("band = 1.0", "band = -1.0"), "trend[0].band: a finite number ≥ 0"),
+    (('study = "syn.toml"', 'study = "nope.toml"'), "trend[0].study: study: no such file"),
+])
+def test_bad_verdict_files_exit_2_naming_the_key(tmp_path, edit, message):
+    f = _table(tmp_path, RISE.format(expect="increase").replace(*edit))
+    r = subprocess.run([sys.executable, "-m", "activefoam.study", "verdicts", str(f), "--data",
+                        str(tmp_path), "--out", str(tmp_path / "out")],
+                       capture_output=True, text=True)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert message in r.stderr, r.stderr
+
+
+def test_the_projects_verdicts_file_is_valid():
+    f = Path(__file__).resolve().parents[2] / "studies" / "verdicts.toml"
+    items = vd.load(f)
+    assert len(items) >= 30
+    assert {t.study.name for t in items} == {"fig8-reduced", "fig9-reduced", "fig10-reduced",
+                                            "fig11-reduced", "fig14-reduced"}
