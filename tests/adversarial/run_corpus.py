@@ -367,8 +367,8 @@ class Runner:
         for _ in range(case.get("idle", 100)):
             try:
                 socks.append(socket.create_connection(("127.0.0.1", self.http_port), timeout=5))
-            except OSError as e:
-                break
+            except OSError:
+                break  # out of descriptors: flood with what we have
         threads = [threading.Thread(target=slow_client, daemon=True)
                    for _ in range(case.get("slow", 20))]
         for t in threads:
