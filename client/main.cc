@@ -33,6 +33,7 @@ int main(int argc, char** argv) {
       "exit status: 0 ok (job succeeded for --wait/watch), 1 job failed or cancelled, 2 usage or "
       "invalid spec, 3 server unreachable / RPC error, 4 unauthenticated, 5 not found");
   app.require_subcommand(1);
+  app.set_version_flag("--version", std::string("foam ") + ACTIVEFOAM_VERSION);
   Conn conn;
   if (const char* s = std::getenv("FOAM_SERVER"); s && *s) conn.server = s;
   if (const char* t = std::getenv("FOAM_TOKEN"); t && *t) conn.token = t;

@@ -7,6 +7,7 @@ pkgs=(build-essential cmake ninja-build pkg-config git
       libtomlplusplus-dev libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox python3
       libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler grpc-proto
       zlib1g-dev bsdextrautils libcpp-httplib-dev libssl-dev libjs-chart.js
+      libgrpc-dev libabsl-dev libc-ares-dev libre2-dev  # their static archives: foam's link
       libjs-three  # the dashboard's 3D view (three.js r111), compiled into foamd
       ffmpeg  # foam export --movie and Job.movie encode with it; its ffprobe checks them
       python3-grpcio python3-protobuf python3-pandas python3-pytest  # the Python client's tests

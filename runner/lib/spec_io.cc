@@ -7,10 +7,12 @@
 #include <charconv>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <iterator>
 #include <limits>
 #include <optional>
+#include <set>
 #include <sstream>
 
 #include <toml++/toml.h>
@@ -358,15 +360,120 @@ std::string jsonKeyBefore(std::string_view text, const std::string& literal) {
   return "";
 }
 
+// The dotted keys that a JSON text gives twice in one object: the JSON reader keeps the last
+// value without a word, so `"duration_s": 1, "duration_s": 2` ran for 2 s (issue 39's corpus).
+// The one repeat allowed is TOML's form `scene = "doublet"` with a `[scene]` table: a top-level
+// "scene" string beside a "scene" object (kept here, merged by `mergeScene`).
+struct DuplicateJsonKeys {
+  struct Frame {
+    bool object = false;
+    std::set<std::string> keys;
+    std::string current;
+  };
+  std::vector<Frame> frames;
+  std::vector<std::string> found;
+  int scenes = 0;  // top-level "scene" keys
+  std::optional<std::string> scene_name;
+  std::optional<nlohmann::json> scene_table;
+
+  bool operator()(int, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
+    using E = nlohmann::json::parse_event_t;
+    const bool top_scene = frames.size() == 1 && frames[0].current == "scene";
+    if (event == E::object_start || event == E::array_start) {
+      frames.push_back({event == E::object_start, {}, {}});
+    } else if (event == E::object_end || event == E::array_end) {
+      if (!frames.empty()) frames.pop_back();
+      if (frames.size() == 1 && frames[0].current == "scene" && parsed.is_object())
+        scene_table = parsed;
+    } else if (event == E::value && top_scene && parsed.is_string()) {
+      scene_name = parsed.get<std::string>();
+    } else if (event == E::key && !frames.empty()) {
+      Frame& f = frames.back();
+      f.current = parsed.get<std::string>();
+      if (frames.size() == 1 && f.current == "scene") ++scenes;
+      if (!f.keys.insert(f.current).second) {
+        if (frames.size() == 1 && f.current == "scene") return true;  // judged by mergeScene
+        std::string dotted;
+        for (const Frame& g : frames)
+          if (g.object) dotted = join(dotted, g.current);
+        if (std::find(found.begin(), found.end(), dotted) == found.end()) found.push_back(dotted);
+      }
+    }
+    return true;
+  }
+
+  // `"scene": NAME` and `"scene": {...}` together: the table with "kind" NAME, whichever came
+  // last. False (and an error in `found`) when the two disagree or are not one of each.
+  bool mergeScene(nlohmann::json& doc) {
+    if (scenes < 2) return true;
+    if (scenes > 2 || !scene_name || !scene_table) {
+      found.push_back("scene");
+      return false;
+    }
+    nlohmann::json table = *scene_table;
+    if (table.contains("kind") && table["kind"] != *scene_name) {
+      disagreement = true;
+      return false;
+    }
+    table["kind"] = *scene_name;
+    doc["scene"] = std::move(table);
+    return true;
+  }
+  bool disagreement = false;
+};
+
+// The dotted key that line `line` (1-based) of a TOML text assigns ("" when it assigns none),
+// from the table headers above it: toml++ names only the line and column of a value it cannot
+// read (1e400, an integer beyond 64 bits), and the user looks for the key.
+std::string tomlKeyAt(std::string_view text, std::size_t line) {
+  std::string table;
+  std::size_t start = 0;
+  for (std::size_t n = 1; start <= text.size(); ++n) {
+    const std::size_t end = std::min(text.find('\n', start), text.size());
+    std::string_view l = skipSpace(text.substr(start, end - start));
+    if (n == line) {
+      std::string key;
+      std::size_t i = 0;
+      for (; i < l.size(); ++i) {
+        const char c = l[i];
+        if (std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')
+          key += c;
+        else if (c != ' ' && c != '\t')
+          break;
+      }
+      if (key.empty() || i >= l.size() || l[i] != '=') return "";
+      return join(table, key);
+    }
+    if (!l.empty() && l.front() == '[') {
+      const std::size_t open = l.find_first_not_of("[ \t"), close = l.find(']');
+      if (open != std::string_view::npos && close != std::string_view::npos && close > open) {
+        table = std::string(l.substr(open, close - open));
+        while (!table.empty() && (table.back() == ' ' || table.back() == '\t')) table.pop_back();
+      }
+    }
+    start = end + 1;
+  }
+  return "";
+}
+
 }  // namespace
 
 SpecParseResult parseSpecText(std::string_view text, SpecFormat format, const SceneSpec& base,
                               const SpecParseOptions& options) {
-  if (format == SpecFormat::Auto) format = sniffSpecFormat(text);
+  if (format == SpecFormat::Auto) {
+    format = sniffSpecFormat(text);
+    // A TOML text may start with '[' (a table header) and so may a JSON array: one that is JSON
+    // gets JSON's error (not an object), not TOML's "expected bare key, saw '{'".
+    const std::size_t first = text.find_first_not_of(" \t\r\n");
+    if (format == SpecFormat::Toml && first != std::string_view::npos && text[first] == '[' &&
+        nlohmann::json::accept(text, /*ignore_comments=*/true))
+      format = SpecFormat::Json;
+  }
   if (format == SpecFormat::Json) {
     nlohmann::json doc;
+    DuplicateJsonKeys duplicates;
     try {
-      doc = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/true,
+      doc = nlohmann::json::parse(text, std::ref(duplicates), /*allow_exceptions=*/true,
                                   /*ignore_comments=*/true);
     } catch (const nlohmann::json::parse_error& e) {
       std::string what = e.what();
@@ -389,6 +496,21 @@ SpecParseResult parseSpecText(std::string_view text, SpecFormat format, const Sc
                           oneLine("JSON " + what + ": outside the range of a number (±1.8e308)")});
       return r;
     }
+    if (!duplicates.mergeScene(doc) && duplicates.disagreement) {
+      SpecParseResult r;
+      r.errors.push_back(
+          {"scene", "'" + *duplicates.scene_name + "' beside a \"scene\" table whose kind is " +
+                        duplicates.scene_table->at("kind").dump() + ": give the scene once"});
+      return r;
+    }
+    if (!duplicates.found.empty()) {
+      SpecParseResult r;
+      for (const std::string& key : duplicates.found)
+        r.errors.push_back({key.empty() ? sourceName(options, "<json>") : key,
+                            "given twice in one JSON object (a JSON reader keeps only the last "
+                            "one): give it once"});
+      return r;
+    }
     return parseSpecJson(doc, base, options);
   }
 
@@ -400,7 +522,10 @@ SpecParseResult parseSpecText(std::string_view text, SpecFormat format, const Sc
   } catch (const toml::parse_error& e) {
     std::ostringstream msg;
     msg << "TOML parse error at line " << e.source().begin.line << ", column "
-        << e.source().begin.column << ": " << e.description();
+        << e.source().begin.column;
+    if (const std::string key = tomlKeyAt(text, e.source().begin.line); !key.empty())
+      msg << " (the value of " << key << ")";
+    msg << ": " << e.description();
     result.errors.push_back({source, oneLine(msg.str())});
     return result;
   }

@@ -377,4 +377,44 @@ TEST(SpecIo, ValidateAndResolve) {
 }
 
 }  // namespace
+
+// Issue 39's adversarial corpus: a JSON key given twice kept the last value without a word
+// (`"duration_s": 1, "duration_s": 2` ran for 2 s; a second "cells" object replaced the first).
+// Each repeat is refused naming its dotted key; TOML's form `scene = NAME` beside a scene table
+// stays allowed in JSON, unless the two disagree.
+TEST(SpecIo, JsonKeysGivenTwiceAreRefusedNamingTheKey) {
+  for (const auto& [text, key] : std::vector<std::pair<std::string, std::string>>{
+           {R"({"scene": "cell", "duration_s": 1, "duration_s": 2})", "duration_s"},
+           {R"({"scene": "cell", "cells": {"gamma": 0.5}, "cells": {"eta": 5}})", "cells"},
+           {R"({"scene": "cell", "cells": {"gamma": 0.5, "gamma": 0.7}})", "cells.gamma"},
+           {R"({"scene": "cell", "scene": "fusion"})", "scene"},
+           {R"({"scene": "fusion", "scene": {"kind": "doublet"}})", "scene"}}) {
+    const auto r = parseSpecText(text, SpecFormat::Json);
+    ASSERT_EQ(r.errors.size(), 1u) << text << "\n" << joined(r.errors);
+    EXPECT_EQ(r.errors[0].field, key) << text;
+  }
+  const auto merged = parseSpecText(R"({"scene": {"gap_um": 0.02}, "scene": "doublet"})");
+  ASSERT_TRUE(merged.ok()) << joined(merged.errors);
+  EXPECT_EQ(merged.spec->scene, SceneKind::Doublet);
+  EXPECT_EQ(merged.spec->scene_params.gap_um, 0.02);
+}
+
+// A TOML value toml++ cannot read (1e400, an integer beyond 64 bits) was named by line and
+// column only; the message names its key too. A JSON array (no format given) gets JSON's error,
+// not TOML's.
+TEST(SpecIo, UnreadableTomlValuesNameTheirKey) {
+  auto r = parseSpecText("scene = \"cell\"\n[cells]\ngamma = 1e400\n", SpecFormat::Toml);
+  ASSERT_EQ(r.errors.size(), 1u);
+  EXPECT_NE(r.errors[0].message.find("(the value of cells.gamma)"), std::string::npos)
+      << r.errors[0].str();
+  r = parseSpecText("scene = \"cell\"\nseed = 99999999999999999999\n", SpecFormat::Toml);
+  ASSERT_EQ(r.errors.size(), 1u);
+  EXPECT_NE(r.errors[0].message.find("(the value of seed)"), std::string::npos)
+      << r.errors[0].str();
+  r = parseSpecText(R"([{"scene": "cell"}])");
+  ASSERT_EQ(r.errors.size(), 1u);
+  EXPECT_NE(r.errors[0].message.find("expected a JSON object at the top level, got array"),
+            std::string::npos)
+      << r.errors[0].str();
+}
 }  // namespace activefoam
