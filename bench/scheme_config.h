@@ -47,4 +47,19 @@ inline std::string applySchemeConfig(const std::string& config, SceneSpec& spec,
   return {};
 }
 
+// The reduced fusion of the study drivers (seed 1, 2 × n cells of 320 triangles, preparation
+// up to prep_max_s) at a configuration, resolved; returns the error text, empty if none.
+inline std::string fusionSpec(const std::string& config, int n, double prep_max_s, SceneSpec& out,
+                              SchemeConfig& scheme) {
+  SceneSpec s;
+  s.scene = SceneKind::Fusion;
+  s.seed = 1;
+  s.scene_params.n_cells = n;
+  s.scene_params.prep_max_s = prep_max_s;
+  s.numerics.triangles_per_cell = 320;
+  if (std::string error = applySchemeConfig(config, s, scheme); !error.empty()) return error;
+  out = s;
+  return {};
+}
+
 }  // namespace activefoam::bench

@@ -118,13 +118,8 @@ int main(int argc, char** argv) {
   const double t_end = argc > 5 ? std::atof(argv[5]) : 5400;
   const int max_events = argc > 6 ? std::atoi(argv[6]) : 1;
   SceneSpec s;
-  s.scene = SceneKind::Fusion;
-  s.seed = 1;
-  s.scene_params.n_cells = n;
-  s.scene_params.prep_max_s = prep;
-  s.numerics.triangles_per_cell = 320;
   bench::SchemeConfig scheme;
-  if (const std::string error = bench::applySchemeConfig(config, s, scheme); !error.empty()) {
+  if (const std::string error = bench::fusionSpec(config, n, prep, s, scheme); !error.empty()) {
     std::fprintf(stderr, "%s: %s\n", config.c_str(), error.c_str());
     return 2;
   }

@@ -80,13 +80,8 @@ int main(int argc, char** argv) {
       argc > 5 ? argv[5] : "contact-implicit-consistent:0.5:block-jacobi:1e-2";
   const int warm = argc > 6 ? std::atoi(argv[6]) : 0;
   SceneSpec s;
-  s.scene = SceneKind::Fusion;
-  s.seed = 1;
-  s.scene_params.n_cells = n;
-  s.scene_params.prep_max_s = prep;
-  s.numerics.triangles_per_cell = 320;
   bench::SchemeConfig scheme;
-  if (const std::string error = bench::applySchemeConfig(config, s, scheme); !error.empty()) {
+  if (const std::string error = bench::fusionSpec(config, n, prep, s, scheme); !error.empty()) {
     std::fprintf(stderr, "%s: %s\n", config.c_str(), error.c_str());
     return 2;
   }
