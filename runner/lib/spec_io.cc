@@ -636,7 +636,8 @@ std::vector<SpecError> checkSceneKeys(const SceneSpec& spec, const std::vector<s
       {"cells.l_eta_reduced", "cells.xi", contacts},
       {"numerics.contact_quadrature", "numerics.contact_quadrature", contacts},
       {"numerics.max_penetration_um", "numerics.max_penetration_um", contacts},
-      {"numerics.max_oscillating_steps", "numerics.max_oscillating_steps", contacts}};
+      {"numerics.max_oscillating_steps", "numerics.max_oscillating_steps", contacts},
+      {"numerics.contact_max_facing_deg", "numerics.contact_max_facing_deg", contacts}};
   std::vector<SpecError> errors;
   std::vector<std::string_view> seen;
   for (const std::string& key : keys)

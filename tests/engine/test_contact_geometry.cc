@@ -16,6 +16,7 @@
 
 #include "activefoam/contact_geometry.h"
 #include "activefoam/contacts.h"
+#include "activefoam/spec.h"
 
 namespace activefoam {
 namespace {
@@ -732,6 +733,57 @@ TEST(ContactNarrowPhase, NearlyPerpendicularFacingTrianglesAreFiniteAndConsisten
       EXPECT_NEAR(c.area, r.area, 2e-2 * c.area);
       EXPECT_NEAR(c.force.dot(c.normal), r.int_p, 2e-2 * law.k * c.area * law.h0);
     }
+  }
+}
+
+// numerics.contact_max_facing_deg: the law's facing bound drops the pairs whose normals are
+// further than φ from antiparallel — the nearly perpendicular ones above, whose "gap" along the
+// bisector is no separation — and leaves every other pair's result bit for bit.
+TEST(ContactNarrowPhase, TheFacingBoundDropsOnlyPairsBeyondIt) {
+  ContactLaw bounded;
+  NumericsParams n;
+  n.contact_max_facing_deg = 60;
+  bounded.facing_dot = contactFacingDot(n);
+  EXPECT_NEAR(bounded.facing_dot, -0.5, 1e-15);
+  n.contact_max_facing_deg = 90;
+  EXPECT_EQ(contactFacingDot(n), 0.0);  // exactly: today's test n̂_A·n̂_B < 0
+  const ContactLaw law;
+  // B's normal at angle ψ from A's antiparallel: active under the bound only for ψ < 60°.
+  const Tri3 a{Vec3(-1, -1, 0), Vec3(1, -1, 0), Vec3(0, 1, 0)};
+  int dropped = 0, kept = 0;
+  for (double psi_deg : {0.0, 20.0, 45.0, 59.0, 61.0, 75.0, 89.0}) {
+    const double psi = psi_deg * M_PI / 180;
+    const Vec3 nb(std::sin(psi), 0, -std::cos(psi));
+    const Vec3 u(0, 1, 0), w = nb.cross(u);
+    const Vec3 p(0.1, 0, 0.02);
+    Tri3 b{p - 0.5 * u - 0.5 * w, p + 0.5 * u - 0.5 * w, p + 0.6 * w};
+    if (triNormal(b).dot(nb) < 0) std::swap(b[1], b[2]);
+    const TriangleContact all = computeTriangleContact(a, b, law, ContactQuadrature::Exact);
+    const TriangleContact some = computeTriangleContact(a, b, bounded, ContactQuadrature::Exact);
+    ASSERT_TRUE(all.active) << psi_deg;
+    if (psi_deg < 60) {
+      ++kept;
+      EXPECT_TRUE(some.active) << psi_deg;
+      EXPECT_EQ(some.area, all.area);
+      EXPECT_EQ(some.force, all.force);
+      EXPECT_EQ(some.force_weight_a, all.force_weight_a);
+      EXPECT_EQ(some.mean_gap, all.mean_gap);
+    } else {
+      ++dropped;
+      EXPECT_FALSE(some.active) << psi_deg;
+      EXPECT_EQ(some.force, Vec3::Zero());
+    }
+  }
+  EXPECT_EQ(kept, 4);
+  EXPECT_EQ(dropped, 3);
+  // On random facing pairs tilted by less than 0.5 rad the bound changes nothing.
+  std::mt19937 gen(7);
+  for (int k = 0; k < 200; ++k) {
+    const Pair pr = randomFacingPair(gen, -0.05, 0.05, 0.5);
+    const TriangleContact x = computeTriangleContact(pr.a, pr.b, law, ContactQuadrature::Exact);
+    const TriangleContact y = computeTriangleContact(pr.a, pr.b, bounded, ContactQuadrature::Exact);
+    EXPECT_EQ(x.active, y.active);
+    EXPECT_EQ(x.force, y.force);
   }
 }
 

@@ -641,5 +641,24 @@ TEST(SpecPresets, MeasuredUnstableSettingsNameTheTimeStepAndItsLimit) {
   EXPECT_TRUE(measuredUnstable(s).empty());
 }
 
+// numerics.contact_max_facing_deg (added with the contact law's facing bound): (0, 90], and at
+// its default of 90 it is left out of the fingerprint, so that checkpoints and prepared spheroids
+// of earlier versions stay valid; any other value runs differently and changes it.
+TEST(SpecFields, TheContactFacingBoundHasARangeAndKeepsEarlierFingerprintsAtItsDefault) {
+  SceneSpec s = resolve(SceneSpec{});
+  const std::string before = specFingerprint(s);
+  EXPECT_EQ(before.find("contact_max_facing_deg"), std::string::npos);
+  ASSERT_EQ(setField(s, "numerics.contact_max_facing_deg", 60.0), std::nullopt);
+  EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+  EXPECT_NE(specFingerprint(s), before);
+  EXPECT_NE(specFingerprint(s).find("numerics.contact_max_facing_deg=60;"), std::string::npos);
+  for (double bad : {0.0, -1.0, 91.0}) {
+    SceneSpec t = resolve(SceneSpec{});
+    const auto error = setField(t, "numerics.contact_max_facing_deg", bad);
+    const bool refused = error.has_value() || hasErrorFor(validate(t), "contact_max_facing_deg");
+    EXPECT_TRUE(refused) << bad;
+  }
+}
+
 }  // namespace
 }  // namespace activefoam

@@ -21,6 +21,9 @@ struct ContactLaw {
   // detectContacts also integrates each pair's ContactMoments (the consistent stiffness, which
   // only ros2 uses; ~27 more products per quadrature point in the narrow phase).
   bool stiffness_moments = false;
+  // A pair touches only when n̂_A·n̂_B < facing_dot: 0 for every facing pair, −cos φ for pairs
+  // within φ of antiparallel (numerics.contact_max_facing_deg).
+  double facing_dot = 0;
 };
 
 // ∫ λ^A_i λ^B_k dS, ∫ λ^A_i λ^A_j dS, ∫ λ^B_k λ^B_l dS (row-major 3 × 3) over a pair's contact

@@ -72,6 +72,12 @@ struct NumericsParams {
   // Consecutive steps in which contacting vertices mostly reverse their velocity (the period-2
   // signature of an explicit scheme beyond its stability limit) before the run fails.
   std::int64_t max_oscillating_steps = 10;
+  // Triangle pairs touch only when their normals face each other within this angle of
+  // antiparallel (n̂_A·n̂_B < −cos φ). 90: every facing pair (n̂_A·n̂_B < 0), DESIGN.md's term 6.
+  // Nearly perpendicular pairs at junctions read gaps of micrometres along their bisector and
+  // gave forces 1000× the tissue's (docs/science/motion-convergence.md, "Correction"). Not
+  // applied in the spheroids' preparation.
+  double contact_max_facing_deg = 90;
   // Adaptive time step (time_stepper.h): a step that fails one of the checks above is
   // undone and retried at half the length, down to dt_min_s (default Δt/64); after a run of good
   // steps Δt grows back. false: the first failed step ends the run (the studies measure that).
@@ -262,6 +268,9 @@ inline constexpr double kMaxSnapshots = 1.0e5;       // duration_s / snapshot_ev
 double tauShell(const CellParams& c);        // η / (2√3 γ)
 double adhesionW(const CellParams& c);       // w = (1 − α) γ
 double contactRangeH0(const CellParams& c);  // h0 = √(w / k_AB)
+// The facing bound of the contact law for numerics.contact_max_facing_deg: 0 at 90° (exactly:
+// every facing pair, as before the key), −cos φ below.
+double contactFacingDot(const NumericsParams& n);
 // The derived defaults, each computed here only: resolve() fills the unset keys with them, and
 // the engine's readers of a key that may be unset fall back on the same functions.
 double defaultTauKS(const CellParams& c);         // τ_K = 2 τ_shell

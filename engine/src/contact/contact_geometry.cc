@@ -259,7 +259,7 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
   if (!fa.ok || !fb.ok) return out;
   const Vec3& na = fa.normal;
   const Vec3& nb = fb.normal;
-  if (!(na.dot(nb) < 0)) return out;  // not facing
+  if (!(na.dot(nb) < law.facing_dot)) return out;  // not facing (within the law's bound)
 
   // Cheap early out before the projection (which costs more than the rest of a rejected pair):
   // a corner a_i at distance d_i = n̂_B·(a_i − b_0) in front of B's plane has gap

@@ -85,6 +85,9 @@ std::string specFingerprint(const SceneSpec& spec) {
     if (f.key == "scene.prep_min_s" && spec.scene_params.prep_min_s == 0) continue;
     if (f.key == "numerics.dt_min_s" && dtMinS(spec.numerics) == defaultDtMinS(spec.numerics.dt_s))
       continue;
+    // Added later; at 90° every facing pair touches, as in earlier versions.
+    if (f.key == "numerics.contact_max_facing_deg" && spec.numerics.contact_max_facing_deg == 90)
+      continue;
     os << f.key << '=';
     if (const auto v = getField(spec, f.key)) std::visit([&](const auto& x) { os << x; }, *v);
     os << ';';

@@ -47,6 +47,7 @@ void Simulation::init() {
     law_.k = p.k_contact;
     law_.h0 = contactRangeH0(p);
     law_.stiffness_moments = scheme_->consistentStiffness();
+    law_.facing_dot = contactFacingDot(spec_.numerics);
     terms_.push_back(std::make_unique<ContactAdhesion>());
     const bool implicit = scheme_->contactStiffnessDt(1.0) > 0;
     const bool frictionless =

@@ -176,6 +176,10 @@ const std::vector<Entry>& entries() {
               "interpenetration of two cells (area-weighted mean over their contact) that stops "
               "the run as failed"),
          [](SceneSpec& s) -> Slot { return &s.numerics.max_penetration_um; }});
+    t.push_back({real("numerics.contact_max_facing_deg", kOpen, 0, 90, kClosed, "°",
+                      "triangle pairs touch only when their normals face each other within this "
+                      "angle of antiparallel; 90: every facing pair"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.contact_max_facing_deg; }});
     t.push_back({integer("numerics.max_oscillating_steps", 1, 1e6,
                          "consecutive steps of reversing contact velocities (explicit-scheme "
                          "instability) that stop the run as failed"),
