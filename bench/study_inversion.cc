@@ -67,8 +67,7 @@ double rank(const std::vector<double>& all, double x) {
 
 // The pairs of a contact list that report a gap far below zero: how many, how deep, and how
 // their triangles face each other (n̂_A·n̂_B: −1 antiparallel, 0 perpendicular).
-void scan(double t, const CellSet& cells, const Geometry& geo, const ContactList& con, double h0,
-          std::vector<std::string>& rows) {
+void scan(double t, const CellSet& cells, const Geometry& geo, const ContactList& con, double h0) {
   int below_h0 = 0, below_03 = 0, below_1 = 0;
   double deepest = 0, dot_deepest = 0, force_deepest = 0;
   std::vector<double> dots_deep, dots_all;
@@ -98,7 +97,6 @@ void scan(double t, const CellSet& cells, const Geometry& geo, const ContactList
                 con.pairs.size(), below_h0, below_03, below_1, deepest, dot_deepest, force_deepest,
                 dots_deep.empty() ? 0.0 : quantile(dots_deep, 0.5), quantile(dots_all, 0.99),
                 area > 0 ? area_60 / area : 0.0, area > 0 ? area_78 / area : 0.0);
-  rows.push_back(line);
   std::fputs(line, stderr);
 }
 
@@ -132,7 +130,6 @@ int main(int argc, char** argv) {
               config.c_str(), n, t_end);
   const double h0 = contactRangeH0(s.cells);
   const int scan_every = argc > 7 ? std::atoi(argv[7]) : 0;
-  std::vector<std::string> stderr_rows;
   int events = 0;
   std::int64_t steps = 0;
   StepReport prev;
@@ -142,7 +139,7 @@ int main(int argc, char** argv) {
     const Geometry geo_before = sim.geometry();
     const ContactList contacts_before = sim.contacts();
     if (scan_every > 0 && steps % scan_every == 0)
-      scan(sim.time(), cells_before, geo_before, contacts_before, h0, stderr_rows);
+      scan(sim.time(), cells_before, geo_before, contacts_before, h0);
     const StepReport r = sim.step();
     ++steps;
     if (r.ok()) {
