@@ -369,6 +369,12 @@ def _spec_value(spec: Dict[str, Any], key: str) -> Any:
     return value
 
 
+# Spec keys added after jobs were already stored, with the value the engine ran those jobs at: a
+# resolved spec from before the key does not name it, and reads as this value (else a study that
+# sweeps the key could never find its reference runs among the older jobs).
+KEYS_ADDED_LATER = {"numerics.contact_max_facing_deg": 90.0}
+
+
 def _resolved_value(spec: Dict[str, Any], key: str) -> Any:
     """A key's value in a job's resolved spec. The reduced keys are resolved into the absolute
     ones (and null there), so they are computed back: p_a r/2γ, τ_γ = η/γ, L_η/r = √(η/ξ)/r."""
@@ -384,7 +390,10 @@ def _resolved_value(spec: Dict[str, Any], key: str) -> Any:
         return None
     if key == "scene" and isinstance(spec.get("scene"), dict):
         return spec["scene"].get("kind")
-    return _spec_value(spec, key)
+    value = _spec_value(spec, key)
+    if value is None and key in KEYS_ADDED_LATER and spec:
+        return KEYS_ADDED_LATER[key]
+    return value
 
 
 def _matches(study: Study, run: Run, spec: Dict[str, Any]) -> bool:
@@ -468,8 +477,9 @@ def _shared_jobs(study: Study, client: Any, own: Dict[int, List[Any]]) -> Dict[i
                 spec = json.loads(j.spec_json) if j.spec_json else {}
                 if not _matches(study, run, spec):
                     bad = next((k for k, v in study.settings(run).items()
-                                if _resolved_value(spec, k) is not None
-                                and not _same(_resolved_value(spec, k), v)), "?")
+                                if (_resolved_value(spec, k) is None and k in run.point)
+                                or (_resolved_value(spec, k) is not None
+                                    and not _same(_resolved_value(spec, k), v))), "?")
                     raise StudyError(
                         f"{study.path}: share[{sh.index}]: job {j.id} of {sh.other.name} has "
                         f"{bad} = {_resolved_value(spec, bad)}, this run sets "

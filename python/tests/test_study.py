@@ -304,6 +304,28 @@ def test_runs_match_jobs_by_their_resolved_spec_reduced_keys_included(tmp_path):
     assert not st._matches(s, runs[0], resolved)
 
 
+def test_a_job_from_before_a_key_existed_matches_the_keys_default_only(tmp_path):
+    # Jobs stored before numerics.contact_max_facing_deg existed ran at 90° and do not name it:
+    # they are the 90° runs of a study that sweeps it, never its 60° runs.
+    f = tmp_path / "facing.toml"
+    f.write_text(textwrap.dedent("""\
+        [study]
+        name = "facing"
+        seeds = [1]
+        [spec]
+        scene = "fusion"
+        [[grid]]
+        "numerics.contact_max_facing_deg" = [90, 60]
+        """))
+    s = st.load(f)
+    old = {"scene": {"kind": "fusion"}, "seed": 1, "numerics": {"dt_s": 0.5}}
+    runs = s.runs()
+    assert st._matches(s, runs[0], old)
+    assert not st._matches(s, runs[1], old)
+    new = {"scene": {"kind": "fusion"}, "seed": 1, "numerics": {"contact_max_facing_deg": 60.0}}
+    assert st._matches(s, runs[1], new) and not st._matches(s, runs[0], new)
+
+
 def test_fitness_judges_a_candidate_of_a_second_grid_against_the_first_grids_reference(tmp_path):
     """Δt 0.5 (grid 1) and Δt 1 with ε_CG 1e-2 (grid 2) are both judged against the Δt 0.25
     runs of grid 1; the two candidates' verdicts are their own (Δt 0.5 fit, Δt 1 not)."""
