@@ -3,7 +3,7 @@
 //   foamd [--listen HOST:PORT] [--db PATH] [--workers N] [--threads-per-job N]
 //         [--token-file F] [--http HOST:PORT [--http-threads N] [--metrics-public]]
 //         [--tls-cert F --tls-key F] [--insecure-public] [--config F] [--keep-snapshots N]
-//         [--log-level L]
+//         [--log-level L] [--allow-unstable]
 //
 // With no flags: gRPC on 127.0.0.1:50051, database $XDG_DATA_HOME/activefoam/foamd.db (or
 // ~/.local/share/activefoam/foamd.db), one engine worker per core. The config file is TOML with
@@ -140,6 +140,11 @@ int main(int argc, char** argv) {
   app.add_flag("--insecure-public", insecure_public,
                "allow a non-loopback --listen without --token-file (a trusted network only: "
                "anyone who reaches it can submit and cancel jobs)");
+  bool allow_unstable = false;
+  app.add_flag("--allow-unstable", allow_unstable,
+               "accept jobs whose time step lies beyond the measured stable range "
+               "(docs/study/stability-map.md; refused by default): for measuring where a method "
+               "fails, e.g. a new contact setting at a larger step");
   app.add_option("--tls-cert", cert, "TLS certificate (PEM)");
   app.add_option("--tls-key", key, "TLS private key (PEM)");
   app.add_option("--keep-snapshots", keep_snapshots,
@@ -237,6 +242,9 @@ int main(int argc, char** argv) {
       if (const std::string bad = keyPairError(config.tls_cert, config.tls_key); !bad.empty())
         throw std::runtime_error(bad);
     config.insecure_public = insecure_public;
+    config.allow_unstable = allow_unstable;
+    if (allow_unstable)
+      spdlog::warn("foamd: --allow-unstable: specs beyond the measured stable range are accepted");
     HttpOptions http_options;
     http_options.listen = http;
     http_options.token = config.token;

@@ -260,7 +260,8 @@ Status capped(const char* field, const std::string& value, std::size_t max) {
 
 class FoamService final : public v1::Foam::CallbackService {
  public:
-  FoamService(Store& store, Executor& pool) : store_(store), pool_(pool) {
+  FoamService(Store& store, Executor& pool, ConvertOptions convert)
+      : store_(store), pool_(pool), convert_(convert) {
     store_.setEventListener([this](const std::string& id) { hub_.notify(id); });
   }
   ~FoamService() override { store_.setEventListener(nullptr); }
@@ -274,7 +275,7 @@ class FoamService final : public v1::Foam::CallbackService {
             return st;
           if (Status st = capped("tag", req->tag(), kMaxKeyBytes); !st.ok()) return st;
           const std::vector<std::string> settings(req->settings().begin(), req->settings().end());
-          ConvertResult conv = convertSpec(req->spec(), req->spec_text(), settings);
+          ConvertResult conv = convertSpec(req->spec(), req->spec_text(), settings, convert_);
           if (!conv.ok()) return Status(StatusCode::INVALID_ARGUMENT, errorText(conv.errors));
           NewJob job;
           job.spec = *conv.spec;
@@ -459,7 +460,7 @@ class FoamService final : public v1::Foam::CallbackService {
       for (std::size_t k = 0; k < nseeds; ++k) {
         std::vector<std::string> s = settings;
         if (!seeds.empty()) s.push_back("seed=" + std::to_string(seeds[k]));
-        ConvertResult conv = convertSpec(req.spec(), req.spec_text(), s);
+        ConvertResult conv = convertSpec(req.spec(), req.spec_text(), s, convert_);
         if (!conv.ok())
           return Status(StatusCode::INVALID_ARGUMENT,
                         "parameter set " + std::to_string(i) + ": " + errorText(conv.errors));
@@ -550,6 +551,7 @@ class FoamService final : public v1::Foam::CallbackService {
 
   Store& store_;
   Executor& pool_;
+  const ConvertOptions convert_;
   Hub hub_;
 };
 
@@ -588,7 +590,9 @@ void FoamServer::start() {
   Impl& m = *impl_;
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
-  m.service = std::make_unique<FoamService>(m.store, m.pool);
+  ConvertOptions convert;
+  convert.allow_unstable = m.config.allow_unstable;
+  m.service = std::make_unique<FoamService>(m.store, m.pool, convert);
 
   checkServerConfig(m.config);
   if (!isLoopback(m.config.listen) && m.config.token.empty())

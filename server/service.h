@@ -22,6 +22,8 @@ struct ServerConfig {
   // (kMaxSpecTextBytes), so that an oversized spec gets an answer naming the field and the
   // limit rather than gRPC's own refusal.
   int max_message_bytes = 16 * 1024 * 1024;
+  // Accept specs beyond the measured stable range (--allow-unstable; ConvertOptions).
+  bool allow_unstable = false;
 };
 
 // Throws std::invalid_argument when the listener breaks a rule: a non-loopback address needs a

@@ -116,7 +116,7 @@ std::vector<SpecError> applyTyped(const v1::SceneSpec& typed, SceneSpec& spec, b
 }
 
 ConvertResult convertSpec(const v1::SceneSpec& typed, std::string_view spec_text,
-                          const std::vector<std::string>& settings) {
+                          const std::vector<std::string>& settings, const ConvertOptions& options) {
   ConvertResult out;
   if (spec_text.size() > kMaxSpecTextBytes) {
     out.errors.push_back({"spec_text", "too large: " + std::to_string(spec_text.size()) +
@@ -174,8 +174,10 @@ ConvertResult convertSpec(const v1::SceneSpec& typed, std::string_view spec_text
     return out;
   }
   // A job the stability study says fails would cost its user a queue slot and a failed run:
-  // refused here with the measured limit (foam-run, the studies' tool, only warns).
-  if (auto unstable = measuredUnstable(*ready.spec); !unstable.empty()) {
+  // refused here with the measured limit (foam-run, the studies' tool, only warns), unless the
+  // operator started foamd to measure exactly that (--allow-unstable).
+  if (auto unstable = measuredUnstable(*ready.spec);
+      !unstable.empty() && !options.allow_unstable) {
     out.errors = unstable;
     return out;
   }

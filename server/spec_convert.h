@@ -26,11 +26,19 @@ struct ConvertResult {
 inline constexpr std::size_t kMaxSpecTextBytes = 256 * 1024;
 inline constexpr std::size_t kMaxSettings = 1000;
 
+struct ConvertOptions {
+  // Accept a spec beyond the measured stable range (measuredUnstable): foamd's
+  // --allow-unstable, for an operator measuring where a method fails. Such a job runs and may
+  // fail as the measurement said; it is never accepted silently by default.
+  bool allow_unstable = false;
+};
+
 // Builds the spec of a submit: the typed message first, then the TOML/JSON `spec_text` on top,
 // then the `key=value` settings; then validate + resolve, and refuse scenes this engine version
 // cannot build (error on "scene"). At least one of the three must name the scene.
 ConvertResult convertSpec(const v1::SceneSpec& typed, std::string_view spec_text = {},
-                          const std::vector<std::string>& settings = {});
+                          const std::vector<std::string>& settings = {},
+                          const ConvertOptions& options = {});
 
 // Applies the set fields of a typed message onto `spec` (no validation beyond setField's ranges).
 // `scene_given` tells whether the oneof was set.

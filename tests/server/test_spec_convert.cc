@@ -189,6 +189,35 @@ TEST(SpecConvert, MissingSceneNamesTheSceneKey) {
   EXPECT_EQ(r.errors[0].field, "scene");
 }
 
+// foamd refuses a step the stability study saw fail, naming the limit; --allow-unstable
+// (ConvertOptions) lets an operator run it to measure exactly that, and changes nothing else.
+TEST(SpecConvert, AStepBeyondTheMeasuredStableRangeIsRefusedUnlessAllowed) {
+  const std::vector<std::string> settings = {
+      "scene=fusion", "numerics.integrator=contact-implicit-consistent", "numerics.dt_s=1"};
+  ConvertResult r = convertSpec(v1::SceneSpec{}, {}, settings);  // motile by default
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.errors[0].field, "numerics.dt_s");
+  EXPECT_NE(r.errors[0].message.find("beyond the stable range"), std::string::npos)
+      << r.errors[0].message;
+  ConvertOptions allow;
+  allow.allow_unstable = true;
+  r = convertSpec(v1::SceneSpec{}, {}, settings, allow);
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_EQ(r.spec->numerics.dt_s, 1.0);
+  // Other errors stand: the option is about the stability limits only.
+  std::vector<std::string> bad = settings;
+  bad.push_back("numerics.dt_s=-1");
+  r = convertSpec(v1::SceneSpec{}, {}, bad, allow);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.errors[0].field, "numerics.dt_s");
+  bad = settings;
+  bad.push_back("cells.alpha=0.9");
+  bad.push_back("scene.gap_um=0.05");  // beyond the adhesion range: silently wrong, still refused
+  r = convertSpec(v1::SceneSpec{}, {}, bad, allow);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.errors[0].field, "scene.gap_um");
+}
+
 TEST(SpecConvert, AnAccuracyTargetPicksAPresetAndTheStoredSpecRecordsIt) {
   v1::SceneSpec m;
   m.mutable_doublet();
