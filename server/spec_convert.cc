@@ -176,8 +176,7 @@ ConvertResult convertSpec(const v1::SceneSpec& typed, std::string_view spec_text
   // A job the stability study says fails would cost its user a queue slot and a failed run:
   // refused here with the measured limit (foam-run, the studies' tool, only warns), unless the
   // operator started foamd to measure exactly that (--allow-unstable).
-  if (auto unstable = measuredUnstable(*ready.spec);
-      !unstable.empty() && !options.allow_unstable) {
+  if (auto unstable = measuredUnstable(*ready.spec); !unstable.empty() && !options.allow_unstable) {
     out.errors = unstable;
     return out;
   }
