@@ -9,6 +9,7 @@
 #include <Eigen/Dense>
 
 #include "activefoam/observables.h"
+#include "activefoam/threads.h"
 #include "test_support.h"
 
 using namespace activefoam;
@@ -272,6 +273,51 @@ TEST(Doublet, ContactFrictionDissipatesEachPairsWeightedVelocityDifferences) {
   EXPECT_GT(expected, 0);
   EXPECT_NEAR(v.dot(y), expected, 1e-11 * expected);
   EXPECT_NEAR(v.dot(op.assembled() * v), expected, 1e-11 * expected);
+}
+
+// The contact product computes two pairs at a time in SSE2 lanes and a last odd pair alone, in
+// each thread's part: with an odd and an even number of pairs, on one part and on three, with
+// and without the consistent stiffness, it applies the blocks it reports (forEachBlock, which
+// stays per pair), and the same bits on one part and on three.
+TEST(Doublet, ContactProductAppliesItsBlocksForOddAndEvenPairCountsOnAnyParts) {
+  Simulation sim(doubletSpec(0.4375, IntegratorKind::Ros2));
+  for (int k = 0; k < 300; ++k) ASSERT_TRUE(sim.step().ok());
+  ASSERT_GT(sim.contacts().pairs.size(), 20u);
+  ASSERT_EQ(sim.contacts().moments.size(), sim.contacts().pairs.size());
+  const ContactFriction friction(sim.spec().cells);
+  Topology topo;
+  const int nv = sim.cells().numVertices();
+  Rng rng(9, 2);
+  Eigen::VectorXd v(3 * nv);
+  for (Eigen::Index k = 0; k < v.size(); ++k) v[k] = rng.uniform() - 0.5;
+  for (const bool consistent : {false, true})
+    for (const std::size_t drop : {std::size_t{0}, std::size_t{1}}) {
+      ContactList con = sim.contacts();
+      con.pairs.resize(con.pairs.size() - drop);
+      con.moments.resize(con.pairs.size());
+      std::vector<Eigen::VectorXd> results;
+      for (const int parts : {1, 3}) {
+        const int saved_threads = threads();
+        const Grain saved_grain = grain();
+        setThreads(parts);
+        setGrain(Grain{1, 0});  // every kernel on `parts` parts, however few the pairs
+        StepContext ctx{sim.cells(), sim.geometry(), topo, 0.5, 0.0, &con, 0.5};
+        ctx.consistent_stiffness = consistent;
+        FrictionOperator op;
+        op.reset(nv, sim.cells().topology_version);
+        friction.addFriction(ctx, op);
+        Eigen::VectorXd y(v.size());
+        op.apply(v.data(), y.data());
+        const SpMat a = op.assembled();
+        setThreads(saved_threads);
+        setGrain(saved_grain);
+        EXPECT_LT((y - a * v).norm(), 1e-12 * (a * v).norm())
+            << con.pairs.size() << " pairs, " << parts << " parts, consistent " << consistent;
+        results.push_back(y);
+      }
+      EXPECT_TRUE(results[0] == results[1]) << "not the same bits on 1 and 3 parts, "
+                                            << con.pairs.size() << " pairs";
+    }
 }
 
 TEST(Doublet, SemiImplicitIsUnstableAtTheSupplementTimeStepAndSaysSo) {
