@@ -315,8 +315,8 @@ TEST(Doublet, ContactProductAppliesItsBlocksForOddAndEvenPairCountsOnAnyParts) {
             << con.pairs.size() << " pairs, " << parts << " parts, consistent " << consistent;
         results.push_back(y);
       }
-      EXPECT_TRUE(results[0] == results[1]) << "not the same bits on 1 and 3 parts, "
-                                            << con.pairs.size() << " pairs";
+      EXPECT_TRUE(results[0] == results[1])
+          << "not the same bits on 1 and 3 parts, " << con.pairs.size() << " pairs";
     }
 }
 
