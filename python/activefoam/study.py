@@ -66,7 +66,8 @@ METRICS = {
 }
 FITNESS_METRICS = ["theta_end_deg", "shape_index_end", "msrd_end_over_r2",
                    "unique_contacts_end", "theta_eq_deg", "tau_f_s"]
-SAMPLE_COLUMNS = ["theta_deg", "shape_index_mean", "unique_contacts_norm", "neck_radius_um"]
+SAMPLE_COLUMNS = ["theta_deg", "shape_index_mean", "unique_contacts_norm", "neck_radius_um",
+                  "volume_error_max"]
 
 
 class StudyError(ValueError):
@@ -732,6 +733,12 @@ def derive_metrics(study: Study, runs: Any, samples: Any, msrd: Any) -> Any:
                     v = g[col].to_numpy(dtype=float)
                     v = v[np.isfinite(v)]
                     vals[name] = v[-1] if len(v) else math.nan
+            # The largest cell volume error over the run's samples (the result of the same
+            # name is the value at the run's end only).
+            if "volume_error_max" in g:
+                v = g["volume_error_max"].to_numpy(dtype=float)
+                v = v[np.isfinite(v)]
+                vals["volume_error_peak"] = v.max() if len(v) else math.nan
             last[jid] = vals
     mend = {}
     if len(msrd):
@@ -744,6 +751,8 @@ def derive_metrics(study: Study, runs: Any, samples: Any, msrd: Any) -> Any:
     for name in ("theta_end_deg", "shape_index_end", "unique_contacts_end"):
         runs[name] = [last.get(j, {}).get(name, math.nan) if s == "succeeded" else math.nan
                       for j, s in zip(runs.get("job_id", [None] * len(runs)), runs["state"])]
+    runs["volume_error_peak"] = [last.get(j, {}).get("volume_error_peak", math.nan)
+                                 for j in runs.get("job_id", [None] * len(runs))]
     r = study_radius(study)
     runs["msrd_end_over_r2"] = [mend.get(j, math.nan) / r**2 if s == "succeeded" else math.nan
                                 for j, s in zip(runs.get("job_id", [None] * len(runs)),
@@ -784,6 +793,13 @@ def summary_table(study: Study, runs: Any, metrics: Sequence[str] = tuple(METRIC
                                               .dropna().astype(str))))
         row["missing"] = int(sel["state"].isin(["missing", "queued", "running",
                                                 "cancelled"]).sum())
+        # The runs' numerical health: steps the engine redid at a shorter step (an inverted
+        # triangle, a penetration, an oscillation: docs/science/motion-convergence.md) and the
+        # largest cell volume error, so that a point's numbers can be read against them.
+        redone = trends.finite(sel["steps_rejected"]) if "steps_rejected" in sel else []
+        row["steps_redone"] = int(sum(redone)) if len(redone) else math.nan
+        vol = trends.finite(sel["volume_error_peak"]) if "volume_error_peak" in sel else []
+        row["volume_error_peak"] = float(max(vol)) if len(vol) else math.nan
         for m in metrics:
             v = trends.finite(sel[m]) if m in sel else []
             row[f"{m}_n"] = len(v)
@@ -803,7 +819,8 @@ def summary_markdown(study: Study, table: Any) -> str:
     """The summary as a readable table: per point, runs (succeeded / failed, with the failure
     kinds) and each metric as median [q25, q75] over its n runs."""
     keys = study.swept_keys()
-    head = keys + ["runs", "ok", "failed"] + [METRICS[m] for m in METRICS]
+    head = (keys + ["runs", "ok", "failed"] + [METRICS[m] for m in METRICS] +
+            ["steps redone", "largest volume error"])
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for _, r in table.iterrows():
         cells = [_cell(r.get(k)) for k in keys]
@@ -813,10 +830,19 @@ def summary_markdown(study: Study, table: Any) -> str:
             med = r[f"{m}_median"]
             cells.append("—" if math.isnan(med) else
                          f"{med:.3g} [{r[f'{m}_q25']:.3g}, {r[f'{m}_q75']:.3g}] ({r[f'{m}_n']})")
+        redone, vol = r.get("steps_redone", math.nan), r.get("volume_error_peak", math.nan)
+        cells.append("—" if redone != redone else str(int(redone)))
+        cells.append("—" if vol != vol else f"{100 * vol:.2g} %")
         lines.append("| " + " | ".join(cells) + " |")
     head_line = f"# {study.title}\n\n" + (f"Scale: {study.scale}.\n\n" if study.scale else "")
     return (head_line + "Median [q25, q75] (n runs) over seeds; mixing time is capped at the "
-            "run's length where MSRD never reached r².\n\n" + "\n".join(lines) + "\n")
+            "run's length where MSRD never reached r². Steps redone: over the point's runs, the "
+            "steps the engine rejected and redid at a shorter step (inverted triangles, "
+            "penetration, oscillation); largest volume error: the largest |V − V₀|/V₀ of any "
+            "cell at any sample of them (a run fails beyond numerics.max_volume_error; — where "
+            "the data has no such column). Failures are "
+            "numerical, as the supplement's hatched runs that \"failed to converge\".\n\n" +
+            "\n".join(lines) + "\n")
 
 
 def _markdown(df: Any, floatfmt: str = ".3g") -> str:

@@ -230,11 +230,17 @@ def _synthetic(tmp: Path, shift_theta: float, failed_seed: int = 0):
             rows.append({"run": len(rows), "numerics.preset": preset, "seed": seed,
                          "job_id": jid, "state": "failed" if failed else "succeeded",
                          "failure_kind": "volume-drift" if failed else "", "eq1_ok": 0,
-                         "mixing_time_s": 7200})
+                         "mixing_time_s": 7200,
+                         # draft redoes seed steps; the result volume_error_max is the end
+                         # value, which the summary must not take for the run's largest
+                         "steps_rejected": seed if preset == "draft" else 0,
+                         "volume_error_max": 0.001})
             for t in range(0, 7201, 600):
                 theta = 40 + 5 * t / 3600 + noise[seed] + (shift_theta if preset == "draft"
                                                            else 0)
-                samples.append([jid, t, theta, 5.3 + 0.01 * seed, 1.0 + 0.1 * seed, 3.0])
+                # the volume error peaks mid-run: 1 % × seed for draft at t = 3600 s
+                vol = (0.01 * seed if preset == "draft" else 0.005) if t == 3600 else 0.002
+                samples.append([jid, t, theta, 5.3 + 0.01 * seed, 1.0 + 0.1 * seed, 3.0, vol])
             for lag in (60, 600, 3600, 7200):
                 # MSRD at the end / r²: 0.5 + 0.1·seed, draft 10 % higher (IQR 0.2, Δ ≈ 0.08).
                 end = (0.5 + 0.1 * seed) * (1.1 if preset == "draft" else 1.0) * 8.88**2
@@ -273,6 +279,12 @@ def test_fitness_report_on_synthetic_data_with_known_answers(tmp_path):
     summary = pd.read_csv(out2 / "summary.csv").set_index("numerics.preset")
     assert summary.loc["draft", "failed"] == 1
     assert summary.loc["draft", "failures"] == "volume-drift"
+    # Numerical health over every run of the point, the failed one included: 1+…+5 steps redone.
+    assert summary.loc["draft", "steps_redone"] == 15
+    assert summary.loc["draft", "volume_error_peak"] == pytest.approx(0.05)
+    assert summary.loc["standard", "steps_redone"] == 0
+    assert summary.loc["standard", "volume_error_peak"] == pytest.approx(0.005)
+    assert "| 15 | 5 % |" in (out2 / "summary.md").read_text()
 
 
 def test_runs_match_jobs_by_their_resolved_spec_reduced_keys_included(tmp_path):
@@ -364,7 +376,7 @@ def test_fitness_judges_a_candidate_of_a_second_grid_against_the_first_grids_ref
             rows.append(row)
             for t in range(0, 7201, 600):
                 theta = 40 + 5 * t / 3600 + noise[seed] + shift[dt]
-                samples.append([jid, t, theta, 5.3, 1.0, 3.0])
+                samples.append([jid, t, theta, 5.3, 1.0, 3.0, 0.002])
             msrd += [[jid, lag, 40.0 * lag / 7200] for lag in (60, 600, 7200)]
     _write_data(d, rows, samples, msrd)
     out = tmp_path / "out"

@@ -43,7 +43,7 @@ def _data(root: Path, theta, failed=()):
                              "state": "failed" if kind else "succeeded", "failure_kind": kind,
                              "eq1_ok": 0, "mixing_time_s": 3600})
                 for t in (0, 1800, 3600):
-                    samples.append([jid, t, theta(tau, a, seed), 5.4, 1.0, 3.0])
+                    samples.append([jid, t, theta(tau, a, seed), 5.4, 1.0, 3.0, 0.002])
                 msrd.append([jid, 3600, 40.0])
     pd.DataFrame(rows).to_csv(d / "runs.csv", index=False)
     pd.DataFrame(samples, columns=["job_id", "t_s"] + st.SAMPLE_COLUMNS).to_csv(
