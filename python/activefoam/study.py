@@ -373,7 +373,8 @@ def _spec_value(spec: Dict[str, Any], key: str) -> Any:
 # Spec keys added after jobs were already stored, with the value the engine ran those jobs at: a
 # resolved spec from before the key does not name it, and reads as this value (else a study that
 # sweeps the key could never find its reference runs among the older jobs).
-KEYS_ADDED_LATER = {"numerics.contact_max_facing_deg": 90.0}
+KEYS_ADDED_LATER = {"numerics.contact_max_facing_deg": 90.0,
+                    "numerics.contact_max_overlap_um": 0.0}
 
 
 def _resolved_value(spec: Dict[str, Any], key: str) -> Any:

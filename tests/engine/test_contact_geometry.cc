@@ -157,10 +157,15 @@ GridReference gridIntegrate(const Tri3& a, const Tri3& b, const ContactLaw& law,
       const double sA = na.dot(a[0] - X) / na.dot(n), sB = nb.dot(b[0] - X) / nb.dot(n);
       const double g = sB - sA;
       if (!(g < law.h0)) continue;
-      const double P = law.k * g;
+      // P = k max(g, −c) with c = law.max_overlap > 0 (the energy density's linear continuation
+      // below −c), else k g.
+      const double c = law.max_overlap;
+      const bool saturated = c > 0 && g < -c;
+      const double P = law.k * (saturated ? -c : g);
       r.area += dA;
       r.int_p += P * dA;
-      r.energy += 0.5 * law.k * g * g * dA;
+      r.energy +=
+          (saturated ? 0.5 * law.k * c * c - law.k * c * (g + c) : 0.5 * law.k * g * g) * dA;
       for (int k = 0; k < 3; ++k) {
         r.wa[k] += P * la[k] * dA;
         r.wb[k] += P * lb[k] * dA;
@@ -734,6 +739,69 @@ TEST(ContactNarrowPhase, NearlyPerpendicularFacingTrianglesAreFiniteAndConsisten
       EXPECT_NEAR(c.force.dot(c.normal), r.int_p, 2e-2 * law.k * c.area * law.h0);
     }
   }
+}
+
+// numerics.contact_max_overlap_um: P = k max(g, −c). A pair nowhere deeper than c keeps its
+// bits; a deeper one matches the brute-force grid integral of the saturated law (force, nodal
+// weights, energy), its normal force is minus its energy's gradient, its pressure never exceeds
+// k max(c, h0), and its mean gap is the true one (what the penetration guard reads).
+TEST(ContactNarrowPhase, ASaturatedPressureMatchesTheGridAndItsEnergy) {
+  std::mt19937 rng(47);
+  int split = 0, kept = 0, fd = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    const bool unlimited_range = trial % 2 == 1;  // no h0 clip: the energy is differentiable
+    ContactLaw plain;
+    if (unlimited_range) plain.h0 = 1e3;
+    ContactLaw capped = plain;
+    capped.max_overlap = 0.1;
+    const Pair pr = randomFacingPair(rng, -0.3, 0.1, 0.5);
+    for (ContactQuadrature q : {ContactQuadrature::Exact, ContactQuadrature::Dunavant7}) {
+      ContactMoments mp, mc;
+      const TriangleContact p = computeTriangleContact(pr.a, pr.b, plain, q, &mp);
+      const TriangleContact c = computeTriangleContact(pr.a, pr.b, capped, q, &mc);
+      ASSERT_EQ(p.active, c.active);
+      if (!c.active) continue;
+      ASSERT_TRUE(allFinite(c));
+      EXPECT_NEAR(c.mean_gap, p.mean_gap, 1e-12 * (std::abs(p.mean_gap) + 1)) << trial;
+      EXPECT_EQ(c.area, p.area);
+      if (p.mean_gap > -0.1 && c.force == p.force && c.energy == p.energy) {
+        // Nowhere deeper than c (the mean is not, and nothing changed): the same bits.
+        for (int i = 0; i < 3; ++i) EXPECT_EQ(c.force_weight_a[i], p.force_weight_a[i]);
+        EXPECT_TRUE(mc.ab == mp.ab && mc.aa == mp.aa && mc.bb == mp.bb);
+        ++kept;
+        continue;
+      }
+      ++split;
+      const double fn = c.force.dot(c.normal);
+      EXPECT_LE(std::abs(fn), capped.k * std::max(0.1, capped.h0) * c.area * (1 + 1e-12));
+      // Where g < −c the pressure k g (repulsive, negative) is raised to −k c: ∫P only grows.
+      EXPECT_GT(fn, p.force.dot(p.normal));
+      if (q == ContactQuadrature::Exact) {
+        const GridReference r = gridIntegrate(pr.a, pr.b, capped, 800);
+        const double scale = capped.k * c.area * 0.3;
+        EXPECT_NEAR(fn, r.int_p, 1e-2 * scale) << trial;
+        EXPECT_NEAR(c.energy, r.energy, 1e-2 * scale * 0.3) << trial;
+        for (int i = 0; i < 3; ++i) {
+          EXPECT_NEAR(c.force_weight_a[i], r.wa[i], 1e-2 * scale) << trial;
+          EXPECT_NEAR(c.force_weight_b[i], r.wb[i], 1e-2 * scale) << trial;
+        }
+      }
+      if (unlimited_range) {
+        const double ds = 1e-5;
+        auto energyAt = [&](double s) {
+          Tri3 moved = pr.a;
+          for (Vec3& x : moved) x += s * c.normal;
+          return computeTriangleContact(moved, pr.b, capped, q).energy;
+        };
+        const double dEds = (energyAt(ds) - energyAt(-ds)) / (2 * ds);
+        EXPECT_NEAR(-dEds, fn, 1e-6 * (std::abs(fn) + capped.k * c.area * 1e-3)) << trial;
+        ++fd;
+      }
+    }
+  }
+  EXPECT_GT(split, 40);
+  EXPECT_GT(kept, 20);
+  EXPECT_GT(fd, 20);
 }
 
 // numerics.contact_max_facing_deg: the law's facing bound drops the pairs whose normals are

@@ -660,5 +660,32 @@ TEST(SpecFields, TheContactFacingBoundHasARangeAndKeepsEarlierFingerprintsAtItsD
   }
 }
 
+// numerics.contact_max_overlap_um (the saturated contact pressure): 0 (never) or from the adhesion
+// range h0 up to 10 µm — below h0 the repulsion would saturate before it holds cells apart, and
+// the error names the key, h0 and the keys it comes from; at its default of 0 it is left out of
+// the fingerprint, so that checkpoints and prepared spheroids of earlier versions stay valid.
+TEST(SpecFields, TheContactOverlapBoundStartsAtTheAdhesionRangeAndKeepsEarlierFingerprints) {
+  SceneSpec s = resolve(SceneSpec{});
+  const std::string before = specFingerprint(s);
+  EXPECT_EQ(before.find("contact_max_overlap_um"), std::string::npos);
+  ASSERT_EQ(setField(s, "numerics.contact_max_overlap_um", 0.3), std::nullopt);
+  EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+  EXPECT_NE(specFingerprint(s), before);
+  EXPECT_NE(specFingerprint(s).find("numerics.contact_max_overlap_um=0.29999"), std::string::npos)
+      << specFingerprint(s);
+  const double h0 = contactRangeH0(s.cells);  // 0.063 µm at the defaults
+  ASSERT_EQ(setField(s, "numerics.contact_max_overlap_um", 0.5 * h0), std::nullopt);
+  const auto errors = validate(s);
+  ASSERT_TRUE(hasErrorFor(errors, "numerics.contact_max_overlap_um")) << joined(errors);
+  EXPECT_NE(joined(errors).find("adhesion range h0"), std::string::npos) << joined(errors);
+  ASSERT_EQ(setField(s, "numerics.contact_max_overlap_um", h0), std::nullopt);
+  EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+  for (double bad : {-0.1, 11.0}) {
+    SceneSpec t = resolve(SceneSpec{});
+    const auto error = setField(t, "numerics.contact_max_overlap_um", bad);
+    EXPECT_TRUE(error.has_value() || hasErrorFor(validate(t), "contact_max_overlap_um")) << bad;
+  }
+}
+
 }  // namespace
 }  // namespace activefoam

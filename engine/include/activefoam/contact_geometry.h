@@ -24,6 +24,8 @@ struct ContactLaw {
   // A pair touches only when n̂_A·n̂_B < facing_dot: 0 for every facing pair, −cos φ for pairs
   // within φ of antiparallel (numerics.contact_max_facing_deg).
   double facing_dot = 0;
+  // The pressure is k max(g, −max_overlap) (numerics.contact_max_overlap_um); 0: k g.
+  double max_overlap = 0;
 };
 
 // ∫ λ^A_i λ^B_k dS, ∫ λ^A_i λ^A_j dS, ∫ λ^B_k λ^B_l dS (row-major 3 × 3) over a pair's contact

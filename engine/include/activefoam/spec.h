@@ -78,6 +78,12 @@ struct NumericsParams {
   // gave forces 1000× the tissue's (docs/science/motion-convergence.md, "Correction"). Not
   // applied in the spheroids' preparation.
   double contact_max_facing_deg = 90;
+  // The overlap beyond which the contact pressure stops growing, µm: P = k max(g, −c), and
+  // where a pair is deeper than c it adds no stiffness. 0: P = k g for every g (DESIGN.md's term
+  // 6, the supplement's law). Nearly perpendicular pairs read overlaps of micrometres along their
+  // bisector; saturating the pressure there keeps the rims that a facing bound drops
+  // (docs/science/motion-convergence.md). Not applied in the spheroids' preparation.
+  double contact_max_overlap_um = 0;
   // Adaptive time step (time_stepper.h): a step that fails one of the checks above is
   // undone and retried at half the length, down to dt_min_s (default Δt/64); after a run of good
   // steps Δt grows back. false: the first failed step ends the run (the studies measure that).

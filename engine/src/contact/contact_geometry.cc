@@ -349,17 +349,59 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
   if (!(poly_area > kEmptyPolygonRel * ref_area)) return out;
 
   const Barycentric lam_a(pa), lam_b(pb);
+  auto integrateOver = [&](const Polygon& p, double p_g0, const Vec2& p_grad, bool with_moments,
+                           Integrals& into) {
+    switch (quadrature) {
+      case ContactQuadrature::Exact:
+        integrateExact(p, p_g0, p_grad, lam_a, lam_b, with_moments, into);
+        break;
+      case ContactQuadrature::Dunavant7:
+        integrate(p, dunavant7Rule(), p_g0, p_grad, lam_a, lam_b, with_moments, into);
+        break;
+      case ContactQuadrature::Centroid:
+        integrate(p, centroidRule(), p_g0, p_grad, lam_a, lam_b, with_moments, into);
+        break;
+    }
+  };
   Integrals I;
-  switch (quadrature) {
-    case ContactQuadrature::Exact:
-      integrateExact(poly, g0, g_grad, lam_a, lam_b, moments != nullptr, I);
-      break;
-    case ContactQuadrature::Dunavant7:
-      integrate(poly, dunavant7Rule(), g0, g_grad, lam_a, lam_b, moments != nullptr, I);
-      break;
-    case ContactQuadrature::Centroid:
-      integrate(poly, centroidRule(), g0, g_grad, lam_a, lam_b, moments != nullptr, I);
-      break;
+  // With a saturated pressure (law.max_overlap = c > 0) the part of the polygon deeper than c
+  // integrates P at g = −c, a constant: its force weights ∫ λ (−c), no stiffness (dP/dg = 0),
+  // and the energy density's linear continuation ½ k c² − k c (g + c), so that the force stays
+  // the energy's gradient. The true gap still gives the mean gap (the penetration guard's).
+  double g_true = 0, deep_energy = 0;
+  bool split = false;
+  if (law.max_overlap > 0) {
+    double g_min = gap(poly.v[0]);
+    for (int i = 1; i < poly.n; ++i) g_min = std::min(g_min, gap(poly.v[i]));
+    split = g_min < -law.max_overlap;
+  }
+  if (split) {
+    const double c = law.max_overlap;
+    Polygon shallow, deep;
+    clipHalfPlane(poly, shallow, [&](const Vec2& y) { return gap(y) + c; });
+    clipHalfPlane(poly, deep, [&](const Vec2& y) { return -(gap(y) + c); });
+    if (shallow.n >= 3) integrateOver(shallow, g0, g_grad, moments != nullptr, I);
+    const double shallow_g2 = I.g2;
+    g_true = I.g;
+    if (deep.n >= 3) {
+      Integrals D;
+      integrateOver(deep, -c, Vec2::Zero(), false, D);
+      const double deep_g = g0 * D.area + g_grad.dot(D.y);  // ∫ g over it (g is affine)
+      g_true += deep_g;
+      deep_energy = 0.5 * law.k * c * c * D.area - law.k * c * (deep_g + c * D.area);
+      I.area += D.area;
+      I.y += D.y;
+      I.g += D.g;
+      I.gy += D.gy;
+      for (int i = 0; i < 3; ++i) {
+        I.ga[i] += D.ga[i];
+        I.gb[i] += D.gb[i];
+      }
+    }
+    I.g2 = shallow_g2;
+  } else {
+    integrateOver(poly, g0, g_grad, moments != nullptr, I);
+    g_true = I.g;
   }
 
   auto toMidSurface = [&](const Vec2& y) {
@@ -393,8 +435,8 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
       I.bb[3 * j + i] = I.bb[3 * i + j];
     }
   if (moments) *moments = {I.ab, I.aa, I.bb};
-  out.energy = 0.5 * k * I.g2;
-  out.mean_gap = I.g / I.area;
+  out.energy = 0.5 * k * I.g2 + deep_energy;
+  out.mean_gap = g_true / I.area;
   return out;
 }
 

@@ -180,6 +180,10 @@ const std::vector<Entry>& entries() {
                       "triangle pairs touch only when their normals face each other within this "
                       "angle of antiparallel; 90: every facing pair"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.contact_max_facing_deg; }});
+    t.push_back({real("numerics.contact_max_overlap_um", kClosed, 0, 10, kClosed, "µm",
+                      "overlap of two triangles beyond which the contact pressure stops "
+                      "growing (at least the adhesion range h0); 0: it grows without bound"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.contact_max_overlap_um; }});
     t.push_back({integer("numerics.max_oscillating_steps", 1, 1e6,
                          "consecutive steps of reversing contact velocities (explicit-scheme "
                          "instability) that stop the run as failed"),

@@ -125,6 +125,22 @@ std::vector<SpecError> validate(const SceneSpec& spec) {
               formatNumber(2.0 * amin) + " (split halves would be collapsed again)");
   }
 
+  // A saturated pressure below the adhesion range would take away the repulsion that keeps
+  // cells apart (it starts at g = 0, inside the range).
+  if (const double cap = spec.numerics.contact_max_overlap_um;
+      cap > 0 &&
+      ok({"numerics.contact_max_overlap_um", "cells.alpha", "cells.gamma", "cells.k_contact"})) {
+    const double h0 = contactRangeH0(spec.cells);
+    if (cap < h0)
+      error("numerics.contact_max_overlap_um",
+            formatNumber(cap) +
+                " µm is inside the adhesion range h0 = √(w/k_AB) = " + formatNumber(h0) +
+                " µm of cells.alpha, cells.gamma and cells.k_contact: the "
+                "repulsion would saturate before it holds the cells apart; allowed 0 (never) "
+                "or [" +
+                formatNumber(h0) + ", 10] µm");
+  }
+
   // Size of the problem.
   if (ok({"scene", "scene.n_cells", "scene.n_cells_a", "scene.n_cells_b",
           "numerics.triangles_per_cell"})) {
