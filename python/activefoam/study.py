@@ -25,6 +25,7 @@ import math
 import os
 import re
 import sys
+import textwrap
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -1096,7 +1097,9 @@ def render_fitness(study: Study, data: Data, out: Path) -> List[Path]:
             ax.plot(t / 3600, med, color=c, label=f"{_point_label(p, f['key'])} (median, IQR "
                     f"over {int((sel['state'] == 'succeeded').sum())} seeds)")
             ax.fill_between(t / 3600, q25, q75, color=c, alpha=0.25, lw=0)
-    ax.set(xlabel="t (h)", ylabel="θ (°)", title=f"{study.title}: θ(t) ensembles")
+    ax.set(xlabel="t (h)", ylabel="θ (°)")
+    # A study's title is often longer than the axes: wrapped, so that none of it is cut off.
+    ax.set_title(textwrap.fill(f"{study.title}: θ(t) ensembles", 80), fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(out / f"{study.name}-theta-bands.png", dpi=110)
