@@ -380,8 +380,8 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
     Polygon shallow, deep;
     clipHalfPlane(poly, shallow, [&](const Vec2& y) { return gap(y) + c; });
     clipHalfPlane(poly, deep, [&](const Vec2& y) { return -(gap(y) + c); });
+    // I.g2 (the energy's ½ k ∫ g²) stays the shallow part's: the deep part's energy is below.
     if (shallow.n >= 3) integrateOver(shallow, g0, g_grad, moments != nullptr, I);
-    const double shallow_g2 = I.g2;
     g_true = I.g;
     if (deep.n >= 3) {
       Integrals D;
@@ -398,7 +398,6 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
         I.gb[i] += D.gb[i];
       }
     }
-    I.g2 = shallow_g2;
   } else {
     integrateOver(poly, g0, g_grad, moments != nullptr, I);
     g_true = I.g;
