@@ -145,10 +145,16 @@ GridReference gridIntegrate(const Tri3& a, const Tri3& b, const ContactLaw& law,
     pa[i] = Vec2((a[i] - o).dot(e1), (a[i] - o).dot(e2));
     pb[i] = Vec2((b[i] - o).dot(e1), (b[i] - o).dot(e2));
   }
-  Vec2 lo = pa[0].cwiseMin(pa[1]).cwiseMin(pa[2]), hi = pa[0].cwiseMax(pa[1]).cwiseMax(pa[2]);
+  // The grid spans the overlap of both triangles' bounding boxes: a sliver of overlap gets the
+  // whole resolution (over A's box alone a 0.001 µm² polygon was 3.5 % off in area).
+  const Vec2 lo =
+      pa[0].cwiseMin(pa[1]).cwiseMin(pa[2]).cwiseMax(pb[0].cwiseMin(pb[1]).cwiseMin(pb[2]));
+  const Vec2 hi =
+      pa[0].cwiseMax(pa[1]).cwiseMax(pa[2]).cwiseMin(pb[0].cwiseMax(pb[1]).cwiseMax(pb[2]));
+  GridReference r;
+  if (!(lo.array() < hi.array()).all()) return r;
   const Vec2 h = (hi - lo) / n_grid;
   const double dA = h.x() * h.y();
-  GridReference r;
   for (int i = 0; i < n_grid; ++i) {
     for (int j = 0; j < n_grid; ++j) {
       const Vec2 y = lo + Vec2((i + 0.5) * h.x(), (j + 0.5) * h.y());
@@ -750,7 +756,7 @@ TEST(ContactNarrowPhase, NearlyPerpendicularFacingTrianglesAreFiniteAndConsisten
 // k max(c, h0), and its mean gap is the true one (what the penetration guard reads).
 TEST(ContactNarrowPhase, ASaturatedPressureMatchesTheGridAndItsEnergy) {
   std::mt19937 rng(47);
-  int split = 0, kept = 0, fd = 0;
+  int split = 0, kept = 0, fd = 0, gridded = 0;
   for (int trial = 0; trial < 200; ++trial) {
     const bool unlimited_range = trial % 2 == 1;  // no h0 clip: the energy is differentiable
     ContactLaw plain;
@@ -788,7 +794,10 @@ TEST(ContactNarrowPhase, ASaturatedPressureMatchesTheGridAndItsEnergy) {
       EXPECT_LE(std::abs(fn), capped.k * std::max(0.1, capped.h0) * c.area * (1 + 1e-12));
       // Where g < −c the pressure k g (repulsive, negative) is raised to −k c: ∫P only grows.
       EXPECT_GT(fn, p.force.dot(p.normal));
-      if (q == ContactQuadrature::Exact) {
+      // The grid's samples miss a polygon's edges by up to a cell: a sliver of 1e-5 µm² is 25 %
+      // off in area on it, so only polygons the grid resolves are compared with it.
+      if (q == ContactQuadrature::Exact && c.area > 0.02) {
+        ++gridded;
         const GridReference r = gridIntegrate(pr.a, pr.b, capped, 800);
         const double scale = capped.k * c.area * 0.3;
         EXPECT_NEAR(fn, r.int_p, 1e-2 * scale) << trial;
@@ -814,6 +823,7 @@ TEST(ContactNarrowPhase, ASaturatedPressureMatchesTheGridAndItsEnergy) {
   EXPECT_GT(split, 40);
   EXPECT_GT(kept, 20);
   EXPECT_GT(fd, 20);
+  EXPECT_GT(gridded, 30);
 }
 
 // numerics.contact_max_facing_deg: the law's facing bound drops the pairs whose normals are
