@@ -266,9 +266,8 @@ TEST(FusionScene, SamplesFitsAndResumeFromCheckpoint) {
   EXPECT_EQ(physicsColumns(again), pf);
 }
 
-// Cells that really overlap stop the run with `interpenetration`, judged per pair of cells on
-// the area-weighted mean gap of their contact (single tilted triangle pairs at a rim read deep
-// gaps over slivers of area while the cells do not overlap).
+// Cells that really overlap stop the run with `interpenetration`: a vertex of one lies deeper
+// than the limit inside the other.
 TEST(Interpenetration, OverlappingCellsStopTheRunTouchingOnesDoNot) {
   SceneSpec s = activefoam::testing::cellSpec(1.0, 320);
   s.scene = SceneKind::Doublet;
@@ -288,10 +287,109 @@ TEST(Interpenetration, OverlappingCellsStopTheRunTouchingOnesDoNot) {
     Simulation sim(s, cells);
     const std::string why = sim.interpenetration();
     if (overlap > 0) {
-      EXPECT_NE(why.find("cells 0 and 1 interpenetrate"), std::string::npos) << why;
+      EXPECT_NE(why.find("cells 0 and 1 interpenetrate: vertex"), std::string::npos) << why;
     } else {
       EXPECT_EQ(why, "");
       EXPECT_FALSE(sim.contacts().pairs.empty());
     }
   }
+}
+
+// The winding number and the distance the guard's depth is made of, on a sphere's mesh: 1 inside,
+// 0 outside (also within 0.05 µm of the surface), and the distance to the inscribed polyhedron
+// within its sagitta of the distance to the sphere.
+TEST(Interpenetration, WindingNumberAndDistanceOnACellsMesh) {
+  CellSet cells;
+  cells.addCell(ellipsoidCell(7.0, 1.0, 320, Vec3(1, 2, 3)), 7.0);
+  const double r = (cells.x.col(0) - Vec3(1, 2, 3)).norm();  // the vertices' sphere
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n01;
+  double max_edge = 0;
+  for (const Tri& t : cells.tri)
+    for (int k = 0; k < 3; ++k)
+      max_edge = std::max(max_edge, (cells.x.col(t[k]) - cells.x.col(t[(k + 1) % 3])).norm());
+  const double sagitta = max_edge * max_edge / (4 * r);  // circumradius ≤ edge/√3, generously
+  for (int i = 0; i < 200; ++i) {
+    const Vec3 dir = Vec3(n01(rng), n01(rng), n01(rng)).normalized();
+    const double rho = std::uniform_real_distribution<double>(0, 2 * r)(rng);
+    const Vec3 p = Vec3(1, 2, 3) + rho * dir;
+    const double w = windingNumber(cells, 0, p);
+    if (rho < r - sagitta - 0.05) {
+      EXPECT_NEAR(w, 1.0, 1e-9) << rho;
+    } else if (rho > r + 0.05) {
+      EXPECT_NEAR(w, 0.0, 1e-9) << rho;
+    }
+    const double d = distanceToSurface(cells, 0, p);
+    EXPECT_LE(d, std::abs(rho - r) + sagitta + 1e-9) << rho;
+    EXPECT_GE(d, std::abs(rho - r) - sagitta - 1e-9) << rho;
+  }
+  // On a vertex: distance 0.
+  EXPECT_NEAR(distanceToSurface(cells, 0, cells.x.col(17)), 0.0, 1e-12);
+}
+
+// The depth the guard reports is that of the other cell's vertices inside the sphere's mesh
+// (reference: r − |x − c|, within the polyhedron's sagitta); it stops at depths beyond the
+// limit only.
+TEST(Interpenetration, TheReportedDepthIsTheDeepestVertexInsideTheOtherCell) {
+  SceneSpec s = activefoam::testing::cellSpec(1.0, 320);
+  s.scene = SceneKind::Doublet;
+  s = resolve(s);
+  const double r = s.cells.radius_mean_um;
+  for (const double overlap : {0.4, 0.8, 1.6, 2.4}) {
+    CellSet cells;
+    TriMesh a = ellipsoidCell(r, 1.0, 320, Vec3::Zero());
+    TriMesh b = ellipsoidCell(r, 1.0, 320, Vec3::Zero());
+    const double shift = a.x.row(0).maxCoeff() - b.x.row(0).minCoeff() - overlap;
+    b.x.row(0).array() += shift;
+    cells.addCell(a, r);
+    cells.addCell(b, r);
+    // The analytic depth of b's vertices in a's sphere (that of its vertices), and of a's in b's.
+    const double rv = a.x.col(0).norm();
+    double reference = 0;
+    for (int i = 0; i < cells.numVertices(); ++i) {
+      const Vec3 c = cells.vertex_cell[i] == 1 ? Vec3::Zero() : Vec3(shift, 0, 0);
+      reference = std::max(reference, rv - (cells.x.col(i) - c).norm());
+    }
+    Simulation sim(s, cells);
+    PenetrationScratch scratch;
+    for (const double limit : {0.5 * reference, 1.5 * reference}) {
+      const std::string why = interpenetration(sim.cells(), sim.contacts(), limit, 0, scratch);
+      if (limit > reference) {
+        EXPECT_EQ(why, "") << overlap;
+        continue;
+      }
+      const auto at = why.find(" lies ");
+      ASSERT_NE(at, std::string::npos) << overlap << ": " << why;
+      const double depth = std::stod(why.substr(at + 6));
+      EXPECT_NEAR(depth, reference, 0.15) << overlap << ": " << why;
+    }
+  }
+}
+
+// A deep mean gap alone does not stop a run: what the oblique bisectors of a junction read
+// (−0.4 … −1.1 µm where no vertex is inside the other cell, the 24 h fusion's end) is not an
+// overlap. Here the touching doublet's pairs are given a mean gap of −3 µm by hand.
+TEST(Interpenetration, ADeepMeanGapWithNoVertexInsideIsNoOverlap) {
+  SceneSpec s = activefoam::testing::cellSpec(1.0, 320);
+  s.scene = SceneKind::Doublet;
+  s.numerics.max_penetration_um = 0.5;
+  s = resolve(s);
+  const double r = s.cells.radius_mean_um;
+  CellSet cells;
+  TriMesh a = ellipsoidCell(r, 1.0, 320, Vec3::Zero());
+  TriMesh b = ellipsoidCell(r, 1.0, 320, Vec3::Zero());
+  b.x.row(0).array() += a.x.row(0).maxCoeff() - b.x.row(0).minCoeff() + 0.05;
+  cells.addCell(a, r);
+  cells.addCell(b, r);
+  Simulation sim(s, cells);
+  ContactList faked = sim.contacts();
+  ASSERT_FALSE(faked.pairs.empty());
+  for (ContactPair& p : faked.pairs) p.c.mean_gap = -3.0;
+  PenetrationScratch scratch;
+  EXPECT_EQ(interpenetration(sim.cells(), faked, 0.5, 0, scratch), "");
+  // The same cells moved 1.5 µm into each other do stop it.
+  CellSet deep = sim.cells();
+  for (int i = deep.cell_vertex_begin[1]; i < deep.numVertices(); ++i) deep.x(0, i) -= 1.55;
+  Simulation moved(s, deep);
+  EXPECT_NE(interpenetration(moved.cells(), moved.contacts(), 0.5, 0, scratch), "");
 }

@@ -180,7 +180,7 @@ class Simulation {
   std::int64_t remesh_ops_ = 0;
   std::int64_t steps_rejected_ = 0;
   PhaseTimes times_;
-  std::vector<PairGap> penetration_;  // scratch of interpenetration()
+  PenetrationScratch penetration_;  // scratch of interpenetration()
   struct Saved {
     CellSet cells;
     std::int64_t remesh_ops = 0;

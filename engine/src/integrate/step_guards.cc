@@ -2,7 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
+#include <utility>
+
+#include <Eigen/Geometry>
 
 #include "activefoam/contacts.h"
 
@@ -115,10 +119,10 @@ class VolumeGuard : public StepGuard {
   }
 };
 
-// Per pair of cells, the area-weighted mean gap of their contact pairs. Single triangle pairs
-// are no measure: where two surfaces meet at a rim at ~70° a pair overlaps by a sliver of
-// 1e-4 µm² whose mean gap along the pair normal reads −0.5 … −1.6 µm while the cells do not
-// overlap (measured on a 2 × 8-cell fusion; it stopped runs at t = 990 s).
+// Single triangle pairs are no measure: where two surfaces meet at a rim at ~70° a pair
+// overlaps by a sliver of 1e-4 µm² whose mean gap along the pair normal reads −0.5 … −1.6 µm
+// while the cells do not overlap (measured on a 2 × 8-cell fusion; it stopped runs at
+// t = 990 s); nor is a pair of cells' mean gap (see interpenetration()).
 class InterpenetrationGuard : public StepGuard {
  public:
   std::string_view name() const override { return "interpenetration"; }
@@ -131,41 +135,120 @@ class InterpenetrationGuard : public StepGuard {
   }
 
  private:
-  std::vector<PairGap> scratch_;
+  PenetrationScratch scratch_;
 };
+
+// Closest point of triangle abc to p (Ericson, Real-Time Collision Detection §5.1.5).
+Vec3 closestOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return a;
+  const Vec3 bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return b;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + d1 / (d1 - d3) * ab;
+  const Vec3 cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return c;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + d2 / (d2 - d6) * ac;
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0)
+    return b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b);
+  const double denom = 1 / (va + vb + vc);
+  return a + ab * (vb * denom) + ac * (vc * denom);
+}
+
+// The deepest of `verts` inside cell c: (depth, vertex), depth 0 when none is inside.
+std::pair<double, int> deepestInside(const CellSet& cells, const std::vector<int>& verts, int c) {
+  std::pair<double, int> deepest{0.0, -1};
+  for (const int v : verts) {
+    const Vec3 p = cells.x.col(v);
+    if (!(windingNumber(cells, c, p) > 0.5)) continue;
+    const double d = distanceToSurface(cells, c, p);
+    if (d > deepest.first) deepest = {d, v};
+  }
+  return deepest;
+}
 
 }  // namespace
 
+double windingNumber(const CellSet& cells, int c, const Vec3& p) {
+  // Van Oosterom & Strackee's solid angle of each triangle seen from p.
+  double omega = 0;
+  for (int t = cells.cell_tri_begin[c]; t < cells.cell_tri_begin[c + 1]; ++t) {
+    const Tri& tr = cells.tri[t];
+    const Vec3 a = cells.x.col(tr[0]) - p, b = cells.x.col(tr[1]) - p, d = cells.x.col(tr[2]) - p;
+    const double la = a.norm(), lb = b.norm(), ld = d.norm();
+    const double det = a.dot(b.cross(d));
+    const double den = la * lb * ld + a.dot(b) * ld + b.dot(d) * la + d.dot(a) * lb;
+    omega += 2 * std::atan2(det, den);
+  }
+  return omega / (4 * M_PI);
+}
+
+double distanceToSurface(const CellSet& cells, int c, const Vec3& p) {
+  double d2 = std::numeric_limits<double>::infinity();
+  for (int t = cells.cell_tri_begin[c]; t < cells.cell_tri_begin[c + 1]; ++t) {
+    const Tri& tr = cells.tri[t];
+    const Vec3 q = closestOnTriangle(p, cells.x.col(tr[0]), cells.x.col(tr[1]), cells.x.col(tr[2]));
+    d2 = std::min(d2, (q - p).squaredNorm());
+  }
+  return std::sqrt(d2);
+}
+
 std::string interpenetration(const CellSet& cells, const ContactList& contacts, double limit,
-                             double t, std::vector<PairGap>& scratch) {
-  scratch.clear();
+                             double t, PenetrationScratch& scratch) {
+  std::vector<PairGap>& pairs = scratch.pairs;
+  pairs.clear();
   for (const ContactPair& p : contacts.pairs) {
     int a = cells.tri_cell[p.ta], b = cells.tri_cell[p.tb];
     if (a > b) std::swap(a, b);
-    scratch.push_back({(static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b),
-                       p.c.mean_gap * p.c.area, p.c.area});
+    pairs.push_back({(static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b),
+                     p.c.mean_gap * p.c.area, p.c.area});
   }
   // detectContacts lists the pairs grouped by pair of cells already (the broad phase's order):
   // the sort is then skipped.
   const auto by_key = [](const auto& x, const auto& y) { return x.key < y.key; };
-  if (!std::is_sorted(scratch.begin(), scratch.end(), by_key))
-    std::sort(scratch.begin(), scratch.end(), by_key);
-  for (std::size_t i = 0; i < scratch.size();) {
+  if (!std::is_sorted(pairs.begin(), pairs.end(), by_key))
+    std::stable_sort(pairs.begin(), pairs.end(), by_key);
+  for (std::size_t i = 0; i < pairs.size();) {
     double gs = 0, area = 0;
     std::size_t j = i;
-    for (; j < scratch.size() && scratch[j].key == scratch[i].key; ++j) {
-      gs += scratch[j].gap_area;
-      area += scratch[j].area;
+    for (; j < pairs.size() && pairs[j].key == pairs[i].key; ++j) {
+      gs += pairs[j].gap_area;
+      area += pairs[j].area;
     }
-    if (area > 0 && -gs / area > limit) {
-      std::ostringstream why;
-      why << "cells " << (scratch[i].key >> 32) << " and " << (scratch[i].key & 0xffffffffULL)
-          << " interpenetrate by " << -gs / area
-          << " µm on average over their contact > numerics.max_penetration_um = " << limit << " µm"
-          << at(t);
-      return why.str();
-    }
+    const std::size_t begin = i;
     i = j;
+    if (!(area > 0 && -gs / area > 0.25 * limit)) continue;
+    const int a = static_cast<int>(pairs[begin].key >> 32);
+    const int b = static_cast<int>(pairs[begin].key & 0xffffffffULL);
+    // The vertices of each cell inside both cells' bounding boxes: those of the contact
+    // triangles miss the deepest (the narrow phase drops pairs that passed each other).
+    Eigen::AlignedBox3d box_a, box_b;
+    for (int v = cells.cell_vertex_begin[a]; v < cells.cell_vertex_begin[a + 1]; ++v)
+      box_a.extend(cells.x.col(v));
+    for (int v = cells.cell_vertex_begin[b]; v < cells.cell_vertex_begin[b + 1]; ++v)
+      box_b.extend(cells.x.col(v));
+    const Eigen::AlignedBox3d both = box_a.intersection(box_b);
+    scratch.va.clear();
+    scratch.vb.clear();
+    for (int v = cells.cell_vertex_begin[a]; v < cells.cell_vertex_begin[a + 1]; ++v)
+      if (both.contains(cells.x.col(v))) scratch.va.push_back(v);
+    for (int v = cells.cell_vertex_begin[b]; v < cells.cell_vertex_begin[b + 1]; ++v)
+      if (both.contains(cells.x.col(v))) scratch.vb.push_back(v);
+    const auto [da, va] = deepestInside(cells, scratch.va, b);
+    const auto [db, vb] = deepestInside(cells, scratch.vb, a);
+    if (!(std::max(da, db) > limit)) continue;
+    const bool a_in_b = da >= db;
+    std::ostringstream why;
+    why << "cells " << a << " and " << b << " interpenetrate: vertex " << (a_in_b ? va : vb)
+        << " of cell " << (a_in_b ? a : b) << " lies " << std::max(da, db) << " µm inside cell "
+        << (a_in_b ? b : a) << " > numerics.max_penetration_um = " << limit
+        << " µm (their contact's mean gap: " << gs / area << " µm)" << at(t);
+    return why.str();
   }
   return {};
 }

@@ -171,11 +171,10 @@ const std::vector<Entry>& entries() {
     t.push_back({real("numerics.max_volume_error", kOpen, 0, 1, kClosed, "",
                       "relative cell volume error |V − V*|/V* that stops the run as failed"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.max_volume_error; }});
-    t.push_back(
-        {real("numerics.max_penetration_um", kOpen, 0, 100, kClosed, "µm",
-              "interpenetration of two cells (area-weighted mean over their contact) that stops "
-              "the run as failed"),
-         [](SceneSpec& s) -> Slot { return &s.numerics.max_penetration_um; }});
+    t.push_back({real("numerics.max_penetration_um", kOpen, 0, 100, kClosed, "µm",
+                      "depth of a vertex of one cell inside another that stops the run as failed "
+                      "(after halving the step to numerics.dt_min_s)"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.max_penetration_um; }});
     t.push_back({real("numerics.contact_max_facing_deg", kOpen, 0, 90, kClosed, "°",
                       "triangle pairs touch only when their normals face each other within this "
                       "angle of antiparallel; 90: every facing pair"),
