@@ -34,6 +34,7 @@ struct GuardView {
   const CellSet& cells;
   const Geometry& geo;                      // current (after the move from `Moved` on)
   const Geometry* geo_before = nullptr;     // the step's start geometry (from `Moved` on)
+  const CellSet* cells_before = nullptr;    // the step's start (adaptive stepping keeps it)
   const ContactList* contacts = nullptr;    // the step's start contacts, new ones in `Detected`
   const Eigen::VectorXd* v = nullptr;       // the solved velocities (`Solved`)
   const Eigen::Matrix3Xd* force = nullptr;  // F of the step (`Solved`)

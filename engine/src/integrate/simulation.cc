@@ -200,6 +200,7 @@ StepReport Simulation::tryStep() {
   for (const auto& term : terms_) term->endStep(start, cells_);
   timed(times_.geometry, [&] { computeGeometry(cells_, geo_); });
   view.geo_before = &geo_prev_;
+  if (stepper_.adaptive()) view.cells_before = &saved_.cells;
   if (auto f = runGuards(StepGuard::Phase::Moved, view)) return failed(std::move(*f));
 
   // Remeshing before contact detection: a remesh re-detects the contacts of the new meshes, and
@@ -216,6 +217,7 @@ StepReport Simulation::tryStep() {
   }
   if (cells_.topology_version == topology_before) timed(times_.contacts, [&] { detect(); });
   view.geo_before = nullptr;  // the meshes may have changed
+  view.cells_before = nullptr;
   if (auto f = runGuards(StepGuard::Phase::Detected, view)) return failed(std::move(*f));
   return rep;
 }

@@ -1,6 +1,7 @@
 #include "activefoam/step_guards.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -94,9 +95,41 @@ class InvertedTriangleGuard : public StepGuard {
       std::ostringstream why;
       why << "triangle " << t << " of cell " << g.cells.tri_cell[t] << " inverted" << at(g.t + g.dt)
           << " (time step too large for the forces?)";
+      describe(why, g, t);
       return StepFailure{FailureKind::InvertedTriangle, why.str()};
     }
     return std::nullopt;
+  }
+
+ private:
+  // Its shape and contact at the step's start (the positions adaptive stepping keeps; else at
+  // its end), which tell the two known causes apart: a sliver the remesher left (a long edge,
+  // a small height, an angle near 180°) and a contact pair pressing it (its contact fraction).
+  static void describe(std::ostream& why, const GuardView& g, int t) {
+    const bool start =
+        g.cells_before != nullptr && g.cells_before->topology_version == g.cells.topology_version;
+    const Eigen::Matrix3Xd& x = start ? g.cells_before->x : g.cells.x;
+    const Tri& f = g.cells.tri[t];
+    std::array<double, 3> edge{}, angle{};
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 p = x.col(f[k]), q = x.col(f[(k + 1) % 3]), r = x.col(f[(k + 2) % 3]);
+      edge[k] = (q - p).norm();
+      angle[k] = std::atan2((q - p).cross(r - p).norm(), (q - p).dot(r - p)) * 180 / M_PI;
+    }
+    const double area = 0.5 * (x.col(f[1]) - x.col(f[0])).cross(x.col(f[2]) - x.col(f[0])).norm();
+    const double longest = *std::max_element(edge.begin(), edge.end());
+    const double r = g.cells.radius[g.cells.tri_cell[t]];
+    const double a_ref = 4 * M_PI * r * r / g.spec.numerics.triangles_per_cell;
+    std::ostringstream d;
+    d.precision(3);
+    d << "; " << (start ? "at the step's start" : "at its end") << " its edges were " << edge[0]
+      << ", " << edge[1] << ", " << edge[2] << " µm, its height on the longest "
+      << (longest > 0 ? 2 * area / longest : 0) << " µm, its largest angle "
+      << *std::max_element(angle.begin(), angle.end()) << "°, its area " << area / a_ref
+      << " of the cell's mean";
+    if (g.contacts != nullptr && t < static_cast<int>(g.contacts->tri_contact_fraction.size()))
+      d << ", in contact over " << 100 * g.contacts->tri_contact_fraction[t] << " % of it";
+    why << d.str();
   }
 };
 
