@@ -393,3 +393,35 @@ TEST(Interpenetration, ADeepMeanGapWithNoVertexInsideIsNoOverlap) {
   Simulation moved(s, deep);
   EXPECT_NE(interpenetration(moved.cells(), moved.contacts(), 0.5, 0, scratch), "");
 }
+
+// With the step's start (adaptive stepping keeps it) the guard fails a step only if it deepened
+// an overlap beyond the limit: an overlap the step began with, and made no deeper, is not the
+// step's doing, and halving the step could not take it out.
+TEST(Interpenetration, AStepThatDidNotDeepenTheOverlapPasses) {
+  SceneSpec s = activefoam::testing::cellSpec(1.0, 320);
+  s.scene = SceneKind::Doublet;
+  s = resolve(s);
+  const double r = s.cells.radius_mean_um;
+  auto overlapping = [&](double overlap) {
+    CellSet cells;
+    TriMesh a = ellipsoidCell(r, 1.0, 320, Vec3::Zero());
+    TriMesh b = ellipsoidCell(r, 1.0, 320, Vec3::Zero());
+    b.x.row(0).array() += a.x.row(0).maxCoeff() - b.x.row(0).minCoeff() - overlap;
+    cells.addCell(a, r);
+    cells.addCell(b, r);
+    return cells;
+  };
+  const CellSet start = overlapping(1.6);
+  PenetrationScratch scratch;
+  for (const double end : {1.2, 1.6, 2.0}) {
+    Simulation sim(s, overlapping(end));
+    const std::string strict = interpenetration(sim.cells(), sim.contacts(), 0.5, 0, scratch);
+    EXPECT_NE(strict.find("cells 0 and 1 interpenetrate"), std::string::npos) << end;
+    const std::string why = interpenetration(sim.cells(), sim.contacts(), 0.5, 0, scratch, &start);
+    if (end <= 1.6) {
+      EXPECT_EQ(why, "") << end;
+    } else {
+      EXPECT_NE(why.find("µm at the step's start"), std::string::npos) << why;
+    }
+  }
+}

@@ -34,7 +34,8 @@ struct GuardView {
   const CellSet& cells;
   const Geometry& geo;                      // current (after the move from `Moved` on)
   const Geometry* geo_before = nullptr;     // the step's start geometry (from `Moved` on)
-  const CellSet* cells_before = nullptr;    // the step's start (adaptive stepping keeps it)
+  const CellSet* cells_before = nullptr;    // the step's start (adaptive stepping keeps it;
+                                            // from `Moved` on, its own meshes)
   const ContactList* contacts = nullptr;    // the step's start contacts, new ones in `Detected`
   const Eigen::VectorXd* v = nullptr;       // the solved velocities (`Solved`)
   const Eigen::Matrix3Xd* force = nullptr;  // F of the step (`Solved`)
@@ -81,8 +82,12 @@ struct PenetrationScratch {
   std::vector<PairGap> pairs;
   std::vector<int> va, vb;  // vertices of one pair of cells in both their boxes
 };
+// With `before` (the step's start, which adaptive stepping keeps) a pair beyond the limit that
+// the step did not deepen passes: the step is not what put it there, and halving it could not
+// take it out.
 std::string interpenetration(const CellSet& cells, const ContactList& contacts, double limit,
-                             double t, PenetrationScratch& scratch);
+                             double t, PenetrationScratch& scratch,
+                             const CellSet* before = nullptr);
 
 // The generalised winding number of cell c's closed surface around p (1 inside, 0 outside) and
 // the distance from p to that surface.

@@ -216,8 +216,7 @@ StepReport Simulation::tryStep() {
     rep.remesh_volume_jump = r.remesh_volume_jump;
   }
   if (cells_.topology_version == topology_before) timed(times_.contacts, [&] { detect(); });
-  view.geo_before = nullptr;  // the meshes may have changed
-  view.cells_before = nullptr;
+  view.geo_before = nullptr;  // the meshes may have changed (cells_before keeps its own)
   if (auto f = runGuards(StepGuard::Phase::Detected, view)) return failed(std::move(*f));
   return rep;
 }
