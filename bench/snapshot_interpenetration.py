@@ -16,24 +16,13 @@ the facing triangle pairs (centroids within 3 µm, n̂_A·n̂_B < 0) and their c
 along the pair's bisector n̂ = (n̂_A − n̂_B)/|·|, the direction of the law's gap (negative where
 the law sees overlap).
 """
-import re
 import sys
 
 import numpy as np
 
-txt = open(sys.argv[1]).read()
-t = re.search(r'Name="TIME"[^>]*>([^<]*)<', txt).group(1)
+import vtp_snapshot
 
-
-def arr(name, dtype=float):
-    m = re.search(r'Name="%s"[^>]*>(.*?)</DataArray>' % name, txt, re.S)
-    return np.array(m.group(1).split(), dtype=dtype)
-
-
-cid = arr("cell_id", int)
-X = np.array(re.search(r'<Points>.*?<DataArray[^>]*>(.*?)</DataArray>', txt, re.S).group(1)
-             .split(), float).reshape(-1, 3)
-conn = arr("connectivity", int).reshape(-1, 3)
+t, cid, X, conn = vtp_snapshot.read(sys.argv[1])
 tcell = cid[conn[:, 0]]
 cells = np.unique(cid)
 cent = np.array([X[cid == c].mean(0) for c in cells])
@@ -70,7 +59,7 @@ for P in cells:
         n1 += int((d > 1).sum())
         deep.append((round(float(d.max()), 2), int(P), int(Q), int((d > 0.3).sum())))
 deep.sort(reverse=True)
-print(f"t = {t} s, {len(cells)} cells, {len(X)} vertices; each cell's own centroid has winding "
+print(f"t = {t:g} s, {len(cells)} cells, {len(X)} vertices; each cell's own centroid has winding "
       f"{own.min():.3f}–{own.max():.3f}")
 print(f"vertices inside another cell deeper than 0.3 µm: {n03}; deeper than 1 µm: {n1}")
 print(f"deepest (µm, cell, inside cell, its vertices deeper than 0.3 µm): {deep[:6]}")

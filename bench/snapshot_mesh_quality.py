@@ -10,10 +10,11 @@ factors refer to); the cell's area against its volume-equivalent sphere's; and t
 the longest edge against ℓ_ref (the equilateral triangle of the cell's mean area), the height
 on that edge, the largest angle.
 """
-import re
 import sys
 
 import numpy as np
+
+import vtp_snapshot
 
 N_NOMINAL = int(next((a.split("=")[1] for a in sys.argv if a.startswith("--triangles=")), 320))
 
@@ -24,17 +25,7 @@ def angle(a, b, c):
 
 
 for path in (a for a in sys.argv[1:] if not a.startswith("--")):
-    txt = open(path).read()
-    t = float(re.search(r'Name="TIME"[^>]*>([^<]*)<', txt).group(1))
-
-    def arr(name, dtype=float):
-        m = re.search(r'Name="%s"[^>]*>(.*?)</DataArray>' % name, txt, re.S)
-        return np.array(m.group(1).split(), dtype=dtype)
-
-    cid = arr("cell_id", int)
-    X = np.array(re.search(r'<Points>.*?<DataArray[^>]*>(.*?)</DataArray>', txt, re.S).group(1)
-                 .split(), float).reshape(-1, 3)
-    conn = arr("connectivity", int).reshape(-1, 3)
+    t, cid, X, conn = vtp_snapshot.read(path)
     P = X[conn]
     tc = cid[conn[:, 0]]
     area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)

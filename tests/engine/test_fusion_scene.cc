@@ -31,6 +31,20 @@ struct TempDir {
   }
 };
 
+// Two spherical cells of radius r side by side along x whose meshes overlap by `overlap` µm
+// (negative: that far apart); `shift` receives the second one's offset.
+CellSet sphereDoublet(double r, double overlap, double* shift = nullptr) {
+  CellSet cells;
+  TriMesh a = ellipsoidCell(r, 1.0, 320, Vec3::Zero());
+  TriMesh b = ellipsoidCell(r, 1.0, 320, Vec3::Zero());
+  const double dx = a.x.row(0).maxCoeff() - b.x.row(0).minCoeff() - overlap;
+  b.x.row(0).array() += dx;
+  cells.addCell(a, r);
+  cells.addCell(b, r);
+  if (shift != nullptr) *shift = dx;
+  return cells;
+}
+
 }  // namespace
 
 TEST(FusionScene, TwoLabelledSpheroidsPlacedTouchingAlongX) {
@@ -278,13 +292,7 @@ TEST(Interpenetration, OverlappingCellsStopTheRunTouchingOnesDoNot) {
   // 50 nm apart. The check runs on the current contacts; the stiff contact-implicit springs
   // would push the first apart within one step.
   for (const double overlap : {3.0, -0.05}) {
-    CellSet cells;
-    TriMesh a = ellipsoidCell(r, 1.0, 320, Vec3::Zero());
-    TriMesh b = ellipsoidCell(r, 1.0, 320, Vec3::Zero());
-    b.x.row(0).array() += a.x.row(0).maxCoeff() - b.x.row(0).minCoeff() - overlap;
-    cells.addCell(a, r);
-    cells.addCell(b, r);
-    Simulation sim(s, cells);
+    Simulation sim(s, sphereDoublet(r, overlap));
     const std::string why = sim.interpenetration();
     if (overlap > 0) {
       EXPECT_NE(why.find("cells 0 and 1 interpenetrate: vertex"), std::string::npos) << why;
@@ -336,15 +344,10 @@ TEST(Interpenetration, TheReportedDepthIsTheDeepestVertexInsideTheOtherCell) {
   s = resolve(s);
   const double r = s.cells.radius_mean_um;
   for (const double overlap : {0.4, 0.8, 1.6, 2.4}) {
-    CellSet cells;
-    TriMesh a = ellipsoidCell(r, 1.0, 320, Vec3::Zero());
-    TriMesh b = ellipsoidCell(r, 1.0, 320, Vec3::Zero());
-    const double shift = a.x.row(0).maxCoeff() - b.x.row(0).minCoeff() - overlap;
-    b.x.row(0).array() += shift;
-    cells.addCell(a, r);
-    cells.addCell(b, r);
+    double shift = 0;
+    const CellSet cells = sphereDoublet(r, overlap, &shift);
     // The analytic depth of b's vertices in a's sphere (that of its vertices), and of a's in b's.
-    const double rv = a.x.col(0).norm();
+    const double rv = cells.x.col(0).norm();
     double reference = 0;
     for (int i = 0; i < cells.numVertices(); ++i) {
       const Vec3 c = cells.vertex_cell[i] == 1 ? Vec3::Zero() : Vec3(shift, 0, 0);
@@ -374,14 +377,7 @@ TEST(Interpenetration, ADeepMeanGapWithNoVertexInsideIsNoOverlap) {
   s.scene = SceneKind::Doublet;
   s.numerics.max_penetration_um = 0.5;
   s = resolve(s);
-  const double r = s.cells.radius_mean_um;
-  CellSet cells;
-  TriMesh a = ellipsoidCell(r, 1.0, 320, Vec3::Zero());
-  TriMesh b = ellipsoidCell(r, 1.0, 320, Vec3::Zero());
-  b.x.row(0).array() += a.x.row(0).maxCoeff() - b.x.row(0).minCoeff() + 0.05;
-  cells.addCell(a, r);
-  cells.addCell(b, r);
-  Simulation sim(s, cells);
+  Simulation sim(s, sphereDoublet(s.cells.radius_mean_um, -0.05));
   ContactList faked = sim.contacts();
   ASSERT_FALSE(faked.pairs.empty());
   for (ContactPair& p : faked.pairs) p.c.mean_gap = -3.0;
@@ -402,19 +398,10 @@ TEST(Interpenetration, AStepThatDidNotDeepenTheOverlapPasses) {
   s.scene = SceneKind::Doublet;
   s = resolve(s);
   const double r = s.cells.radius_mean_um;
-  auto overlapping = [&](double overlap) {
-    CellSet cells;
-    TriMesh a = ellipsoidCell(r, 1.0, 320, Vec3::Zero());
-    TriMesh b = ellipsoidCell(r, 1.0, 320, Vec3::Zero());
-    b.x.row(0).array() += a.x.row(0).maxCoeff() - b.x.row(0).minCoeff() - overlap;
-    cells.addCell(a, r);
-    cells.addCell(b, r);
-    return cells;
-  };
-  const CellSet start = overlapping(1.6);
+  const CellSet start = sphereDoublet(r, 1.6);
   PenetrationScratch scratch;
   for (const double end : {1.2, 1.6, 2.0}) {
-    Simulation sim(s, overlapping(end));
+    Simulation sim(s, sphereDoublet(r, end));
     const std::string strict = interpenetration(sim.cells(), sim.contacts(), 0.5, 0, scratch);
     EXPECT_NE(strict.find("cells 0 and 1 interpenetrate"), std::string::npos) << end;
     const std::string why = interpenetration(sim.cells(), sim.contacts(), 0.5, 0, scratch, &start);
