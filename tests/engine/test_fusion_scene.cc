@@ -409,6 +409,17 @@ TEST(Interpenetration, AStepThatDidNotDeepenTheOverlapPasses) {
       EXPECT_EQ(why, "") << end;
     } else {
       EXPECT_NE(why.find("µm at the step's start"), std::string::npos) << why;
+      // Whether the step remeshed either cell (its remesher moves vertices without looking at
+      // the neighbours); an empty list: none was due.
+      const std::vector<char> second_only{0, 1}, none;
+      const std::string r =
+          interpenetration(sim.cells(), sim.contacts(), 0.5, 0, scratch, &start, &second_only);
+      EXPECT_NE(r.find("the step did not remesh cell 0; the step remeshed cell 1"),
+                std::string::npos)
+          << r;
+      EXPECT_NE(interpenetration(sim.cells(), sim.contacts(), 0.5, 0, scratch, &start, &none)
+                    .find("did not remesh cell 0; the step did not remesh cell 1"),
+                std::string::npos);
     }
   }
 }

@@ -32,17 +32,18 @@ struct StepFailure {
 struct GuardView {
   const SceneSpec& spec;
   const CellSet& cells;
-  const Geometry& geo;                      // current (after the move from `Moved` on)
-  const Geometry* geo_before = nullptr;     // the step's start geometry (from `Moved` on)
-  const CellSet* cells_before = nullptr;    // the step's start (adaptive stepping keeps it;
-                                            // from `Moved` on, its own meshes)
-  const ContactList* contacts = nullptr;    // the step's start contacts, new ones in `Detected`
-  const Eigen::VectorXd* v = nullptr;       // the solved velocities (`Solved`)
-  const Eigen::Matrix3Xd* force = nullptr;  // F of the step (`Solved`)
-  const SolveStats* cg = nullptr;           // (`Solved`)
-  const ContactLaw* law = nullptr;          // scenes with contacts
-  double t = 0;                             // time at the start of the step
-  double dt = 0;                            // the step's length
+  const Geometry& geo;                          // current (after the move from `Moved` on)
+  const Geometry* geo_before = nullptr;         // the step's start geometry (from `Moved` on)
+  const std::vector<char>* remeshed = nullptr;  // `Detected`: the cells this step remeshed
+  const CellSet* cells_before = nullptr;        // the step's start (adaptive stepping keeps it;
+                                                // from `Moved` on, its own meshes)
+  const ContactList* contacts = nullptr;        // the step's start contacts, new ones in `Detected`
+  const Eigen::VectorXd* v = nullptr;           // the solved velocities (`Solved`)
+  const Eigen::Matrix3Xd* force = nullptr;      // F of the step (`Solved`)
+  const SolveStats* cg = nullptr;               // (`Solved`)
+  const ContactLaw* law = nullptr;              // scenes with contacts
+  double t = 0;                                 // time at the start of the step
+  double dt = 0;                                // the step's length
   double step_error_um = -1;  // ros2's error estimate of the step (`Solved`); −1: none
 };
 
@@ -86,8 +87,8 @@ struct PenetrationScratch {
 // the step did not deepen passes: the step is not what put it there, and halving it could not
 // take it out.
 std::string interpenetration(const CellSet& cells, const ContactList& contacts, double limit,
-                             double t, PenetrationScratch& scratch,
-                             const CellSet* before = nullptr);
+                             double t, PenetrationScratch& scratch, const CellSet* before = nullptr,
+                             const std::vector<char>* remeshed = nullptr);
 
 // The generalised winding number of cell c's closed surface around p (1 inside, 0 outside) and
 // the distance from p to that surface.

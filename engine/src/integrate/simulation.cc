@@ -217,6 +217,7 @@ StepReport Simulation::tryStep() {
   }
   if (cells_.topology_version == topology_before) timed(times_.contacts, [&] { detect(); });
   view.geo_before = nullptr;  // the meshes may have changed (cells_before keeps its own)
+  view.remeshed = &which;
   if (auto f = runGuards(StepGuard::Phase::Detected, view)) return failed(std::move(*f));
   return rep;
 }

@@ -162,7 +162,7 @@ class InterpenetrationGuard : public StepGuard {
   Phase phase() const override { return Phase::Detected; }
   std::optional<StepFailure> check(const GuardView& g) override {
     std::string why = interpenetration(g.cells, *g.contacts, g.spec.numerics.max_penetration_um,
-                                       g.t + g.dt, scratch_, g.cells_before);
+                                       g.t + g.dt, scratch_, g.cells_before, g.remeshed);
     if (why.empty()) return std::nullopt;
     return StepFailure{FailureKind::Interpenetration, std::move(why)};
   }
@@ -258,7 +258,8 @@ double distanceToSurface(const CellSet& cells, int c, const Vec3& p) {
 }
 
 std::string interpenetration(const CellSet& cells, const ContactList& contacts, double limit,
-                             double t, PenetrationScratch& scratch, const CellSet* before) {
+                             double t, PenetrationScratch& scratch, const CellSet* before,
+                             const std::vector<char>* remeshed) {
   std::vector<PairGap>& pairs = scratch.pairs;
   pairs.clear();
   for (const ContactPair& p : contacts.pairs) {
@@ -300,6 +301,13 @@ std::string interpenetration(const CellSet& cells, const ContactList& contacts, 
         << " > numerics.max_penetration_um = " << limit << " µm";
     if (at_start >= 0) why << " (" << at_start << " µm at the step's start)";
     why << " (their contact's mean gap: " << gs / area << " µm)" << at(t);
+    // Whether the remesher moved them: a collapse places its merged vertex to keep the cell's
+    // volume, which the remesher does without looking at the neighbours.
+    if (remeshed != nullptr)
+      for (const int c : {a, b}) {
+        const bool r = !remeshed->empty() && (*remeshed)[c];  // empty: no cell was due
+        why << "; the step " << (r ? "remeshed" : "did not remesh") << " cell " << c;
+      }
     return why.str();
   }
   return {};
