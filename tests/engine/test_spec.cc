@@ -641,23 +641,30 @@ TEST(SpecPresets, MeasuredUnstableSettingsNameTheTimeStepAndItsLimit) {
   EXPECT_TRUE(measuredUnstable(s).empty());
 }
 
+// A key added later is left out of the fingerprint at its default (checkpoints and prepared
+// spheroids of earlier versions stay valid) and enters it, as `written`, at `value`; values
+// outside its range are refused by setField or validate.
+void expectAddedLaterKey(const std::string& key, double value, const std::string& written,
+                         std::initializer_list<double> bad_values) {
+  SceneSpec s = resolve(SceneSpec{});
+  const std::string before = specFingerprint(s);
+  EXPECT_EQ(before.find(key), std::string::npos);
+  ASSERT_EQ(setField(s, key, value), std::nullopt);
+  EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+  EXPECT_NE(specFingerprint(s), before);
+  EXPECT_NE(specFingerprint(s).find(key + "=" + written), std::string::npos) << specFingerprint(s);
+  for (double bad : bad_values) {
+    SceneSpec t = resolve(SceneSpec{});
+    const auto error = setField(t, key, bad);
+    EXPECT_TRUE(error.has_value() || hasErrorFor(validate(t), key)) << key << " = " << bad;
+  }
+}
+
 // numerics.contact_max_facing_deg (added with the contact law's facing bound): (0, 90], and at
 // its default of 90 it is left out of the fingerprint, so that checkpoints and prepared spheroids
 // of earlier versions stay valid; any other value runs differently and changes it.
 TEST(SpecFields, TheContactFacingBoundHasARangeAndKeepsEarlierFingerprintsAtItsDefault) {
-  SceneSpec s = resolve(SceneSpec{});
-  const std::string before = specFingerprint(s);
-  EXPECT_EQ(before.find("contact_max_facing_deg"), std::string::npos);
-  ASSERT_EQ(setField(s, "numerics.contact_max_facing_deg", 60.0), std::nullopt);
-  EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
-  EXPECT_NE(specFingerprint(s), before);
-  EXPECT_NE(specFingerprint(s).find("numerics.contact_max_facing_deg=60;"), std::string::npos);
-  for (double bad : {0.0, -1.0, 91.0}) {
-    SceneSpec t = resolve(SceneSpec{});
-    const auto error = setField(t, "numerics.contact_max_facing_deg", bad);
-    const bool refused = error.has_value() || hasErrorFor(validate(t), "contact_max_facing_deg");
-    EXPECT_TRUE(refused) << bad;
-  }
+  expectAddedLaterKey("numerics.contact_max_facing_deg", 60.0, "60;", {0.0, -1.0, 91.0});
 }
 
 // numerics.contact_max_overlap_um (the saturated contact pressure): 0 (never) or from the adhesion
@@ -665,14 +672,8 @@ TEST(SpecFields, TheContactFacingBoundHasARangeAndKeepsEarlierFingerprintsAtItsD
 // the error names the key, h0 and the keys it comes from; at its default of 0 it is left out of
 // the fingerprint, so that checkpoints and prepared spheroids of earlier versions stay valid.
 TEST(SpecFields, TheContactOverlapBoundStartsAtTheAdhesionRangeAndKeepsEarlierFingerprints) {
+  expectAddedLaterKey("numerics.contact_max_overlap_um", 0.3, "0.29999", {-0.1, 11.0});
   SceneSpec s = resolve(SceneSpec{});
-  const std::string before = specFingerprint(s);
-  EXPECT_EQ(before.find("contact_max_overlap_um"), std::string::npos);
-  ASSERT_EQ(setField(s, "numerics.contact_max_overlap_um", 0.3), std::nullopt);
-  EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
-  EXPECT_NE(specFingerprint(s), before);
-  EXPECT_NE(specFingerprint(s).find("numerics.contact_max_overlap_um=0.29999"), std::string::npos)
-      << specFingerprint(s);
   const double h0 = contactRangeH0(s.cells);  // 0.063 µm at the defaults
   ASSERT_EQ(setField(s, "numerics.contact_max_overlap_um", 0.5 * h0), std::nullopt);
   const auto errors = validate(s);
@@ -680,11 +681,6 @@ TEST(SpecFields, TheContactOverlapBoundStartsAtTheAdhesionRangeAndKeepsEarlierFi
   EXPECT_NE(joined(errors).find("adhesion range h0"), std::string::npos) << joined(errors);
   ASSERT_EQ(setField(s, "numerics.contact_max_overlap_um", h0), std::nullopt);
   EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
-  for (double bad : {-0.1, 11.0}) {
-    SceneSpec t = resolve(SceneSpec{});
-    const auto error = setField(t, "numerics.contact_max_overlap_um", bad);
-    EXPECT_TRUE(error.has_value() || hasErrorFor(validate(t), "contact_max_overlap_um")) << bad;
-  }
 }
 
 }  // namespace
