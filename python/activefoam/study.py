@@ -375,7 +375,8 @@ def _spec_value(spec: Dict[str, Any], key: str) -> Any:
 # resolved spec from before the key does not name it, and reads as this value (else a study that
 # sweeps the key could never find its reference runs among the older jobs).
 KEYS_ADDED_LATER = {"numerics.contact_max_facing_deg": 90.0,
-                    "numerics.contact_max_overlap_um": 0.0}
+                    "numerics.contact_max_overlap_um": 0.0,
+                    "numerics.remesh_on_surface": False}
 
 
 def _resolved_value(spec: Dict[str, Any], key: str) -> Any:
@@ -399,14 +400,27 @@ def _resolved_value(spec: Dict[str, Any], key: str) -> Any:
     return value
 
 
+# Keys added later whose default is not the value of the jobs before them: a study that leaves
+# one unset runs at today's default, and a stored job at the earlier value is not its run (a
+# study that ran before the change says `key = <earlier value>` in its [spec]).
+DEFAULTS_CHANGED = {"numerics.remesh_on_surface": True}
+
+
 def _matches(study: Study, run: Run, spec: Dict[str, Any]) -> bool:
-    for k, v in study.settings(run).items():
+    settings = study.settings(run)
+    for k, v in settings.items():
         got = _resolved_value(spec, k)
         if got is None:
             if k in run.point or k == "seed":
                 return False
             continue  # a key the resolved spec does not echo (e.g. an alias): cannot check
         if not _same(got, v):
+            return False
+    for k, now in DEFAULTS_CHANGED.items():
+        short = k.split(".", 1)[1]
+        if k in settings or short in study.base_text:
+            continue  # set by the study or its base spec: checked above, or not knowable here
+        if not _same(_resolved_value(spec, k), now):
             return False
     return True
 

@@ -305,7 +305,7 @@ def test_runs_match_jobs_by_their_resolved_spec_reduced_keys_included(tmp_path):
     s = st.load(f)
     r, g = 8.88, 0.5
     eta = 10 * g
-    resolved = {"scene": {"kind": "fusion"}, "seed": 7,
+    resolved = {"scene": {"kind": "fusion"}, "seed": 7, "numerics": {"remesh_on_surface": True},
                 "cells": {"p_a": 0.33 * 2 * g / r, "radius_mean_um": r, "gamma": g, "eta": eta,
                           "xi": eta / (0.5 * r) ** 2, "pa_reduced": None, "tau_gamma_s": None,
                           "l_eta_reduced": None}}
@@ -326,6 +326,7 @@ def test_a_job_from_before_a_key_existed_matches_the_keys_default_only(tmp_path)
         seeds = [1]
         [spec]
         scene = "fusion"
+        "numerics.remesh_on_surface" = false  # the remeshing of the jobs before both keys
         [[grid]]
         "numerics.contact_max_facing_deg" = [90, 60]
         """))
@@ -334,8 +335,38 @@ def test_a_job_from_before_a_key_existed_matches_the_keys_default_only(tmp_path)
     runs = s.runs()
     assert st._matches(s, runs[0], old)
     assert not st._matches(s, runs[1], old)
-    new = {"scene": {"kind": "fusion"}, "seed": 1, "numerics": {"contact_max_facing_deg": 60.0}}
+    new = {"scene": {"kind": "fusion"}, "seed": 1,
+           "numerics": {"contact_max_facing_deg": 60.0, "remesh_on_surface": False}}
     assert st._matches(s, runs[1], new) and not st._matches(s, runs[0], new)
+
+
+def test_a_study_leaving_a_changed_default_unset_takes_no_job_at_the_earlier_value(tmp_path):
+    # numerics.remesh_on_surface came in defaulting to true, and the jobs before it ran as false:
+    # they are not the runs of a study that leaves it unset (its runs remesh on the surface), but
+    # they are the runs of a study that says false, as the studies that ran before it do.
+    f = tmp_path / "remesh.toml"
+    f.write_text(textwrap.dedent("""\
+        [study]
+        name = "remesh"
+        seeds = [1]
+        [spec]
+        scene = "fusion"
+        [[grid]]
+        "cells.alpha" = [0.5]
+        """))
+    s = st.load(f)
+    run = s.runs()[0]
+    old = {"scene": {"kind": "fusion"}, "seed": 1, "numerics": {"dt_s": 0.5}, "cells": {"alpha": 0.5}}
+    new = {"scene": {"kind": "fusion"}, "seed": 1, "numerics": {"remesh_on_surface": True},
+           "cells": {"alpha": 0.5}}
+    assert not st._matches(s, run, old)
+    assert st._matches(s, run, new)
+    pinned = tmp_path / "pinned.toml"
+    pinned.write_text(f.read_text().replace('scene = "fusion"',
+                                            'scene = "fusion"\n"numerics.remesh_on_surface" = false'))
+    s = st.load(pinned)
+    assert st._matches(s, s.runs()[0], old)
+    assert not st._matches(s, s.runs()[0], new)
 
 
 def test_fitness_judges_a_candidate_of_a_second_grid_against_the_first_grids_reference(tmp_path):
@@ -423,7 +454,7 @@ class _FakeFoamd:
 
     def _call(self, method, req, what):
         assert method == "SubmitJob"
-        spec = {"cells": dict(self.defaults)}
+        spec = {"cells": dict(self.defaults), "numerics": {"remesh_on_surface": True}}
         for s in req.settings:
             k, v = s.split("=", 1)
             node = spec
@@ -468,7 +499,8 @@ def _shared_studies(tmp: Path, base_alpha_line=""):
 def _alpha_jobs(foamd, states=("SUCCEEDED", "SUCCEEDED"), tau_p=600):
     for seed, state in zip((1, 2), states):
         for a in (0.4375, 0.6):
-            spec = {"seed": seed, "duration_s": 240, "cells": {"alpha": a, "tau_p_s": tau_p}}
+            spec = {"seed": seed, "duration_s": 240, "cells": {"alpha": a, "tau_p_s": tau_p},
+                    "numerics": {"remesh_on_surface": True}}  # as today's foamd echoes it
             foamd.add("study:alpha", _FakeJob(f"j-a{a}-{seed}", seed, spec, state=state))
 
 

@@ -685,3 +685,26 @@ TEST(SpecFields, TheContactOverlapBoundStartsAtTheAdhesionRangeAndKeepsEarlierFi
 
 }  // namespace
 }  // namespace activefoam
+
+namespace activefoam {
+namespace {
+
+// numerics.remesh_on_surface came in defaulting to true (the earlier remeshing moved vertices
+// into neighbouring cells): the default's fingerprint names it, so that checkpoints and prepared
+// spheroids of the earlier remeshing are not taken for today's; false, the earlier remeshing, is
+// left out, so that theirs stay valid for a spec that asks for it.
+TEST(SpecFields, RemeshingOnTheSurfaceIsTheDefaultAndTheEarlierRemeshingKeepsItsFingerprint) {
+  SceneSpec s = resolve(SceneSpec{});
+  EXPECT_TRUE(s.numerics.remesh_on_surface);
+  EXPECT_NE(specFingerprint(s).find("numerics.remesh_on_surface=1;"), std::string::npos)
+      << specFingerprint(s);
+  ASSERT_EQ(setField(s, "numerics.remesh_on_surface", false), std::nullopt);
+  EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+  EXPECT_EQ(specFingerprint(s).find("remesh_on_surface"), std::string::npos);
+  const auto error = setField(s, "numerics.remesh_on_surface", 1.5);
+  ASSERT_TRUE(error.has_value());
+  EXPECT_NE(error->message.find("true or false"), std::string::npos) << error->message;
+}
+
+}  // namespace
+}  // namespace activefoam

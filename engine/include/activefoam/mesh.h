@@ -36,6 +36,9 @@ double meshVolume(const TriMesh& m);
 double meshArea(const TriMesh& m);
 double triangleArea(const TriMesh& m, int t);
 
+// Closest point of triangle abc to p (Ericson, Real-Time Collision Detection §5.1.5).
+Vec3 closestOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
+
 // Topological and geometric invariants: every edge shared by exactly two triangles with
 // opposite orientation, vertex links are single cycles (2-manifold), no unused or out-of-range
 // vertices, positive volume. Returns an empty string when valid, else the first violation.

@@ -88,6 +88,9 @@ std::string specFingerprint(const SceneSpec& spec) {
     // Added later; at 90° every facing pair touches, as in earlier versions.
     if (f.key == "numerics.contact_max_facing_deg" && spec.numerics.contact_max_facing_deg == 90)
       continue;
+    // Added later, default true; false is the remeshing of earlier versions, whose checkpoints
+    // and prepared spheroids stay valid when a spec asks for it.
+    if (f.key == "numerics.remesh_on_surface" && !spec.numerics.remesh_on_surface) continue;
     // Added later; at 0 the pressure grows without bound, as in earlier versions.
     if (f.key == "numerics.contact_max_overlap_um" && spec.numerics.contact_max_overlap_um == 0)
       continue;

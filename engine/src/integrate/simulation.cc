@@ -245,6 +245,7 @@ StepReport Simulation::remeshCells(const std::vector<char>& which) {
     rp.min_area = spec_.numerics.remesh_min_area_factor * a_ref;
     rp.max_area = spec_.numerics.remesh_max_area_factor * a_ref;
     rp.smooth_min_angle_deg = 15;
+    rp.on_surface = spec_.numerics.remesh_on_surface;
     stats[c] = remesh(meshes[c], rp);
   }
   int ops = 0;

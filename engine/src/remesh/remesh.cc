@@ -52,6 +52,7 @@ class Remesher {
     dead_.assign(nv, 0);
     alive_ = nv;
     vol_ = st.volume_before;
+    if (p.on_surface) v0_ = volume();
   }
 
   void run() {
@@ -296,11 +297,14 @@ class Remesher {
     const double gn = g.norm(), ab = (x_[b] - x_[a]).norm();
     // |g| is a third of the link polygon's vector area: ill-conditioned when it is tiny compared
     // with the ring area (strongly folded ring).
-    if (gn > 1e-3 * ringArea / 3.0) {
+    if (!p_.on_surface && gn > 1e-3 * ringArea / 3.0) {
       const double s = lold / gn;
       if (std::abs(s) <= 0.5 * ab) pr = (s / gn) * g;
     }
-    if (std::abs(pr.dot(g) - lold) > p_.collapse_max_volume * std::abs(vol_)) return false;
+    // On the surface the change is restored at the end; the bound then only refuses a collapse
+    // across a crease, like a flip's.
+    const double max_change = p_.on_surface ? p_.flip_max_volume : p_.collapse_max_volume;
+    if (std::abs(pr.dot(g) - lold) > max_change * std::abs(vol_)) return false;
 
     // Orientation/degeneracy guard on every surviving triangle of the two rings.
     const Vec3 pnew = o + pr;
@@ -381,7 +385,8 @@ class Remesher {
       }
       tri_[t] = {l, k, i};
       tri_[u] = {k, l, j};
-      if (p_.flip_volume_correction && !compensateFlipVolume(t, u, {i, j, k, l}, dv)) {
+      if (p_.flip_volume_correction && !p_.on_surface &&
+          !compensateFlipVolume(t, u, {i, j, k, l}, dv)) {
         tri_[t] = f;
         tri_[u] = fu;
         ++st_.refused_flips;
@@ -523,8 +528,12 @@ class Remesher {
       Vec3 d = mean / count - x_[q];
       d -= normal.dot(d) * normal;
       d *= 0.5;
-      const double dv = d.dot(grad);  // volume change of the move (affine in x_q)
-      d -= (dv / grad.squaredNorm()) * grad;
+      if (p_.on_surface) {
+        d = closestOnRing(q, x_[q] + d) - x_[q];
+      } else {
+        const double dv = d.dot(grad);  // volume change of the move (affine in x_q)
+        d -= (dv / grad.squaredNorm()) * grad;
+      }
       const double before = ringWorstCos(q);
       const Vec3 xold = x_[q];
       x_[q] = xold + d;
@@ -546,6 +555,56 @@ class Remesher {
     return n;
   }
 
+  double volume() const {
+    double v = 0;
+    for (const Tri& f : tri_) v += x_[f[0]].dot(x_[f[1]].cross(x_[f[2]]));
+    return v / 6.0;
+  }
+
+  // The point of q's ring (its triangles as they are now) closest to p.
+  Vec3 closestOnRing(int q, const Vec3& p) const {
+    Vec3 best = x_[q];
+    double d2 = (p - best).squaredNorm();
+    for (int r = incStart_[q]; r < incStart_[q + 1]; ++r) {
+      const Tri& f = tri_[inc_[r]];
+      const Vec3 c = closestOnTriangle(p, x_[f[0]], x_[f[1]], x_[f[2]]);
+      const double e2 = (p - c).squaredNorm();
+      if (e2 < d2) d2 = e2, best = c;
+    }
+    return best;
+  }
+
+ public:
+  // on_surface: restores the volume the operations changed by moving every vertex the same
+  // distance h along its normal (the volume gradient's direction): V(h) is a cubic in h whose
+  // slope at 0 is Σ|∇_i V|, so Newton converges in two or three steps.
+  void restoreVolume() {
+    if (!p_.on_surface || st_.operations() == 0) return;
+    std::vector<char> used(x_.size(), 0);
+    for (const Tri& f : tri_)
+      for (int k : f) used[k] = 1;
+    std::vector<Vec3> dir(x_.size(), Vec3::Zero());
+    double total = 0;
+    for (int it = 0; it < 4; ++it) {
+      const double dv = v0_ - volume();
+      if (std::abs(dv) <= 1e-13 * std::abs(v0_)) break;
+      std::fill(dir.begin(), dir.end(), Vec3::Zero());
+      for (const Tri& f : tri_)
+        for (int k = 0; k < 3; ++k)
+          dir[f[k]] += (x_[f[(k + 1) % 3]] - x_[f[k]]).cross(x_[f[(k + 2) % 3]] - x_[f[k]]) / 6.0;
+      double slope = 0;
+      for (size_t i = 0; i < x_.size(); ++i)
+        if (used[i]) slope += dir[i].norm();
+      if (!(slope > 0)) break;
+      const double h = dv / slope;
+      for (size_t i = 0; i < x_.size(); ++i)
+        if (used[i] && dir[i].squaredNorm() > 0) x_[i] += h * dir[i].normalized();
+      total += h;
+    }
+    st_.volume_offset = total;
+  }
+
+ private:
   TriMesh& mesh_;
   const RemeshParams& p_;
   RemeshStats& st_;
@@ -555,6 +614,7 @@ class Remesher {
   std::vector<char> dead_;
   int alive_ = 0;
   double vol_ = 0;
+  double v0_ = 0;  // on_surface: the volume to restore
   std::vector<double> area_;
   std::vector<int> incStart_, inc_, fill_, cand_, stamp_;
   int stampId_ = 0;
@@ -566,6 +626,7 @@ RemeshStats remeshImpl(TriMesh& mesh, const RemeshParams& params, std::vector<in
   st.volume_before = meshVolume(mesh);
   Remesher r(mesh, params, st);
   r.run();
+  r.restoreVolume();
   r.finish(old_to_new);
   st.volume_after = st.operations() ? meshVolume(mesh) : st.volume_before;
   return st;
