@@ -689,7 +689,7 @@ TEST(SpecFields, TheContactOverlapBoundStartsAtTheAdhesionRangeAndKeepsEarlierFi
 namespace activefoam {
 namespace {
 
-// numerics.remesh_on_surface came in defaulting to true (the earlier remeshing moved vertices
+// numerics.remesh_on_surface came in defaulting to true (the earlier smoothing moved vertices
 // into neighbouring cells): the default's fingerprint names it, so that checkpoints and prepared
 // spheroids of the earlier remeshing are not taken for today's; false, the earlier remeshing, is
 // left out, so that theirs stay valid for a spec that asks for it.

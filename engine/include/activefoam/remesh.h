@@ -33,12 +33,13 @@ struct RemeshParams {
   // below this (degrees; 0: off): what the collapse and flip guards refuse (see remesh.cc).
   // The simulation uses 15°.
   double smooth_min_angle_deg = 0;
-  // Keep every vertex on the surface it had (numerics.remesh_on_surface): a collapse puts the
-  // merged vertex at the edge's midpoint, a smoothed vertex is projected back onto its old ring,
-  // flips move nothing, and the volume is restored once at the end by offsetting the whole cell
-  // along its vertex normals (a few nm). The local corrections move a vertex along its normal
-  // by up to half an edge, which at a contact puts it inside the neighbouring cell (measured:
-  // a smoothed vertex 1.0 µm into its neighbour on 80-triangle cells, DESIGN.md §5).
+  // Smoothing keeps every vertex on the surface it had (numerics.remesh_on_surface): a smoothed
+  // vertex is projected back onto its old ring instead of being moved along its volume gradient,
+  // and the volume smoothing changed is restored once at the end by offsetting the whole cell
+  // along its vertex normals (10⁻³–10⁻² µm). Smoothing's local correction moved vertices along
+  // their normals by up to half an edge, which at a contact put them inside the neighbouring
+  // cell (a smoothed vertex 1.0 µm into its neighbour on 80-triangle cells). Collapses and
+  // flips keep their local volume placement either way (see remesh.cc).
   bool on_surface = false;
 };
 
@@ -47,7 +48,7 @@ struct RemeshStats {
   int collapses = 0;
   int flips = 0;
   int smooths = 0;            // vertices moved by tangential smoothing
-  double volume_offset = 0;   // on_surface: the normal offset that restored the volume (µm)
+  double volume_offset = 0;   // on_surface: the cell's normal offset that restored its volume
   int refused_collapses = 0;  // candidates rejected by the manifold/orientation/valence guards
   int refused_flips = 0;      // Delaunay-violating edges kept by the flip guards
   double volume_before = 0;

@@ -64,12 +64,11 @@ struct NumericsParams {
   std::optional<double> remesh_every_s;       // τ_r, default 5 τ_shell; 0 disables remeshing
   double remesh_min_area_factor = 1.0 / 3.0;  // A_m = factor · A_Δ
   double remesh_max_area_factor = 3.0;        // A_M = factor · A_Δ
-  // Remeshing keeps every vertex on the cell's surface (remesh.h): a collapse merges at the
-  // edge's midpoint, a smoothed vertex is projected back onto its ring, and the enclosed volume
-  // is restored by one normal offset of the whole cell. false: the volume is kept locally by
-  // moving vertices along their normals by up to half an edge, which at a contact pushed them
-  // into the neighbouring cell (the interpenetration guard stopped runs; DESIGN.md §5, earlier
-  // versions' behaviour).
+  // Tangential smoothing in the remesher keeps every vertex on the cell's surface (remesh.h):
+  // a smoothed vertex is projected back onto its ring, and the volume smoothing changed is
+  // restored by one normal offset of the whole cell. false: smoothing corrected the volume by
+  // moving the vertex along its normal, by up to half an edge, which at a contact pushed it into
+  // the neighbouring cell (the interpenetration guard stopped runs; earlier versions' behaviour).
   bool remesh_on_surface = true;
   ContactQuadrature contact_quadrature = ContactQuadrature::Exact;
   double max_volume_error = 0.05;  // |V − V*|/V* beyond this stops the run as failed

@@ -166,10 +166,10 @@ const std::vector<Entry>& entries() {
                       "split triangles larger than factor · A_Δ"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.remesh_max_area_factor; }});
     t.push_back({boolean("numerics.remesh_on_surface",
-                         "remeshing keeps vertices on the cell's surface and restores the volume "
-                         "by one normal offset of the whole cell; false: by local moves along "
-                         "the normals (earlier versions), which can push a vertex into a "
-                         "neighbouring cell"),
+                         "remeshing's smoothing keeps vertices on the cell's surface and "
+                         "restores the volume by one normal offset of the whole cell; false: "
+                         "by moving the smoothed vertex along its normal (earlier versions), "
+                         "which can push it into a neighbouring cell"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.remesh_on_surface; }});
     t.push_back({choice("numerics.contact_quadrature", {"exact", "dunavant7", "centroid"},
                         "integration of the contact pressure over the overlap polygon"),
