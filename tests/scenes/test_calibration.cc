@@ -49,10 +49,19 @@ TEST_P(PassiveDoublet, ContactAngleIsArccosAlphaAtStandard) {
   std::cout << "[ calibration ] α = " << c.alpha << ": θ_c = " << e.theta_c_deg
             << "°, arccos α = " << target << "° (" << e.wall_s << " s)\n";
   EXPECT_NEAR(e.theta_c_deg, target, 1.5);
-  // At equilibrium, not passing through: the angle 300 s before the end is the same.
+  // At equilibrium, not passing through: the angle 300 s before the end is the same. Means over
+  // 60 s, not single samples: a remesh moves the angle of the nearly flat α = 0.15 contact by
+  // ±0.3° for a few samples (81.2–81.9° over its last 400 s, with either smoothing), and one
+  // sample on such a dip failed the test where the means differ by 0.09°.
   const auto& series = e.theta_c_series_deg;  // every 5 s
-  ASSERT_GT(series.size(), 60u);
-  EXPECT_NEAR(series.back(), series[series.size() - 61], 0.3);
+  ASSERT_GT(series.size(), 72u);
+  const auto mean = [&](std::size_t from, std::size_t to) {
+    double sum = 0;
+    for (std::size_t i = from; i < to; ++i) sum += series[i];
+    return sum / static_cast<double>(to - from);
+  };
+  const std::size_t n = series.size();
+  EXPECT_NEAR(mean(n - 12, n), mean(n - 72, n - 60), 0.3);
   EXPECT_LT(e.volume_error_max, 0.01);
 }
 

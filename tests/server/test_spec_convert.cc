@@ -310,11 +310,15 @@ TEST(SpecConvert, SettingsTheStabilityStudyMeasuredToFailAreRefusedNamingTheLimi
   r = convertSpec(m);
   EXPECT_TRUE(r.ok()) << errorText(r.errors);
   m.mutable_numerics()->set_integrator(v1::INTEGRATOR_CONTACT_IMPLICIT);
-  m.mutable_numerics()->set_dt_s(1);  // motile by default: contact-oscillation from 1 s
+  m.mutable_numerics()->set_dt_s(1);  // contact-oscillation from 1 s, motile or not
   r = convertSpec(m);
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.errors[0].field, "numerics.dt_s");
   m.mutable_cells()->set_p_a(0);
+  r = convertSpec(m);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.errors[0].field, "numerics.dt_s");
+  m.mutable_numerics()->set_dt_s(0.5);
   r = convertSpec(m);
   EXPECT_TRUE(r.ok()) << errorText(r.errors);
 }
