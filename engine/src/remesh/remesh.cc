@@ -579,9 +579,10 @@ class Remesher {
   }
 
  public:
-  // on_surface: restores the volume the operations changed by moving every vertex the same
-  // distance h along its normal (the volume gradient's direction): V(h) is a cubic in h whose
-  // slope at 0 is Σ|∇_i V|, so Newton converges in two or three steps.
+  // on_surface: restores the volume the remesh changed — smoothing's, as collapses and flips
+  // keep theirs locally (but for a collapse whose placement was ill-conditioned) — by moving
+  // every vertex the same distance h along its normal (the volume gradient's direction): V(h)
+  // is a cubic in h whose slope at 0 is Σ|∇_i V|, so Newton converges in two or three steps.
   void restoreVolume() {
     if (!p_.on_surface || st_.operations() == 0) return;
     std::vector<char> used(x_.size(), 0);
