@@ -406,6 +406,20 @@ def _resolved_value(spec: Dict[str, Any], key: str) -> Any:
 DEFAULTS_CHANGED = {"numerics.remesh_on_surface": True}
 
 
+def _base_keys(study: Study) -> set:
+    """The dotted keys the study's base spec sets (TOML or JSON; none if it is neither)."""
+    if not study.base_text:
+        return set()
+    try:
+        doc = tomllib.loads(study.base_text)
+    except tomllib.TOMLDecodeError:
+        try:
+            doc = json.loads(study.base_text)
+        except ValueError:
+            return set()
+    return set(_flatten(doc)) if isinstance(doc, dict) else set()
+
+
 def _matches(study: Study, run: Run, spec: Dict[str, Any]) -> bool:
     settings = study.settings(run)
     for k, v in settings.items():
@@ -417,9 +431,8 @@ def _matches(study: Study, run: Run, spec: Dict[str, Any]) -> bool:
         if not _same(got, v):
             return False
     for k, now in DEFAULTS_CHANGED.items():
-        short = k.split(".", 1)[1]
-        if k in settings or short in study.base_text:
-            continue  # set by the study or its base spec: checked above, or not knowable here
+        if k in settings or k in _base_keys(study):
+            continue  # set by the study (checked above) or by its base spec (then both agree)
         if not _same(_resolved_value(spec, k), now):
             return False
     return True

@@ -367,6 +367,22 @@ def test_a_study_leaving_a_changed_default_unset_takes_no_job_at_the_earlier_val
     s = st.load(pinned)
     assert st._matches(s, s.runs()[0], old)
     assert not st._matches(s, s.runs()[0], new)
+    # Set in the base spec instead: the job's value is the base's, whatever it is; named in a
+    # comment only, it is not set.
+    (tmp_path / "base.toml").write_text('scene = "fusion"\n[numerics]\nremesh_on_surface = false\n')
+    (tmp_path / "comment.toml").write_text('scene = "fusion"  # not remesh_on_surface\n')
+    for base, takes_old in (("base.toml", True), ("comment.toml", False)):
+        f = tmp_path / f"with-{base}"
+        f.write_text(textwrap.dedent(f"""\
+            [study]
+            name = "remesh"
+            base = "{base}"
+            seeds = [1]
+            [[grid]]
+            "cells.alpha" = [0.5]
+            """))
+        s = st.load(f)
+        assert st._matches(s, s.runs()[0], old) == takes_old, base
 
 
 def test_fitness_judges_a_candidate_of_a_second_grid_against_the_first_grids_reference(tmp_path):

@@ -15,6 +15,7 @@
 #include "activefoam/geometry.h"
 #include "activefoam/remesh.h"
 #include "activefoam/spec.h"
+#include "activefoam/step_guards.h"
 
 using namespace activefoam;
 
@@ -479,25 +480,6 @@ TriMesh flattenedCell(double h, unsigned seed) {
   return m;
 }
 
-double distanceToMesh(const TriMesh& m, const Vec3& p) {
-  double d = 1e300;
-  for (const Tri& f : m.tri)
-    d = std::min(d, (p - closestOnTriangle(p, m.x.col(f[0]), m.x.col(f[1]), m.x.col(f[2]))).norm());
-  return d;
-}
-
-// Generalised winding number of a closed mesh about p (Van Oosterom & Strackee).
-double windingNumber(const TriMesh& m, const Vec3& p) {
-  double omega = 0;
-  for (const Tri& f : m.tri) {
-    const Vec3 a = m.x.col(f[0]) - p, b = m.x.col(f[1]) - p, c = m.x.col(f[2]) - p;
-    const double la = a.norm(), lb = b.norm(), lc = c.norm();
-    omega += 2 * std::atan2(a.dot(b.cross(c)),
-                            la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb);
-  }
-  return omega / (4 * M_PI);
-}
-
 struct SurfaceMove {
   double outside = 0;     // the farthest a vertex lies outside the surface before the remesh
   double inside = 0;      // and inside it
@@ -508,7 +490,8 @@ struct SurfaceMove {
 SurfaceMove remeshFlattened(bool on_surface, unsigned seed) {
   constexpr double h = 6.0;
   TriMesh m = flattenedCell(h, seed);
-  const TriMesh before = m;
+  CellSet before;  // the surface before the remesh, measured with the guard's own functions
+  before.addCell(m, kRadius);
   RemeshParams p;  // smoothing alone: collapses and flips place vertices alike either way
   p.flips = false;
   p.smooth_min_angle_deg = 15;
@@ -516,10 +499,11 @@ SurfaceMove remeshFlattened(bool on_surface, unsigned seed) {
   SurfaceMove out;
   out.stats = remesh(m, p);
   EXPECT_TRUE(checkClosedManifold(m).empty()) << checkClosedManifold(m);
-  EXPECT_NEAR(meshVolume(m), meshVolume(before), 1e-10 * meshVolume(before));
+  const double volume = meshVolume(before.cellMesh(0));
+  EXPECT_NEAR(meshVolume(m), volume, 1e-10 * volume);
   for (int i = 0; i < m.numVertices(); ++i) {
-    const double d = distanceToMesh(before, m.x.col(i));
-    double& side = windingNumber(before, m.x.col(i)) > 0.5 ? out.inside : out.outside;
+    const double d = distanceToSurface(before, 0, m.x.col(i));
+    double& side = windingNumber(before, 0, m.x.col(i)) > 0.5 ? out.inside : out.outside;
     side = std::max(side, d);
     out.past_plane = std::max(out.past_plane, m.x(2, i) - h);
   }
