@@ -5,6 +5,7 @@
 #   scripts/study.sh report studies/fig14-reduced.toml [--out DIR] [--from-data DIR]
 #   scripts/study.sh check studies/fig14-reduced.toml
 #   scripts/study.sh verdicts studies/verdicts.toml --data docs/science --out docs/science/verdicts
+#   scripts/study.sh save-store DIR [--db DB]      (restore-store DIR: before foamd starts)
 #
 # With a foamd answering at FOAM_SERVER (default 127.0.0.1:50051) — a local one, or one with
 # `--executor slurm` on a cluster — the study runs there. Otherwise this script starts one for
@@ -24,7 +25,7 @@ study() { "$py" -m activefoam.study "$@"; }
 cmd="${1:-}"
 needs_server=1
 case "$cmd" in
-  check | verdicts) needs_server=0 ;;
+  check | verdicts | save-store | restore-store) needs_server=0 ;;
   report) for a in "$@"; do [ "$a" = --from-data ] && needs_server=0; done ;;
   run) ;;
   *) study --help; exit 2 ;;

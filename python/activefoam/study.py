@@ -4,6 +4,8 @@ and reported from the store alone (docs/science/README.md has the format and the
     python3 -m activefoam.study run studies/fig14-reduced.toml      # submit what is missing, wait
     python3 -m activefoam.study report studies/fig14-reduced.toml   # figure + tables from the store
     python3 -m activefoam.study report FILE --from-data DIR          # ... from committed data
+    python3 -m activefoam.study run|report FILE --with-data DIR      # store + an earlier one's data
+    python3 -m activefoam.study save-store DIR | restore-store DIR   # carry a store across machines
 
 A run of a study is one (grid point, seed). Its jobs carry the tag `study:NAME`; a job belongs to
 a run when every key the study sets (its [spec] table, the point's keys, the seed, the preset)
@@ -545,14 +547,90 @@ def _needs_job(jobs: List[Any], retry_failed: bool) -> bool:
     return False
 
 
+# ---- runs of an earlier store: a report's committed data -----------------------------------------
+
+@dataclass
+class Carried:
+    """The ended runs of a report's data folder (what `collect` wrote from an earlier store):
+    a study continued on another store (a new machine, a lost database) takes them as done
+    instead of running them again, and reports them with the store's."""
+    source: Path
+    rows: Dict[int, Dict[str, Any]]   # run index → its row of runs.csv
+    samples: Any                      # DataFrame: those rows' samples
+    msrd: Any                         # DataFrame: those rows' MSRD curves
+
+
+def _py(v: Any) -> Any:
+    """A CSV cell as the study file would write it (numpy scalars to Python, "True" to True)."""
+    if hasattr(v, "item"):
+        v = v.item()
+    if isinstance(v, str) and v in ("True", "False"):
+        return v == "True"
+    return v
+
+
+def carried_runs(study: Study, data_dir: os.PathLike) -> Carried:
+    """The runs of data_dir that ended (succeeded, or failed in the simulation itself, which
+    reruns the same way): each matched to this study's run by its seed and point values. A row
+    carrying the run's settings (collected since 2026-11-26) is taken only if they are this
+    run's today: a study file whose [spec] changed does not take the old runs."""
+    import pandas as pd
+    d = Path(data_dir)
+    for f in ("runs.csv", "samples.csv.gz", "msrd.csv.gz"):
+        if not (d / f).is_file():
+            raise StudyError(f"--with-data: {d / f} is missing (a report's data folder holds "
+                             "runs.csv, samples.csv.gz and msrd.csv.gz)")
+    meta = d / "collected.json"
+    if meta.is_file():
+        name = json.loads(meta.read_text()).get("study")
+        if name and name != study.name:
+            raise StudyError(f"--with-data: {d} holds study {name!r}'s runs, not {study.name!r}'s")
+    table = pd.read_csv(d / "runs.csv")
+    runs = study.runs()
+    rows: Dict[int, Dict[str, Any]] = {}
+    for rec in table.to_dict("records"):
+        row = {k: _py(v) for k, v in rec.items()}
+        state = row.get("state")
+        kind = row.get("failure_kind")
+        if not (state == "succeeded" or (state == "failed" and kind in SIMULATION_FAILURES)):
+            continue
+        seed = row.get("seed")
+        hit = next((i for i, r in enumerate(runs)
+                    if seed is not None and int(seed) == r.seed and
+                    all(k in row and _same(_py(row[k]), v) for k, v in r.point.items())), None)
+        if hit is None:
+            continue
+        settings = row.get("settings")
+        if isinstance(settings, str) and settings:
+            now = study.settings(runs[hit])
+            then = json.loads(settings)
+            if set(now) != set(then) or not all(_same(now[k], then[k]) for k in now):
+                continue
+        rows[hit] = row
+    ids = {r["job_id"] for r in rows.values()}
+    samples = pd.read_csv(d / "samples.csv.gz")
+    msrd = pd.read_csv(d / "msrd.csv.gz")
+    return Carried(d, rows, samples[samples["job_id"].isin(ids)], msrd[msrd["job_id"].isin(ids)])
+
+
+def _takes_carried(have: List[Any], carried: Optional[Carried], i: int) -> bool:
+    """Whether run i is the carried row's: it has no job in this store that is live or ended
+    (none, or only cancelled ones)."""
+    from activefoam.client import _state_name
+    return (carried is not None and i in carried.rows and
+            (not have or _state_name(have[-1].state) == "cancelled"))
+
+
 # ---- run -----------------------------------------------------------------------------------------
 
 def submit_missing(study: Study, client: Any, retry_failed: bool = False,
-                   out=sys.stderr) -> Tuple[int, int]:
+                   out=sys.stderr, carried: Optional[Carried] = None) -> Tuple[int, int]:
     """Submits every run that has no live or finished job; returns (submitted, already held).
     Nothing is submitted twice: each job carries an idempotency key made of the run and its
-    attempt number. A spec foamd refuses stops the submission and cancels what this call
-    submitted (a study is submitted whole or not at all), then raises StudyError."""
+    attempt number. A run that `carried` (an earlier store's data) holds as ended counts as held
+    (a failed one is submitted again with retry_failed). A spec foamd refuses stops the
+    submission and cancels what this call submitted (a study is submitted whole or not at all),
+    then raises StudyError."""
     from activefoam.client import _setting
     runs = study.runs()
     submitted: List[str] = []
@@ -570,6 +648,10 @@ def submit_missing(study: Study, client: Any, retry_failed: bool = False,
         run = runs[i]
         have = found.get(i, [])
         if not _needs_job(have, retry_failed):
+            held += 1
+            continue
+        if _takes_carried(have, carried, i) and not (
+                retry_failed and carried.rows[i]["state"] == "failed"):
             held += 1
             continue
         if len(have) >= MAX_ATTEMPTS:
@@ -601,7 +683,8 @@ def submit_missing(study: Study, client: Any, retry_failed: bool = False,
     return len(submitted), held
 
 
-def _progress(study: Study, client: Any) -> Tuple[Dict[str, int], float, List[Any]]:
+def _progress(study: Study, client: Any, carried: Optional[Carried] = None
+              ) -> Tuple[Dict[str, int], float, List[Any]]:
     from activefoam.client import _state_name
     found, _, _ = _run_jobs(study, client)
     counts: Dict[str, int] = {}
@@ -609,6 +692,11 @@ def _progress(study: Study, client: Any) -> Tuple[Dict[str, int], float, List[An
     latest = []
     for i in range(len(study.runs())):
         have = found.get(i, [])
+        if _takes_carried(have, carried, i):
+            s = carried.rows[i]["state"]
+            counts[s] = counts.get(s, 0) + 1
+            done_fraction += 1.0
+            continue
         if not have:
             counts["missing"] = counts.get("missing", 0) + 1
             continue
@@ -621,7 +709,7 @@ def _progress(study: Study, client: Any) -> Tuple[Dict[str, int], float, List[An
 
 
 def wait(study: Study, client: Any, poll_s: float = 2.0, progress: bool = True,
-         timeout_s: Optional[float] = None) -> Dict[str, int]:
+         timeout_s: Optional[float] = None, carried: Optional[Carried] = None) -> Dict[str, int]:
     """Waits until every run's job has ended; a progress line on stderr (tqdm where installed)."""
     n = len(study.runs())
     start = time.monotonic()
@@ -635,7 +723,7 @@ def wait(study: Study, client: Any, poll_s: float = 2.0, progress: bool = True,
             bar = None
     try:
         while True:
-            counts, frac, _ = _progress(study, client)
+            counts, frac, _ = _progress(study, client, carried)
             ended = sum(counts.get(s, 0) for s in ("succeeded", "failed", "cancelled"))
             if first_fraction is None:
                 first_fraction = frac
@@ -675,19 +763,34 @@ def _hms(s: float) -> str:
 
 # ---- data: the store's per-run results, samples and MSRD curves --------------------------------
 
-def collect(study: Study, client: Any, out_dir: os.PathLike) -> Path:
+def collect(study: Study, client: Any, out_dir: os.PathLike,
+            carried: Optional[Carried] = None) -> Path:
     """Writes the study's data from the store into out_dir: runs.csv (one row per run: state,
-    failure, outcome, seed, the swept keys, every result), samples.csv.gz (the sample columns
-    the figures need) and msrd.csv.gz (each run's MSRD curve). Returns out_dir."""
+    failure, outcome, seed, the swept keys, the run's settings, every result), samples.csv.gz
+    (the sample columns the figures need) and msrd.csv.gz (each run's MSRD curve). A run with
+    no live or ended job in the store takes its row, samples and curve from `carried` (an
+    earlier store's data), if that holds it. Returns out_dir."""
     import pandas as pd
     from activefoam.client import _state_name
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     found, source, stale = _run_jobs(study, client)
     rows, samples, curves = [], [], []
+    n_carried = 0
     for i, run in enumerate(study.runs()):
-        row: Dict[str, Any] = {"run": i, **run.point, "seed": run.seed}
+        row: Dict[str, Any] = {"run": i, **run.point, "seed": run.seed,
+                               "settings": json.dumps(study.settings(run), sort_keys=True)}
         have = found.get(i, [])
+        if _takes_carried(have, carried, i):
+            old = carried.rows[i]
+            row.update({k: v for k, v in old.items() if k not in row and k != "carried_from"})
+            row["carried_from"] = str(carried.source)
+            jid = old["job_id"]
+            samples += carried.samples[carried.samples["job_id"] == jid].to_dict("records")
+            curves += carried.msrd[carried.msrd["job_id"] == jid].values.tolist()
+            rows.append(row)
+            n_carried += 1
+            continue
         if not have:
             row.update(state="missing", attempts=0)
             rows.append(row)
@@ -719,7 +822,8 @@ def collect(study: Study, client: Any, out_dir: os.PathLike) -> Path:
     meta = {"study": study.name, "file": str(study.path), "tag": study.tag,
             "collected_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
             "runs": len(rows), "stale_jobs": [j.id for j in stale],
-            "shared_runs": {str(i): src for i, src in source.items()}}
+            "shared_runs": {str(i): src for i, src in source.items()},
+            "carried_runs": n_carried}
     (out / "collected.json").write_text(json.dumps(meta, indent=1) + "\n")
     return out
 
@@ -1164,6 +1268,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p_run.add_argument("--report", metavar="DIR", default=None,
                        help="when every run has ended, collect and report into DIR")
     p_run.add_argument("--poll", type=float, default=2.0, help=argparse.SUPPRESS)
+    with_data_help = ("a report's data folder from an earlier store (e.g. the committed "
+                      "docs/science/NAME/data): the runs it holds as ended count as done, are "
+                      "not submitted again, and are reported with the store's")
+    p_run.add_argument("--with-data", default=None, metavar="DIR", help=with_data_help)
     p_rep = sub.add_parser("report", help="tables and figures from the store (or --from-data)")
     p_rep.add_argument("study")
     p_rep.add_argument("--out", default=None, help="output folder (default: next to the study "
@@ -1171,6 +1279,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p_rep.add_argument("--from-data", default=None, metavar="DIR",
                        help="render from a data folder written by an earlier report (runs.csv, "
                             "samples.csv.gz, msrd.csv.gz) instead of the store")
+    p_rep.add_argument("--with-data", default=None, metavar="DIR", help=with_data_help)
     p_chk = sub.add_parser("check", help="read the study file and list its runs")
     p_chk.add_argument("study")
     p_ver = sub.add_parser("verdicts", help="judge the supplement's trend statements (a "
@@ -1179,8 +1288,40 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p_ver.add_argument("--data", required=True, metavar="DIR",
                        help="folder of the studies' reports: DIR/NAME/data for each study")
     p_ver.add_argument("--out", required=True, metavar="DIR", help="writes verdicts.md and .csv")
+    default_db = os.environ.get("FOAM_STUDY_DB") or str(
+        Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local/share") /
+        "activefoam/studies.db")
+    p_sav = sub.add_parser("save-store", help="copy foamd's store (jobs, results, running jobs' "
+                           "checkpoints, prepared spheroids) to a folder, foamd running or not")
+    p_sav.add_argument("dir", metavar="DIR")
+    p_sav.add_argument("--db", default=default_db, help=f"the store (default {default_db})")
+    p_sav.add_argument("--engine", default=None, help="the engine the store's jobs ran "
+                       "(default: git tree of this checkout's engine/)")
+    p_res = sub.add_parser("restore-store", help="put a saved store back (before foamd starts "
+                           "on it): its running jobs resume from their checkpoints")
+    p_res.add_argument("dir", metavar="DIR")
+    p_res.add_argument("--db", default=default_db, help=f"the store (default {default_db}); "
+                       "must not exist")
+    p_res.add_argument("--engine-changed", action="store_true",
+                       help="restore a copy saved under another engine (only when the step's "
+                            "results are bit-identical)")
     args = ap.parse_args(argv)
     try:
+        if args.cmd in ("save-store", "restore-store"):
+            from activefoam import store_copy
+            try:
+                if args.cmd == "save-store":
+                    m = store_copy.save(args.db, args.dir, engine=args.engine)
+                else:
+                    m = store_copy.restore(args.dir, args.db,
+                                           engine_changed_ok=args.engine_changed)
+            except store_copy.StoreCopyError as e:
+                raise StudyError(str(e)) from None
+            states = ", ".join(f"{n} {s}" for s, n in m["by_state"].items())
+            print(f"{args.cmd}: {m['jobs']} jobs ({states}), "
+                  f"{m['checkpoints']} checkpoints, {m['spheroids']} prepared spheroids; "
+                  f"engine {m['engine']}, saved {m['saved_utc']}", file=sys.stderr)
+            return 0
         if args.cmd == "verdicts":
             from activefoam import verdicts
             for f in verdicts.write(verdicts.load(args.study), args.data, args.out):
@@ -1197,18 +1338,27 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                       (f"  (shared: {sh.other.name}'s " +
                        ", ".join(f"{k}={v}" for k, v in sh.that.items()) + ")" if sh else ""))
             return 0
+        carried = None
+        if getattr(args, "with_data", None):
+            if args.cmd == "report" and args.from_data:
+                raise StudyError("--with-data: not with --from-data (which reads no store)")
+            carried = carried_runs(study, args.with_data)
+            print(f"study {study.name}: {len(carried.rows)} ended runs in {args.with_data}",
+                  file=sys.stderr)
         if args.cmd == "run":
             with _client(args) as c:
-                n_new, n_held = submit_missing(study, c, retry_failed=args.retry_failed)
+                n_new, n_held = submit_missing(study, c, retry_failed=args.retry_failed,
+                                               carried=carried)
                 print(f"study {study.name}: {n_new} runs submitted, {n_held} already in the "
-                      f"store (tag {study.tag})", file=sys.stderr)
+                      f"store{' or the data' if carried else ''} (tag {study.tag})",
+                      file=sys.stderr)
                 if args.no_wait:
                     return 0
-                counts = wait(study, c, poll_s=args.poll)
+                counts = wait(study, c, poll_s=args.poll, carried=carried)
                 print(f"study {study.name}: " + ", ".join(f"{n} {s}" for s, n in
                                                          sorted(counts.items())), file=sys.stderr)
                 if args.report:
-                    _report(study, c, Path(args.report))
+                    _report(study, c, Path(args.report), carried)
                 return 1 if counts.get("failed", 0) or counts.get("cancelled", 0) else 0
         out = Path(args.out) if args.out else study.path.parent / f"{study.name}-report"
         if args.from_data:
@@ -1217,7 +1367,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                 print(f)
             return 0
         with _client(args) as c:
-            _report(study, c, out)
+            _report(study, c, out, carried)
         return 0
     except ValueError as e:  # StudyError, or a spec foamd refused
         print(f"error: {e}", file=sys.stderr)
@@ -1237,8 +1387,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return 130
 
 
-def _report(study: Study, client: Any, out: Path) -> None:
-    data_dir = collect(study, client, out / "data")
+def _report(study: Study, client: Any, out: Path, carried: Optional[Carried] = None) -> None:
+    data_dir = collect(study, client, out / "data", carried)
     data = load_data(study, data_dir)
     for f in render(study, data, out):
         print(f)

@@ -18,13 +18,14 @@ def _free_port() -> int:
 
 
 class Foamd:
-    def __init__(self, tmp: Path, token: str = ""):
+    def __init__(self, tmp: Path, token: str = "", extra_args=()):
         exe = os.environ.get("FOAMD_EXE")
         if not exe or not Path(exe).exists():
             pytest.skip("FOAMD_EXE does not name a built foamd (ctest sets it)")
         self.address = f"127.0.0.1:{_free_port()}"
         self.log = tmp / "foamd.log"
-        args = [exe, "--listen", self.address, "--db", str(tmp / "foamd.db"), "--workers", "2"]
+        args = [exe, "--listen", self.address, "--db", str(tmp / "foamd.db"), "--workers", "2",
+                *extra_args]
         if token:
             token_file = tmp / "token"
             token_file.write_text(token + "\n")
@@ -42,6 +43,11 @@ class Foamd:
                     raise RuntimeError("foamd did not start:\n" + self.log.read_text())
                 time.sleep(0.1)
         client.close()
+
+    def kill(self) -> None:
+        """As a machine that goes away: no shutdown, no checkpoint at the end."""
+        self.proc.kill()
+        self.proc.wait()
 
     def stop(self) -> None:
         self.proc.terminate()

@@ -583,3 +583,100 @@ def test_bad_shares_exit_2_naming_the_key(tmp_path, share, message):
     r = _run(["check", str(tmp_path / "taup.toml")])
     assert r.returncode == 2, r.stdout + r.stderr
     assert message in r.stderr, r.stderr
+
+
+# ---- a study continued on another store: the committed data's ended runs count as done ---------
+
+def _alpha_study(tmp: Path, name="alpha"):
+    (tmp / "base.toml").write_text('scene = "fusion"\n')
+    f = tmp / f"{name}.toml"
+    f.write_text(textwrap.dedent(f"""\
+        [study]
+        name = "{name}"
+        base = "base.toml"
+        seeds = [1, 2]
+        [spec]
+        duration_s = 240
+        [[grid]]
+        "cells.alpha" = [0.4375, 0.6]
+        """))
+    return st.load(f)
+
+
+def _earlier_data(tmp: Path, study, stale_settings=False):
+    """What `collect` wrote from an earlier store: seed 1 succeeded at both α, seed 2 failed in
+    the simulation at α 0.6 and was cancelled at α 0.4375; plus a row of a point the study no
+    longer has. With stale_settings, seed 1 at α 0.6 ran another duration."""
+    d = tmp / "earlier"
+    d.mkdir()
+    rows, samples, msrd = [], [], []
+    for seed, a, state, kind in ((1, 0.4375, "succeeded", ""), (1, 0.6, "succeeded", ""),
+                                 (2, 0.6, "failed", "volume-drift"),
+                                 (2, 0.4375, "cancelled", ""), (1, 0.8, "succeeded", "")):
+        jid = f"j-old-{a}-{seed}"
+        run = st.Run({"cells.alpha": a}, seed)
+        settings = study.settings(run)
+        if stale_settings and (seed, a) == (1, 0.6):
+            settings = dict(settings, duration_s=120)
+        rows.append({"run": len(rows), "cells.alpha": a, "seed": seed,
+                     "settings": json.dumps(settings, sort_keys=True), "job_id": jid,
+                     "state": state, "failure_kind": kind, "theta_deg": 50 + seed})
+        samples += [[jid, t, 40 + t / 60, 5.4, 1.0, 3.0, 0.001] for t in (0, 120, 240)]
+        msrd += [[jid, lag, 0.1 * lag] for lag in (60, 120)]
+    _write_data(d, rows, samples, msrd)
+    (d / "collected.json").write_text(json.dumps({"study": study.name}))
+    return d
+
+
+def test_an_earlier_stores_ended_runs_count_as_done_and_are_reported_with_the_stores(tmp_path):
+    study = _alpha_study(tmp_path)
+    carried = st.carried_runs(study, _earlier_data(tmp_path, study))
+    runs = study.runs()
+    assert sorted((runs[i].seed, runs[i].point["cells.alpha"]) for i in carried.rows) == [
+        (1, 0.4375), (1, 0.6), (2, 0.6)]
+    assert set(carried.samples["job_id"]) == {"j-old-0.4375-1", "j-old-0.6-1", "j-old-0.6-2"}
+    # Only the cancelled run is submitted on the new store; the failed one is a result.
+    foamd = _FakeFoamd({"alpha": 0.4375})
+    assert st.submit_missing(study, foamd, carried=carried) == (1, 3)
+    assert [(s["seed"], s["cells.alpha"]) for s in foamd.submitted] == [("2", "0.4375")]
+    assert st.submit_missing(study, foamd, carried=carried) == (0, 4)
+    counts, frac, _ = st._progress(study, foamd, carried)
+    assert counts == {"succeeded": 2, "failed": 1, "queued": 1}
+    # --retry-failed runs the carried failure again.
+    foamd2 = _FakeFoamd({"alpha": 0.4375})
+    assert st.submit_missing(study, foamd2, retry_failed=True, carried=carried) == (2, 2)
+    # The report's data: the store's job where it has one, the carried rows elsewhere, with
+    # their samples and curves; the carried rows say where they came from.
+    for jobs in foamd.jobs.values():
+        for j in jobs:
+            j.reason, j.outcome, j.t_s = "", "", 0.0
+    out = st.collect(study, foamd, tmp_path / "report" / "data", carried)
+    got = pd.read_csv(out / "runs.csv")
+    assert list(got["state"]) == ["succeeded", "succeeded", "queued", "failed"]
+    assert got["carried_from"].notna().tolist() == [True, True, False, True]
+    assert got.loc[0, "theta_deg"] == 51 and got.loc[3, "failure_kind"] == "volume-drift"
+    assert json.loads(got.loc[2, "settings"]) == study.settings(runs[2])
+    samples = pd.read_csv(out / "samples.csv.gz")
+    assert sorted(set(samples["job_id"])) == ["j-old-0.4375-1", "j-old-0.6-1", "j-old-0.6-2"]
+    assert len(pd.read_csv(out / "msrd.csv.gz")) == 6
+    assert json.loads((out / "collected.json").read_text())["carried_runs"] == 3
+    # That data folder carries the same runs again (its own settings column now).
+    again = st.carried_runs(study, out)
+    assert sorted(again.rows) == sorted(carried.rows)
+
+
+def test_carried_runs_whose_settings_changed_or_of_another_study_are_not_taken(tmp_path):
+    study = _alpha_study(tmp_path)
+    carried = st.carried_runs(study, _earlier_data(tmp_path, study, stale_settings=True))
+    runs = study.runs()
+    assert sorted((runs[i].seed, runs[i].point["cells.alpha"]) for i in carried.rows) == [
+        (1, 0.4375), (2, 0.6)]
+    (tmp_path / "b").mkdir()
+    beta = _alpha_study(tmp_path / "b", name="beta")
+    with pytest.raises(st.StudyError, match="holds study 'alpha'"):
+        st.carried_runs(beta, tmp_path / "earlier")
+    with pytest.raises(st.StudyError, match="runs.csv is missing"):
+        st.carried_runs(study, tmp_path / "b")
+    r = _run(["report", str(study.path), "--from-data", str(tmp_path / "earlier"),
+              "--with-data", str(tmp_path / "earlier")])
+    assert r.returncode == 2 and "--with-data: not with --from-data" in r.stderr

@@ -1,0 +1,93 @@
+"""A foamd store carried to another machine (activefoam.store_copy, `study save-store` /
+`restore-store`): a job running when the copy was taken resumes there from its checkpoint."""
+
+import json
+import time
+
+import pytest
+
+from activefoam import Client
+from activefoam import store_copy as sc
+from activefoam.client import _state_name
+from conftest import Foamd
+
+SPEC = """\
+scene = "fusion"
+seed = 3
+duration_s = 3600
+sample_every_s = 30
+snapshot_every_s = 0
+[numerics]
+dt_s = 0.5
+[scene]
+n_cells = 4
+prep_max_s = 300
+allow_uncompacted = true
+"""
+
+
+def _wait(client, jid, pred, timeout=240):
+    deadline = time.monotonic() + timeout
+    while True:
+        info = client.job(jid).info()
+        if pred(info):
+            return info
+        assert time.monotonic() < deadline, f"job {jid}: {_state_name(info.state)} after " \
+            f"{timeout} s"
+        time.sleep(0.2)
+
+
+def test_a_running_job_resumes_from_its_checkpoint_in_a_restored_store(tmp_path):
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    a = Foamd(tmp_path / "a",
+              extra_args=["--checkpoint-every-s", "30"])
+    try:
+        with Client(a.address) as c:
+            (tmp_path / "spec.toml").write_text(SPEC)
+            jid = c.submit(tmp_path / "spec.toml").id
+            _wait(c, jid, lambda j: _state_name(j.state) == "running" and j.progress >= 0.1)
+            # foamd keeps the store to itself while it runs: a copy is refused, naming why.
+            with pytest.raises(sc.StoreCopyError, match="in use .*stop foamd first"):
+                sc.save(tmp_path / "a" / "foamd.db", tmp_path / "copy", engine="engine-X")
+    finally:
+        a.stop()  # SIGTERM: the running job is checkpointed where it is and re-queued
+    m = sc.save(tmp_path / "a" / "foamd.db", tmp_path / "copy", engine="engine-X")
+    assert m["jobs"] == 1 and m["checkpoints"] == 1 and m["by_state"] == {"queued": 1}, m
+    assert m["spheroids"] >= 1 and m["engine"] == "engine-X"
+    assert json.loads((tmp_path / "copy" / sc.MANIFEST).read_text()) == m
+
+    b_db = tmp_path / "b" / "foamd.db"
+    # Another engine: refused, and nothing is written.
+    with pytest.raises(sc.StoreCopyError, match="saved under engine engine-X"):
+        sc.restore(tmp_path / "copy", b_db, engine="engine-Y")
+    assert not b_db.exists()
+    sc.restore(tmp_path / "copy", b_db, engine="engine-X")
+    with pytest.raises(sc.StoreCopyError, match="exists; a restore overwrites nothing"):
+        sc.restore(tmp_path / "copy", b_db, engine="engine-X")
+    assert any((tmp_path / "b" / "spheroids").iterdir())
+
+    b = Foamd(tmp_path / "b")
+    try:
+        with Client(b.address) as c:
+            j = _wait(c, jid, lambda j: _state_name(j.state) in ("succeeded", "failed",
+                                                                  "cancelled"), timeout=300)
+            assert _state_name(j.state) == "succeeded", j.reason
+            samples = c.job(jid).samples()
+            assert len(samples) == 3600 // 30 + 1
+            assert list(samples["t_s"]) == [30.0 * k for k in range(121)]
+    finally:
+        b.stop()
+    assert "re-queued at shutdown" in (tmp_path / "a" / "foamd.log").read_text()
+    log = (tmp_path / "b" / "foamd.log").read_text()
+    resumed = [ln for ln in log.splitlines() if "resuming from checkpoint at t = " in ln]
+    assert resumed and float(resumed[0].split("t = ")[1].split()[0]) >= 360, resumed
+    # The spheroids came with the copy: the job did not prepare them again.
+    assert "relaxing" not in log
+
+
+def test_a_missing_copy_or_store_is_a_clear_error(tmp_path):
+    with pytest.raises(sc.StoreCopyError, match="no store at"):
+        sc.save(tmp_path / "none.db", tmp_path / "copy")
+    with pytest.raises(sc.StoreCopyError, match="holds no saved store"):
+        sc.restore(tmp_path, tmp_path / "x.db")
