@@ -2,6 +2,7 @@
 bad study files."""
 
 import json
+import math
 import os
 import signal
 import subprocess
@@ -285,6 +286,35 @@ def test_fitness_report_on_synthetic_data_with_known_answers(tmp_path):
     assert summary.loc["standard", "steps_redone"] == 0
     assert summary.loc["standard", "volume_error_peak"] == pytest.approx(0.005)
     assert "| 15 | 5 % |" in (out2 / "summary.md").read_text()
+
+
+def test_theta_and_shape_index_over_the_last_hour_are_the_plateau_the_end_wanders_about(tmp_path):
+    study = _alpha_study(tmp_path)
+    runs = pd.DataFrame([{"job_id": "long", "state": "succeeded", "cells.alpha": 0.4375},
+                         {"job_id": "short", "state": "succeeded", "cells.alpha": 0.6},
+                         {"job_id": "lost", "state": "failed", "cells.alpha": 0.6}])
+    nan = float("nan")
+    rows = []
+    # 4 h: θ 90° on its plateau, one NaN sample in the last hour, the last sample a dip to 80°.
+    for t in range(0, 14401, 600):
+        theta = 80.0 if t == 14400 else (nan if t == 12000 else 90.0)
+        rows.append(["long", t, theta, 5.5 if t == 14400 else 5.4, 1.0, 3.0, 0.001])
+    # 40 min: the window is its last half (t ≥ 1200 s): 60, 70, 80 → 70.
+    for t, theta in ((0, 20.0), (600, 50.0), (1200, 60.0), (1800, 70.0), (2400, 80.0)):
+        rows.append(["short", t, theta, 5.4, 1.0, 3.0, 0.001])
+    rows += [["lost", t, 50.0, 5.4, 1.0, 3.0, 0.001] for t in (0, 600)]
+    samples = pd.DataFrame(rows, columns=["job_id", "t_s"] + st.SAMPLE_COLUMNS)
+    msrd = pd.DataFrame(columns=["job_id", "lag_s", "msrd_um2"])
+    got = st.derive_metrics(study, runs, samples, msrd).set_index("job_id")
+    assert got.loc["long", "theta_end_deg"] == 80.0
+    # t ≥ 10 800 s: 10 800, 11 400, 12 600, 13 200, 13 800 at 90°, 14 400 at 80° (12 000 NaN).
+    assert got.loc["long", "theta_last_hour_deg"] == pytest.approx((5 * 90 + 80) / 6)
+    assert got.loc["short", "theta_last_hour_deg"] == pytest.approx(70.0)
+    # The shape index's window is the same, its NaN-free samples all seven (one at 5.5).
+    assert got.loc["long", "shape_index_end"] == 5.5
+    assert got.loc["long", "shape_index_last_hour"] == pytest.approx((6 * 5.4 + 5.5) / 7)
+    assert math.isnan(got.loc["lost", "theta_last_hour_deg"])  # a failed run has no plateau
+    assert {"theta_last_hour_deg", "shape_index_last_hour"} <= set(st.FITNESS_METRICS)
 
 
 def test_runs_match_jobs_by_their_resolved_spec_reduced_keys_included(tmp_path):
