@@ -472,7 +472,10 @@ def _shared_jobs(study: Study, client: Any, own: Dict[int, List[Any]]) -> Dict[i
     their own. A job is taken only when its resolved spec shows it is this run: this study's
     keys (the point, the seed, [spec]) have their values in it, and the keys only the other
     point sets have, in this study's own jobs, the values the base gives them. Until this study
-    has a job of its own to read the base from, nothing is shared (the run is submitted)."""
+    has a job of its own to read the base from, nothing is shared (the run is submitted). A run
+    whose own jobs were all cancelled (say, submitted while the other study's were being
+    resubmitted) takes the other study's jobs like a run with none."""
+    from activefoam.client import _state_name
     runs = study.runs()
     out: Dict[int, List[Any]] = {}
     if not study.shares:
@@ -486,7 +489,9 @@ def _shared_jobs(study: Study, client: Any, own: Dict[int, List[Any]]) -> Dict[i
         other_jobs, _ = _jobs_by_run(sh.other, listed[sh.other.tag])
         other_runs = sh.other.runs()
         for i, run in enumerate(runs):
-            if own.get(i) or not sh.covers(run.point):
+            mine = own.get(i, [])
+            if not sh.covers(run.point) or any(_state_name(j.state) != "cancelled"
+                                                for j in mine):
                 continue
             k_other = next((k for k, r in enumerate(other_runs)
                             if r.seed == run.seed and _same_point(r.point, sh.that)), None)

@@ -577,6 +577,24 @@ def test_a_shared_run_whose_job_was_cancelled_runs_on_its_own(tmp_path):
         ("150", "1"), ("150", "2"), ("600", "2")]
 
 
+def test_a_shared_run_whose_own_job_was_cancelled_takes_the_other_studys_job(tmp_path):
+    # τ_p = 600 was submitted as this study's own while the α study's jobs were being
+    # resubmitted, then cancelled: the α study's jobs are its runs again, nothing is submitted.
+    taup = _shared_studies(tmp_path)
+    foamd = _FakeFoamd({"alpha": 0.4375, "tau_p_s": 600})
+    _alpha_jobs(foamd)
+    for seed in (1, 2):
+        for tau, state in ((150, "SUCCEEDED"), (600, "CANCELLED")):
+            spec = {"seed": seed, "duration_s": 240, "cells": {"alpha": 0.4375, "tau_p_s": tau},
+                    "numerics": {"remesh_on_surface": True}}
+            foamd.add("study:taup", _FakeJob(f"j-t{tau}-{seed}", seed, spec, state=state))
+    assert st.submit_missing(taup, foamd) == (0, 4)
+    found, source, _ = st._run_jobs(taup, foamd)
+    shared = [i for i, r in enumerate(taup.runs()) if r.point["cells.tau_p_s"] == 600]
+    assert [found[i][0].id for i in shared] == ["j-a0.4375-1", "j-a0.4375-2"]
+    assert all(source[i] == "alpha" for i in shared)
+
+
 def test_a_share_whose_runs_differ_is_an_error_naming_the_key(tmp_path):
     # The other study's job ran another τ_p (its base is not ours): not this run.
     taup = _shared_studies(tmp_path)
