@@ -1,0 +1,118 @@
+#!/usr/bin/env bash
+# The project's study campaign (the studies of studies/campaign.txt, in that order) on machines
+# that do not outlive a working session: one foamd store holds the queue, and it is carried from
+# one session to the next in studies/store/ (scripts/study.sh save-store / restore-store), so a
+# run cut off by the end of a session resumes from its checkpoint in the next.
+#
+#   scripts/campaign.sh start [--engine-changed]
+#       restores the store from studies/store/ when there is none here, starts foamd on it (one
+#       one-thread job per core) and submits what is missing: a run whose results are committed
+#       (docs/science/NAME/data) counts as done even if the store was lost.
+#   scripts/campaign.sh report    every study with ended runs: docs/science/NAME (figures, data)
+#   scripts/campaign.sh stop      stops foamd (its running jobs checkpoint and re-queue) and saves
+#                                 the store to studies/store/ (commit it with the reports)
+#   scripts/campaign.sh status    the queue by study and state
+#
+# CAMPAIGN_DB: the store (default ~/.local/share/activefoam/campaign.db); FOAM_SERVER: where its
+# foamd listens (default 127.0.0.1:50051); CAMPAIGN_WORKERS: jobs at once (default the cores);
+# CAMPAIGN_FILE, CAMPAIGN_SAVED, CAMPAIGN_SCIENCE: the list, the saved store and the reports'
+# folder (defaults studies/campaign.txt, studies/store, docs/science).
+set -euo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+bin="${FOAM_BUILD_DIR:-$root/build/release}"
+db="${CAMPAIGN_DB:-${XDG_DATA_HOME:-$HOME/.local/share}/activefoam/campaign.db}"
+export FOAM_SERVER="${FOAM_SERVER:-127.0.0.1:50051}"
+saved="${CAMPAIGN_SAVED:-$root/studies/store}"
+science="${CAMPAIGN_SCIENCE:-$root/docs/science}"
+pidfile="${db%.db}-foamd.pid"
+enginefile="${db%.db}-engine.txt"
+study() { "$root/scripts/study.sh" "$@"; }
+list="${CAMPAIGN_FILE:-$root/studies/campaign.txt}"
+studies() { grep -v '^\s*#' "$list" | awk 'NF {print $1}'; }
+name_of() { basename "$1" .toml; }
+running() { [ -f "$pidfile" ] && kill -0 "$(cat "$pidfile")" 2>/dev/null; }
+answers() { "$bin/client/foam" list --state running >/dev/null 2>&1; }
+
+cmd="${1:-}"
+shift || true
+case "$cmd" in
+  start)
+    [ -x "$bin/server/foamd" ] || "$root/scripts/build.sh" release
+    if running; then
+      echo "campaign: foamd already runs (pid $(cat "$pidfile"))" >&2
+    else
+      if [ ! -f "$db" ] && [ -f "$saved/MANIFEST.json" ]; then
+        study restore-store "$saved" --db "$db" "$@"
+      fi
+      mkdir -p "$(dirname "$db")"
+      # The engine the store's jobs run: what save-store records (a checkpoint resumes bit for
+      # bit only under the engine that wrote it). A copy of the binary, so that rebuilding the
+      # checkout during the session does not change what runs.
+      (cd "$root" && git rev-parse HEAD:engine) >"$enginefile"
+      if [ -n "$(cd "$root" && git status --porcelain -- engine)" ]; then
+        echo "campaign: engine/ has uncommitted changes: commit them before running studies" >&2
+        exit 2
+      fi
+      cp "$bin/server/foamd" "${db%.db}-foamd"
+      OMP_NUM_THREADS=1 setsid nohup "${db%.db}-foamd" --listen "$FOAM_SERVER" --db "$db" \
+        --workers "${CAMPAIGN_WORKERS:-$(nproc)}" --threads-per-job 1 >>"${db%.db}-foamd.log" 2>&1 &
+      echo $! >"$pidfile"
+      for _ in $(seq 100); do answers && break; sleep 0.2; done
+      answers || { echo "campaign: foamd did not start; see ${db%.db}-foamd.log" >&2; exit 3; }
+      echo "campaign: foamd (pid $(cat "$pidfile")) on $db at $FOAM_SERVER" >&2
+    fi
+    for f in $(studies); do
+      data="$science/$(name_of "$f")/data"
+      with=()
+      [ -f "$data/runs.csv" ] && with=(--with-data "$data")
+      study run "$(dirname "$list")/$f" --no-wait "${with[@]}"
+    done
+    ;;
+  report)
+    answers || { echo "campaign: no foamd at $FOAM_SERVER (scripts/campaign.sh start)" >&2; exit 3; }
+    for f in $(studies); do
+      n="$(name_of "$f")"
+      out="$science/$n"
+      with=()
+      [ -f "$out/data/runs.csv" ] && with=(--with-data "$out/data")
+      ended=$("$bin/client/foam" list --limit 1000 --tag "study:$n" --state succeeded 2>/dev/null | tail -n +2 | wc -l)
+      if [ "$ended" = 0 ] && [ ${#with[@]} = 0 ]; then
+        echo "campaign: $n: no run has ended yet" >&2
+        continue
+      fi
+      study report "$(dirname "$list")/$f" --out "$out" "${with[@]}" >/dev/null
+      echo "campaign: $n reported in $out" >&2
+    done
+    ;;
+  stop)
+    if running; then
+      pid="$(cat "$pidfile")"
+      kill -TERM "$pid"
+      for _ in $(seq 600); do kill -0 "$pid" 2>/dev/null || break; sleep 0.2; done
+      if kill -0 "$pid" 2>/dev/null; then
+        echo "campaign: foamd (pid $pid) has not stopped after 120 s; not saving" >&2
+        exit 3
+      fi
+      rm -f "$pidfile"
+    fi
+    [ -f "$db" ] || { echo "campaign: no store at $db" >&2; exit 2; }
+    study save-store "$saved" --db "$db" --engine "$(cat "$enginefile" 2>/dev/null || echo unknown)"
+    echo "campaign: saved to $saved (commit it with the reports)" >&2
+    ;;
+  status)
+    answers || { echo "campaign: no foamd at $FOAM_SERVER" >&2; exit 3; }
+    for f in $(studies); do
+      n="$(name_of "$f")"
+      printf '%-16s' "$n"
+      for s in running queued succeeded failed; do
+        c=$("$bin/client/foam" list --limit 1000 --tag "study:$n" --state "$s" 2>/dev/null | tail -n +2 | wc -l)
+        printf ' %3d %s' "$c" "$s"
+      done
+      echo
+    done
+    ;;
+  *)
+    sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'
+    exit 2
+    ;;
+esac
