@@ -1315,6 +1315,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p_sav.add_argument("--db", default=default_db, help=f"the store (default {default_db})")
     p_sav.add_argument("--engine", default=None, help="the engine the store's jobs ran "
                        "(default: git tree of this checkout's engine/)")
+    p_sav.add_argument("--without-snapshots", action="store_true",
+                       help="leave the jobs' snapshots (3D frames) out of the copy")
     p_res = sub.add_parser("restore-store", help="put a saved store back (before foamd starts "
                            "on it): its running jobs resume from their checkpoints")
     p_res.add_argument("dir", metavar="DIR")
@@ -1329,7 +1331,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             from activefoam import store_copy
             try:
                 if args.cmd == "save-store":
-                    m = store_copy.save(args.db, args.dir, engine=args.engine)
+                    m = store_copy.save(args.db, args.dir, engine=args.engine,
+                                        snapshots=not args.without_snapshots)
                 else:
                     m = store_copy.restore(args.dir, args.db,
                                            engine_changed_ok=args.engine_changed)

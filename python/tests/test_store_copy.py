@@ -86,6 +86,35 @@ def test_a_running_job_resumes_from_its_checkpoint_in_a_restored_store(tmp_path)
     assert "relaxing" not in log
 
 
+def test_a_copy_without_snapshots_leaves_out_only_the_snapshots(tmp_path):
+    import sqlite3
+    db = tmp_path / "s.db"
+    con = sqlite3.connect(str(db))
+    con.executescript("""
+        CREATE TABLE jobs(id TEXT, state INTEGER);
+        CREATE TABLE checkpoints(job_id TEXT, data BLOB);
+        CREATE TABLE samples(job_id TEXT, t_s REAL);
+        CREATE TABLE snapshots(job_id TEXT, data BLOB);
+        INSERT INTO jobs VALUES ('j-1', 3), ('j-2', 1);
+        INSERT INTO checkpoints VALUES ('j-2', x'00');
+        INSERT INTO samples VALUES ('j-1', 0), ('j-1', 30);
+        INSERT INTO snapshots VALUES ('j-1', zeroblob(100000)), ('j-2', zeroblob(100000));
+    """)
+    con.commit()
+    con.close()
+    m = sc.save(db, tmp_path / "copy", engine="e", snapshots=False)
+    assert m["snapshots_left_out"] == 2 and m["jobs"] == 2 and m["checkpoints"] == 1
+    sc.restore(tmp_path / "copy", tmp_path / "r.db", engine="e")
+    con = sqlite3.connect(str(tmp_path / "r.db"))
+    assert con.execute("SELECT count(*) FROM snapshots").fetchone()[0] == 0
+    assert con.execute("SELECT count(*) FROM samples").fetchone()[0] == 2
+    assert con.execute("SELECT count(*) FROM checkpoints").fetchone()[0] == 1
+    con.close()
+    assert (tmp_path / "r.db").stat().st_size < 100000  # vacuumed
+    full = sc.save(db, tmp_path / "full", engine="e")
+    assert full["snapshots_left_out"] == 0
+
+
 def test_a_missing_copy_or_store_is_a_clear_error(tmp_path):
     with pytest.raises(sc.StoreCopyError, match="no store at"):
         sc.save(tmp_path / "none.db", tmp_path / "copy")
