@@ -32,6 +32,12 @@ studies() { grep -v '^\s*#' "$list" | awk 'NF {print $1}'; }
 name_of() { basename "$1" .toml; }
 running() { [ -f "$pidfile" ] && kill -0 "$(cat "$pidfile")" 2>/dev/null; }
 answers() { "$bin/client/foam" list --state running >/dev/null 2>&1; }
+count() {  # STUDY STATE...: its jobs in those states
+  local n=$1
+  shift
+  "$bin/client/foam" list --limit 1000 --tag "study:$n" --state "$@" 2>/dev/null |
+    tail -n +2 | wc -l
+}
 
 cmd="${1:-}"
 shift || true
@@ -69,14 +75,13 @@ case "$cmd" in
     done
     ;;
   report)
-    answers || { echo "campaign: no foamd at $FOAM_SERVER (scripts/campaign.sh start)" >&2; exit 3; }
+    answers || { echo "campaign: no foamd at $FOAM_SERVER (campaign.sh start)" >&2; exit 3; }
     for f in $(studies); do
       n="$(name_of "$f")"
       out="$science/$n"
       with=()
       [ -f "$out/data/runs.csv" ] && with=(--with-data "$out/data")
-      ended=$("$bin/client/foam" list --limit 1000 --tag "study:$n" --state succeeded 2>/dev/null | tail -n +2 | wc -l)
-      if [ "$ended" = 0 ] && [ ${#with[@]} = 0 ]; then
+      if [ "$(count "$n" succeeded failed)" = 0 ] && [ ${#with[@]} = 0 ]; then
         echo "campaign: $n: no run has ended yet" >&2
         continue
       fi
@@ -108,8 +113,7 @@ case "$cmd" in
       n="$(name_of "$f")"
       printf '%-16s' "$n"
       for s in running queued succeeded failed; do
-        c=$("$bin/client/foam" list --limit 1000 --tag "study:$n" --state "$s" 2>/dev/null | tail -n +2 | wc -l)
-        printf ' %3d %s' "$c" "$s"
+        printf ' %3d %s' "$(count "$n" "$s")" "$s"
       done
       echo
     done

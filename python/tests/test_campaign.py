@@ -1,0 +1,104 @@
+"""scripts/campaign.sh: a study campaign carried across machines that do not outlive a session
+(start, stop with the store saved, start again on a new machine, report)."""
+
+import os
+import subprocess
+import textwrap
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from activefoam import Client
+from activefoam.client import _state_name
+from conftest import _free_port
+
+ROOT = Path(__file__).resolve().parents[2]
+BASE = """\
+scene = "fusion"
+sample_every_s = 30
+snapshot_every_s = 0
+[numerics]
+dt_s = 0.5
+[scene]
+n_cells = 4
+prep_max_s = 300
+allow_uncompacted = true
+"""
+
+
+def test_a_campaign_resumes_on_a_new_machine_and_takes_committed_runs_as_done(tmp_path):
+    foamd = os.environ.get("FOAMD_EXE")
+    if not foamd or not Path(foamd).exists():
+        pytest.skip("FOAMD_EXE does not name a built foamd (ctest sets it)")
+    build = Path(foamd).resolve().parents[1]
+    studies = tmp_path / "studies"
+    studies.mkdir()
+    (studies / "base.toml").write_text(BASE)
+    (studies / "tiny.toml").write_text(textwrap.dedent("""\
+        [study]
+        name = "tiny"
+        base = "base.toml"
+        seeds = [1]
+        x = "cells.alpha"
+        [spec]
+        duration_s = 1800
+        [[grid]]
+        "cells.alpha" = [0.4375, 0.6]
+        """))
+    (studies / "campaign.txt").write_text("# the test's campaign\ntiny.toml\n")
+    port = _free_port()
+    env = dict(os.environ, FOAM_BUILD_DIR=str(build), FOAM_SERVER=f"127.0.0.1:{port}",
+               CAMPAIGN_DB=str(tmp_path / "machine" / "c.db"),
+               CAMPAIGN_FILE=str(studies / "campaign.txt"),
+               CAMPAIGN_SAVED=str(tmp_path / "saved"), CAMPAIGN_SCIENCE=str(tmp_path / "science"),
+               CAMPAIGN_WORKERS="1")
+
+    def campaign(*args, ok=True):
+        r = subprocess.run([str(ROOT / "scripts/campaign.sh"), *args], env=env, text=True,
+                           capture_output=True, timeout=300)
+        assert (r.returncode == 0) == ok, r.stderr
+        return r
+
+    try:
+        assert "2 runs submitted" in campaign("start").stderr
+        with Client(env["FOAM_SERVER"]) as c:
+            deadline = time.monotonic() + 120
+            while not any(j.progress >= 0.2 for j in c._list(tag="study:tiny")):
+                assert time.monotonic() < deadline
+                time.sleep(0.2)
+        campaign("stop")  # one run cut off mid-way, checkpointed, the store saved
+    finally:
+        subprocess.run([str(ROOT / "scripts/campaign.sh"), "stop"], env=env, capture_output=True)
+    assert (tmp_path / "saved" / "MANIFEST.json").is_file()
+
+    # A new machine: no store. start restores it, the cut-off run resumes from its checkpoint.
+    import shutil
+    shutil.rmtree(tmp_path / "machine")
+    try:
+        r = campaign("start")
+        assert "restore-store: 2 jobs" in r.stderr and "0 runs submitted, 2 already" in r.stderr
+        with Client(env["FOAM_SERVER"]) as c:
+            deadline = time.monotonic() + 240
+            while not all(_state_name(j.state) == "succeeded" for j in c._list(tag="study:tiny")):
+                assert time.monotonic() < deadline
+                time.sleep(0.5)
+        assert "tiny reported" in campaign("report").stderr
+        campaign("stop")
+    finally:
+        subprocess.run([str(ROOT / "scripts/campaign.sh"), "stop"], env=env, capture_output=True)
+    log = (tmp_path / "machine" / "c-foamd.log").read_text()
+    assert "resuming from checkpoint" in log
+    runs = pd.read_csv(tmp_path / "science" / "tiny" / "data" / "runs.csv")
+    assert list(runs["state"]) == ["succeeded", "succeeded"]
+
+    # Both the machine and the saved store lost: the committed data holds the runs, nothing is
+    # submitted again.
+    shutil.rmtree(tmp_path / "machine")
+    shutil.rmtree(tmp_path / "saved")
+    try:
+        r = campaign("start")
+        assert "2 ended runs in" in r.stderr and "0 runs submitted, 2 already" in r.stderr
+    finally:
+        subprocess.run([str(ROOT / "scripts/campaign.sh"), "stop"], env=env, capture_output=True)
