@@ -8,7 +8,8 @@
 #       restores the store from studies/store/ when there is none here, starts foamd on it (one
 #       one-thread job per core) and submits what is missing: a run whose results are committed
 #       (docs/science/NAME/data) counts as done even if the store was lost.
-#   scripts/campaign.sh report    every study with ended runs: docs/science/NAME (figures, data)
+#   scripts/campaign.sh report    every study with ended runs: docs/science/NAME (figures, data),
+#                                 and the verdict table (docs/science/verdicts)
 #   scripts/campaign.sh stop      stops foamd (its running jobs checkpoint and re-queue) and saves
 #                                 the store to studies/store/ (commit it with the reports)
 #   scripts/campaign.sh status    the queue by study and state
@@ -88,6 +89,12 @@ case "$cmd" in
       study report "$(dirname "$list")/$f" --out "$out" "${with[@]}" >/dev/null
       echo "campaign: $n reported in $out" >&2
     done
+    # The verdict table from every study's data (rows whose runs have not ended say so).
+    verdicts="$(dirname "$list")/verdicts.toml"
+    if [ -f "$verdicts" ]; then
+      study verdicts "$verdicts" --data "$science" --out "$science/verdicts" >/dev/null
+      echo "campaign: verdicts in $science/verdicts" >&2
+    fi
     ;;
   stop)
     if running; then
@@ -119,7 +126,7 @@ case "$cmd" in
     done
     ;;
   *)
-    sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'
+    awk 'NR > 1 && /^#/ {sub(/^# ?/, ""); print; next} NR > 1 {exit}' "$0"
     exit 2
     ;;
 esac
