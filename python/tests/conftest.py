@@ -11,6 +11,20 @@ import pytest
 from activefoam import Client
 
 
+# A fusion of 2 × 4 cells that prepares and runs in seconds: the base spec of the study tests.
+TINY_FUSION = """\
+scene = "fusion"
+sample_every_s = 30
+snapshot_every_s = 0
+[numerics]
+dt_s = 0.5
+[scene]
+n_cells = 4
+prep_max_s = 300
+allow_uncompacted = true
+"""
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

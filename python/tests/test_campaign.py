@@ -12,21 +12,9 @@ import pytest
 
 from activefoam import Client
 from activefoam.client import _state_name
-from conftest import _free_port
+from conftest import TINY_FUSION, _free_port
 
 ROOT = Path(__file__).resolve().parents[2]
-BASE = """\
-scene = "fusion"
-sample_every_s = 30
-snapshot_every_s = 0
-[numerics]
-dt_s = 0.5
-[scene]
-n_cells = 4
-prep_max_s = 300
-allow_uncompacted = true
-"""
-
 
 def test_a_campaign_resumes_on_a_new_machine_and_takes_committed_runs_as_done(tmp_path):
     foamd = os.environ.get("FOAMD_EXE")
@@ -35,7 +23,7 @@ def test_a_campaign_resumes_on_a_new_machine_and_takes_committed_runs_as_done(tm
     build = Path(foamd).resolve().parents[1]
     studies = tmp_path / "studies"
     studies.mkdir()
-    (studies / "base.toml").write_text(BASE)
+    (studies / "base.toml").write_text(TINY_FUSION)
     (studies / "tiny.toml").write_text(textwrap.dedent("""\
         [study]
         name = "tiny"

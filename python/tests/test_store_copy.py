@@ -9,21 +9,9 @@ import pytest
 from activefoam import Client
 from activefoam import store_copy as sc
 from activefoam.client import _state_name
-from conftest import Foamd
+from conftest import TINY_FUSION, Foamd
 
-SPEC = """\
-scene = "fusion"
-seed = 3
-duration_s = 3600
-sample_every_s = 30
-snapshot_every_s = 0
-[numerics]
-dt_s = 0.5
-[scene]
-n_cells = 4
-prep_max_s = 300
-allow_uncompacted = true
-"""
+SPEC = 'seed = 3\nduration_s = 3600\n' + TINY_FUSION
 
 
 def _wait(client, jid, pred, timeout=240):

@@ -15,6 +15,7 @@ import pandas as pd
 import pytest
 
 from activefoam import study as st
+from conftest import TINY_FUSION
 
 
 def _run(args, foamd=None, timeout=300, **kw):
@@ -25,17 +26,7 @@ def _run(args, foamd=None, timeout=300, **kw):
                           capture_output=True, text=True, timeout=timeout, **kw)
 
 
-BASE = """\
-scene = "fusion"
-sample_every_s = 30
-snapshot_every_s = 0
-[numerics]
-dt_s = 0.5
-[scene]
-n_cells = 4
-prep_max_s = 300
-allow_uncompacted = true
-"""
+BASE = TINY_FUSION
 
 
 def _study(tmp: Path, seeds, name="tiny", extra="") -> Path:
