@@ -44,7 +44,15 @@ cmd="${1:-}"
 shift || true
 case "$cmd" in
   start)
-    [ -x "$bin/server/foamd" ] || "$root/scripts/build.sh" release
+    if [ ! -x "$bin/server/foamd" ] || [ ! -x "$bin/client/foam" ] ||
+      [ ! -d "$bin/python/activefoam" ]; then
+      # What the campaign needs only (foamd, foam, the Python client): on a fresh machine the
+      # runs start minutes before the whole build with its tests would be done.
+      "$root/scripts/setup-deps.sh"
+      (cd "$root" && export CCACHE_BASEDIR="$root" CCACHE_NOHASHDIR=1 &&
+        cmake --preset release >/dev/null &&
+        cmake --build --preset release -j "$(nproc)" --target foamd foam python_client)
+    fi
     if running; then
       echo "campaign: foamd already runs (pid $(cat "$pidfile"))" >&2
     else
