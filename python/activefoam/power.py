@@ -1,0 +1,140 @@
+"""How large an effect a trend verdict can resolve with n seeds a point (issue 35: ensembles sized
+from the measured spread).
+
+A verdict (activefoam.trends.trend) calls a trend *agrees* when the bootstrap interval of the
+difference of medians excludes 0 on the supplement's side. With few seeds that needs an effect
+several times the seed-to-seed spread: with 3 runs a side the interval excludes 0 only when the
+two ensembles do not overlap at all (the percentile bootstrap's 2.5 % quantile is then min(high)
+− max(low)), which two equal ensembles do with probability 1/20. This module measures, by
+simulation with the verdict's own rule, the smallest effect that `agrees` with a given
+probability (80 % by default), in units of the spread σ; and for the "no change within ±band"
+statements, the probability that two equal ensembles are judged *agrees*.
+
+The ensembles are modelled as normal with σ = IQR / 1.349 (the IQR of a normal), the IQR
+measured on the reduced base point. Run it on a study's data:
+
+    python3 -m activefoam.power STUDY.toml --data DIR --point KEY=VALUE [...] --out FILE.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from typing import Dict, List, Optional, Sequence
+
+import numpy as np
+
+from activefoam import trends
+
+IQR_OF_NORMAL = 1.3489795  # the IQR of a standard normal
+
+
+def agree_probability(n: int, effect_sigma: float, expect: str = "increase",
+                      band_sigma: float = 0.0, trials: int = 400, n_boot: int = 2000,
+                      seed: int = 1) -> float:
+    """P(verdict = agrees) for two normal ensembles of n runs of spread σ = 1, the high one
+    shifted by effect_sigma, judged by activefoam.trends.trend (with n_boot resamples)."""
+    rng = np.random.default_rng(seed)
+    hits = 0
+    for _ in range(trials):
+        low = rng.normal(0.0, 1.0, n)
+        high = rng.normal(effect_sigma, 1.0, n)
+        d = trends.diff_of_medians(low, high, n_boot=n_boot, seed=int(rng.integers(1 << 31)))
+        if expect == "none":
+            ok = -band_sigma <= d.lo and d.hi <= band_sigma
+        else:
+            sign = 1 if expect == "increase" else -1
+            ok = sign * d.lo > 0 and sign * d.hi > 0
+        hits += ok
+    return hits / trials
+
+
+def detectable_effect(n: int, power: float = 0.8, trials: int = 400, step: float = 0.25,
+                      largest: float = 12.0) -> float:
+    """The smallest effect, in σ, on a grid of `step`, that an increase verdict calls *agrees*
+    with probability ≥ power; inf if none up to `largest`."""
+    e = step
+    while e <= largest + 1e-9:
+        if agree_probability(n, e, trials=trials) >= power:
+            return e
+        e += step
+    return math.inf
+
+
+def spread(values: Sequence[float]) -> float:
+    """σ of a normal with the values' IQR."""
+    return trends.iqr(values) / IQR_OF_NORMAL
+
+
+def table(values_by_metric: Dict[str, Sequence[float]], seeds: Sequence[int] = (3, 5),
+          power: float = 0.8, band_rel: float = 0.25, trials: int = 400) -> List[Dict]:
+    """Per metric: the median, σ, and for each n the detectable effect (absolute and relative to
+    the median) and the probability that a 'no change within ±band_rel of the median' statement
+    is judged *agrees* when nothing changes."""
+    k = {n: detectable_effect(n, power, trials) for n in seeds}
+    rows = []
+    for m, vals in values_by_metric.items():
+        med, s = trends.median(vals), spread(vals)
+        row: Dict = {"metric": m, "runs": len(trends.finite(vals)), "median": med, "sigma": s}
+        for n in seeds:
+            row[f"effect_{n}"] = k[n] * s
+            row[f"effect_{n}_rel"] = k[n] * s / abs(med) if med else math.nan
+            band = band_rel * abs(med) / s if s > 0 else math.inf
+            row[f"none_agrees_{n}"] = (agree_probability(n, 0.0, "none", band, trials)
+                                       if math.isfinite(band) else 1.0)
+        rows.append(row)
+    return rows
+
+
+def _value(text: str):
+    if text in ("true", "True", "false", "False"):
+        return text in ("true", "True")
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    from pathlib import Path
+
+    from activefoam import study as st
+    ap = argparse.ArgumentParser(prog="python3 -m activefoam.power", description=__doc__.split(
+        "\n\n")[0])
+    ap.add_argument("study", help="the study file whose data is read")
+    ap.add_argument("--data", required=True, help="its report's data folder")
+    ap.add_argument("--point", action="append", default=[], metavar="KEY=VALUE",
+                    help="the runs to take (the base point), repeatable")
+    ap.add_argument("--metrics", default=",".join(st.FITNESS_METRICS + ["mixing_time_s"]))
+    ap.add_argument("--trials", type=int, default=400)
+    ap.add_argument("--out", required=True, help="markdown table to write")
+    args = ap.parse_args(argv)
+    study = st.load(args.study)
+    data = st.load_data(study, args.data)
+    runs = data.runs[data.runs["state"] == "succeeded"]
+    for p in args.point:
+        key, _, value = p.partition("=")
+        if key not in runs:
+            print(f"error: --point {p}: no column {key!r} in the data", file=sys.stderr)
+            return 2
+        runs = runs[[st._same(st._py(v), _value(value)) for v in runs[key]]]
+    metrics = [m for m in args.metrics.split(",") if m]
+    rows = table({m: list(runs[m]) for m in metrics}, trials=args.trials)
+    lines = [f"Seed-to-seed spread and resolvable effects: {study.name}, "
+             f"{', '.join(args.point) or 'all runs'} ({len(runs)} runs)", "",
+             "| metric | runs | median | σ (IQR/1.349) | effect resolved 80 %, 3 seeds | "
+             "5 seeds | P(no change ±25 % agrees), 3 seeds | 5 seeds |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['metric']} | {r['runs']} | {r['median']:.4g} | {r['sigma']:.3g} | "
+                     f"{r['effect_3']:.3g} ({100 * r['effect_3_rel']:.1f} %) | "
+                     f"{r['effect_5']:.3g} ({100 * r['effect_5_rel']:.1f} %) | "
+                     f"{r['none_agrees_3']:.2f} | {r['none_agrees_5']:.2f} |")
+    Path(args.out).write_text("\n".join(lines) + "\n")
+    print(args.out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,43 @@
+"""activefoam.power: the effects a trend verdict resolves with n seeds, on synthetic ensembles
+with known answers."""
+
+import numpy as np
+import pytest
+
+from activefoam import power as pw
+from activefoam import trends
+
+
+def test_with_three_seeds_a_side_agrees_means_the_ensembles_do_not_overlap():
+    # The percentile bootstrap's 2.5 % quantile of a 3-against-3 difference of medians is
+    # min(high) − max(low): the verdict agrees exactly when the two do not overlap.
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        low, high = rng.normal(0, 1, 3), rng.normal(1.5, 1, 3)
+        t = trends.trend(low, high, "increase")
+        assert (t.verdict == "agrees") == (high.min() > low.max())
+
+
+def test_two_equal_ensembles_of_three_agree_on_an_increase_one_time_in_twenty():
+    # Non-overlap in a given order: 1 / C(6, 3) = 0.05 for exchangeable runs.
+    p = pw.agree_probability(3, 0.0, trials=4000, seed=11)
+    assert p == pytest.approx(0.05, abs=0.012)
+    assert pw.agree_probability(3, 8.0, trials=200) > 0.99
+    assert pw.agree_probability(3, -3.0, trials=200) == 0.0  # the other way: never agrees
+
+
+def test_the_resolved_effect_shrinks_with_seeds_and_scales_with_the_spread():
+    k3, k5 = pw.detectable_effect(3, trials=300), pw.detectable_effect(5, trials=300)
+    assert 2.0 <= k3 <= 3.5 and k5 <= k3
+    rows = pw.table({"a": [10, 11, 12, 13, 14], "b": [20, 22, 24, 26, 28]}, trials=300)
+    a, b = rows
+    assert a["sigma"] == pytest.approx(2 / pw.IQR_OF_NORMAL)   # IQR of 10..14 is 2
+    assert b["sigma"] == pytest.approx(2 * a["sigma"])
+    assert b["effect_3"] == pytest.approx(2 * a["effect_3"])
+    # "No change within ±25 % of the median": a band of 10 σ is resolved, of 2 σ a third of the
+    # time (the 3-seed interval spans about ±2.5 σ), of 0.3 σ almost never.
+    narrow = pw.table({"n": [12, 12.2, 12.4, 12.6, 12.8]}, trials=300)[0]
+    wide = pw.table({"w": [1, 5, 10, 15, 19]}, trials=300)[0]
+    assert narrow["none_agrees_3"] > 0.95
+    assert 0.2 < a["none_agrees_3"] < 0.5
+    assert wide["none_agrees_3"] < 0.05
