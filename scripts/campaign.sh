@@ -7,7 +7,8 @@
 #   scripts/campaign.sh start [--engine-changed]
 #       restores the store from studies/store/ when there is none here, starts foamd on it (one
 #       one-thread job per core) and submits what is missing: a run whose results are committed
-#       (docs/science/NAME/data) counts as done even if the store was lost.
+#       (docs/science/NAME/data) counts as done even if the store was lost. foamd is built from
+#       the engine the store's jobs ran, in a worktree when the checkout's engine differs.
 #   scripts/campaign.sh report    every study with ended runs: docs/science/NAME (figures, data),
 #                                 and the verdict table (docs/science/verdicts)
 #   scripts/campaign.sh stop      stops foamd (its running jobs checkpoint and re-queue) and saves
@@ -56,19 +57,59 @@ case "$cmd" in
     if running; then
       echo "campaign: foamd already runs (pid $(cat "$pidfile"))" >&2
     else
-      if [ ! -f "$db" ] && [ -f "$saved/MANIFEST.json" ]; then
-        study restore-store "$saved" --db "$db" "$@"
+      # The engine the store's jobs run on is the one that wrote their checkpoints (they resume
+      # bit for bit only under it): the last start's on this machine, else the saved copy's,
+      # else this checkout's. When the checkout's engine has moved on since, that engine's
+      # foamd is built from its commit in a worktree (build/campaign-engine), so the campaign
+      # goes on unchanged while the engine is developed.
+      here_tree="$(git -C "$root" rev-parse HEAD:engine)"
+      want_tree="$here_tree" want_commit="$(git -C "$root" rev-parse HEAD)"
+      restoring=0
+      if [ -f "$db" ] && [ -f "$enginefile" ]; then
+        read -r want_tree want_commit <"$enginefile"
+      elif [ ! -f "$db" ] && [ -f "$saved/MANIFEST.json" ]; then
+        restoring=1
+        read -r want_tree want_commit < <(/usr/bin/python3 -c 'import json, sys
+m = json.load(open(sys.argv[1]))
+print(m.get("engine") or "unknown", m.get("engine_commit") or "-")' "$saved/MANIFEST.json")
       fi
-      mkdir -p "$(dirname "$db")"
-      # The engine the store's jobs run: what save-store records (a checkpoint resumes bit for
-      # bit only under the engine that wrote it). A copy of the binary, so that rebuilding the
-      # checkout during the session does not change what runs.
-      (cd "$root" && git rev-parse HEAD:engine) >"$enginefile"
-      if [ -n "$(cd "$root" && git status --porcelain -- engine)" ]; then
+      foamd_bin="$bin/server/foamd"
+      if [ "$want_tree" != "$here_tree" ]; then
+        if [ "${want_commit:--}" != - ] && git -C "$root" cat-file -e "$want_commit^{commit}" &&
+          [ "$(git -C "$root" rev-parse "$want_commit:engine")" = "$want_tree" ]; then
+          wt="$root/build/campaign-engine"
+          if [ -e "$wt/.git" ]; then
+            git -C "$wt" checkout -q --detach "$want_commit"
+          else
+            git -C "$root" worktree add -q --detach "$wt" "$want_commit"
+          fi
+          echo "campaign: the store's engine is $want_tree (commit $want_commit), this" \
+            "checkout's $here_tree: building that foamd in $wt" >&2
+          (cd "$wt" && export CCACHE_BASEDIR="$wt" CCACHE_NOHASHDIR=1 &&
+            cmake --preset release >/dev/null &&
+            cmake --build --preset release -j "$(nproc)" --target foamd >/dev/null)
+          foamd_bin="$wt/build/release/server/foamd"
+        elif [[ " $* " == *" --engine-changed "* ]]; then
+          want_tree="$here_tree" want_commit="$(git -C "$root" rev-parse HEAD)"
+        else
+          echo "campaign: the store's jobs ran engine $want_tree, of no commit here; this" \
+            "checkout's is $here_tree. If the step's results did not change, start with" \
+            "--engine-changed; otherwise cancel the running jobs after starting so" >&2
+          exit 2
+        fi
+      fi
+      if [ "$foamd_bin" = "$bin/server/foamd" ] &&
+        [ -n "$(git -C "$root" status --porcelain -- engine)" ]; then
         echo "campaign: engine/ has uncommitted changes: commit them before running studies" >&2
         exit 2
       fi
-      cp "$bin/server/foamd" "${db%.db}-foamd"
+      if [ "$restoring" = 1 ]; then
+        study restore-store "$saved" --db "$db" --engine "$want_tree" "$@"
+      fi
+      mkdir -p "$(dirname "$db")"
+      echo "$want_tree $want_commit" >"$enginefile"
+      # A copy of the binary: rebuilding during the session does not change what runs.
+      cp "$foamd_bin" "${db%.db}-foamd"
       OMP_NUM_THREADS=1 setsid nohup "${db%.db}-foamd" --listen "$FOAM_SERVER" --db "$db" \
         --workers "${CAMPAIGN_WORKERS:-$(nproc)}" --threads-per-job 1 >>"${db%.db}-foamd.log" 2>&1 &
       echo $! >"$pidfile"
@@ -118,8 +159,9 @@ case "$cmd" in
     [ -f "$db" ] || { echo "campaign: no store at $db" >&2; exit 2; }
     # Without the snapshots: a 6 h run's are ~1 MB, no report reads them, and the copy is
     # committed every session.
-    study save-store "$saved" --db "$db" --without-snapshots \
-      --engine "$(cat "$enginefile" 2>/dev/null || echo unknown)"
+    read -r tree commit <"$enginefile" 2>/dev/null || tree=unknown commit=""
+    study save-store "$saved" --db "$db" --without-snapshots --engine "$tree" \
+      --engine-commit "${commit:-}"
     echo "campaign: saved to $saved (commit it with the reports)" >&2
     ;;
   status)

@@ -79,12 +79,14 @@ def _replace(src: Path, dst: Path) -> None:
 
 
 def save(db: os.PathLike, out_dir: os.PathLike, engine: Optional[str] = None,
-         cache: Optional[os.PathLike] = None, snapshots: bool = True) -> Dict[str, Any]:
+         cache: Optional[os.PathLike] = None, snapshots: bool = True,
+         engine_commit: str = "") -> Dict[str, Any]:
     """Writes DIR/store.db.xz (a copy of the store, which foamd must not be using),
     DIR/spheroids.tar.xz (the prepared spheroids, if any) and DIR/MANIFEST.json; returns the
     manifest. Each file replaces the previous one atomically, the manifest last. Without
     `snapshots` the copy leaves out the jobs' snapshots (the 3D frames: ~1 MB a 6 h 2 × 20 run,
-    which no report reads); the manifest counts what was left out."""
+    which no report reads); the manifest counts what was left out. `engine_commit`: a commit
+    whose engine/ is `engine`, from which the next machine can build the same foamd."""
     db = Path(db)
     if not db.is_file():
         raise StoreCopyError(f"save-store: no store at {db} (--db names foamd's database)")
@@ -125,7 +127,8 @@ def save(db: os.PathLike, out_dir: os.PathLike, engine: Optional[str] = None,
                 for p in spheroids:
                     t.add(p, arcname=p.name)
         manifest = {"saved_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-                    "engine": engine or engine_id(), "db_bytes": copy.stat().st_size,
+                    "engine": engine or engine_id(), "engine_commit": engine_commit,
+                    "db_bytes": copy.stat().st_size,
                     "spheroids": len(spheroids), "snapshots_left_out": dropped, **counts}
         _replace(Path(tmp) / DB_FILE, out / DB_FILE)
         if spheroids:

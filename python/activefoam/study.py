@@ -1317,6 +1317,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                        "(default: git tree of this checkout's engine/)")
     p_sav.add_argument("--without-snapshots", action="store_true",
                        help="leave the jobs' snapshots (3D frames) out of the copy")
+    p_sav.add_argument("--engine-commit", default="", help="a commit whose engine/ is that "
+                       "engine (the next machine can build the same foamd from it)")
     p_res = sub.add_parser("restore-store", help="put a saved store back (before foamd starts "
                            "on it): its running jobs resume from their checkpoints")
     p_res.add_argument("dir", metavar="DIR")
@@ -1325,6 +1327,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p_res.add_argument("--engine-changed", action="store_true",
                        help="restore a copy saved under another engine (only when the step's "
                             "results are bit-identical)")
+    p_res.add_argument("--engine", default=None, help="the engine the restored store's foamd "
+                       "will run (default: git tree of this checkout's engine/)")
     args = ap.parse_args(argv)
     try:
         if args.cmd in ("save-store", "restore-store"):
@@ -1332,9 +1336,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             try:
                 if args.cmd == "save-store":
                     m = store_copy.save(args.db, args.dir, engine=args.engine,
-                                        snapshots=not args.without_snapshots)
+                                        snapshots=not args.without_snapshots,
+                                        engine_commit=args.engine_commit)
                 else:
-                    m = store_copy.restore(args.dir, args.db,
+                    m = store_copy.restore(args.dir, args.db, engine=args.engine,
                                            engine_changed_ok=args.engine_changed)
             except store_copy.StoreCopyError as e:
                 raise StudyError(str(e)) from None

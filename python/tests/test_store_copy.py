@@ -99,8 +99,8 @@ def test_a_copy_without_snapshots_leaves_out_only_the_snapshots(tmp_path):
     assert con.execute("SELECT count(*) FROM checkpoints").fetchone()[0] == 1
     con.close()
     assert (tmp_path / "r.db").stat().st_size < 100000  # vacuumed
-    full = sc.save(db, tmp_path / "full", engine="e")
-    assert full["snapshots_left_out"] == 0
+    full = sc.save(db, tmp_path / "full", engine="e", engine_commit="c0ffee")
+    assert full["snapshots_left_out"] == 0 and full["engine_commit"] == "c0ffee"
 
 
 def test_a_missing_copy_or_store_is_a_clear_error(tmp_path):
