@@ -14,6 +14,8 @@
 // block-Jacobi on aggregates of strongly coupled vertices (coupling ≥ θ, at most `cap` vertices,
 // `cross` = 1: partners in other cells only); CG_TOL overrides the spec's ε_CG. Results:
 // docs/science/motion-convergence.md, "ε_CG at the consistent step".
+// AGG_SETUP="θ:cap": the setup such aggregates would cost built from the engine's own blocks
+// (sim.forEachFrictionBlock), over 10 steps: docs/benchmarks.md (2026-11-26, session 28).
 #include <Eigen/Cholesky>
 #include <Eigen/IterativeLinearSolvers>
 #include <algorithm>
@@ -299,6 +301,146 @@ int main(int argc, char** argv) {
     const Eigen::VectorXd zc = l.solve(rc);
     for (Eigen::Index i = 0; i < r.size(); ++i) z[i] += zc[3 * vcell[i / 3] + i % 3];
   };
+
+  if (const char* spec = std::getenv("AGG_SETUP")) {
+    // AGG_SETUP="θ:cap": what aggregate block-Jacobi's setup would cost inside a step, built the
+    // way the engine could build it — from the friction operator's blocks (the assembled
+    // diagonal and the couplings the product applies, sim.forEachFrictionBlock), not from an
+    // assembled matrix: one pass summing each vertex pair's coupling strength (Frobenius norms,
+    // a heuristic: the norm of the sum is not needed to choose partners), the greedy
+    // aggregation, a second pass summing the blocks inside aggregates, and a Cholesky factor per
+    // aggregate. Then its CG iterations on the assembled Γ against block-Jacobi's. 10 steps.
+    double theta = 0.1;
+    int cap = 8;
+    std::sscanf(spec, "%lf:%d", &theta, &cap);
+    double t_emit = 0, t_pass1 = 0, t_greedy = 0, t_pass2 = 0, it_bj = 0, it_agg = 0;
+    long blocks = 0;
+    double mean_size = 0;
+    Eigen::VectorXd xprev;
+    const int steps = 10;
+    for (int k = 0; k < steps; ++k) {
+      if (!sim.step().ok()) return 1;
+      sim.prepareFriction();
+      const int nb = static_cast<int>(sim.cells().numVertices());
+      // The block stream alone.
+      auto c0 = Clock::now();
+      long nblk = 0;
+      sim.forEachFrictionBlock([&](int, int, const Eigen::Matrix3d&) { ++nblk; });
+      t_emit += 1e3 * secs(c0);
+      blocks += nblk;
+      // Pass 1: diagonal norms and summed off-diagonal strengths per row (small linear lists).
+      c0 = Clock::now();
+      std::vector<double> dn(nb, 0);
+      std::vector<std::vector<std::pair<int, double>>> nbr(nb);
+      sim.forEachFrictionBlock([&](int i, int j, const Eigen::Matrix3d& m) {
+        if (i == j) {
+          dn[i] += m.norm();
+          return;
+        }
+        const double w = m.norm();
+        for (int side = 0; side < 2; ++side) {
+          const int r = side ? j : i, c = side ? i : j;
+          auto& row = nbr[r];
+          auto hit = std::find_if(row.begin(), row.end(), [&](auto& e) { return e.first == c; });
+          if (hit == row.end())
+            row.emplace_back(c, w);
+          else
+            hit->second += w;
+        }
+      });
+      t_pass1 += 1e3 * secs(c0);
+      // Greedy aggregation, strongest partners first.
+      c0 = Clock::now();
+      std::vector<int> of(nb, -1), agg_begin{0}, members;
+      for (int i = 0; i < nb; ++i) {
+        auto& row = nbr[i];
+        for (auto& e : row) e.second /= std::sqrt(dn[i] * dn[e.first]);
+        std::sort(row.begin(), row.end(), [](auto& x, auto& y) { return x.second > y.second; });
+      }
+      for (int i = 0; i < nb; ++i) {
+        if (of[i] >= 0) continue;
+        const int id = static_cast<int>(agg_begin.size()) - 1;
+        of[i] = id;
+        members.push_back(i);
+        int size = 1;
+        for (const auto& [j, w] : nbr[i]) {
+          if (size >= cap || w < theta) break;
+          if (of[j] >= 0) continue;
+          of[j] = id;
+          members.push_back(j);
+          ++size;
+        }
+        agg_begin.push_back(static_cast<int>(members.size()));
+      }
+      t_greedy += 1e3 * secs(c0);
+      // Pass 2: the blocks inside each aggregate, then its factor.
+      c0 = Clock::now();
+      const int na = static_cast<int>(agg_begin.size()) - 1;
+      std::vector<int> local(nb);
+      for (int g = 0; g < na; ++g)
+        for (int q = agg_begin[g]; q < agg_begin[g + 1]; ++q) local[members[q]] = q - agg_begin[g];
+      std::vector<Eigen::MatrixXd> dense(na);
+      for (int g = 0; g < na; ++g) {
+        const int sz = agg_begin[g + 1] - agg_begin[g];
+        dense[g] = Eigen::MatrixXd::Zero(3 * sz, 3 * sz);
+      }
+      sim.forEachFrictionBlock([&](int i, int j, const Eigen::Matrix3d& m) {
+        if (of[i] != of[j]) return;
+        Eigen::MatrixXd& d = dense[of[i]];
+        d.block<3, 3>(3 * local[i], 3 * local[j]) += m;
+        if (i != j) d.block<3, 3>(3 * local[j], 3 * local[i]) += m.transpose();
+      });
+      std::vector<Eigen::LLT<Eigen::MatrixXd>> llt(na);
+      for (int g = 0; g < na; ++g) llt[g].compute(dense[g]);
+      t_pass2 += 1e3 * secs(c0);
+      mean_size += double(nb) / na;
+      // Iterations on the assembled Γ: block-Jacobi (3×3) against these aggregates.
+      SpMat a;
+      Eigen::VectorXd b;
+      system(a, b);
+      if (xprev.size() != a.rows()) xprev = Eigen::VectorXd::Zero(a.rows());
+      std::vector<Eigen::Matrix3d> bj(nb);
+      for (int i = 0; i < nb; ++i) {
+        Eigen::Matrix3d d;
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) d(r, c) = a.coeff(3 * i + r, 3 * i + c);
+        bj[i] = d.inverse();
+      }
+      Eigen::VectorXd x = xprev;
+      const Res r0 = pcg(
+          a, b, x,
+          [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) {
+            z.resize(r.size());
+            for (int i = 0; i < nb; ++i) z.segment<3>(3 * i) = bj[i] * r.segment<3>(3 * i);
+          },
+          tol);
+      const Eigen::VectorXd xs = x;
+      x = xprev;
+      const Res r1 = pcg(
+          a, b, x,
+          [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) {
+            z.resize(r.size());
+            for (int g = 0; g < na; ++g) {
+              const int b0 = agg_begin[g], sz = agg_begin[g + 1] - b0;
+              Eigen::VectorXd rg(3 * sz);
+              for (int q = 0; q < sz; ++q) rg.segment<3>(3 * q) = r.segment<3>(3 * members[b0 + q]);
+              const Eigen::VectorXd zg = llt[g].solve(rg);
+              for (int q = 0; q < sz; ++q) z.segment<3>(3 * members[b0 + q]) = zg.segment<3>(3 * q);
+            }
+          },
+          tol);
+      it_bj += r0.it;
+      it_agg += r1.it;
+      xprev = xs;
+    }
+    std::printf(
+        "aggregate setup (θ %g, cap %d), mean over %d steps: %.0f blocks; emitting them %.2f ms; "
+        "pass 1 (strengths) %.2f ms; greedy %.2f ms; pass 2 + factors %.2f ms; mean aggregate "
+        "%.2f vertices; CG iterations block-Jacobi %.1f, aggregates %.1f\n",
+        theta, cap, steps, double(blocks) / steps, t_emit / steps, t_pass1 / steps,
+        t_greedy / steps, t_pass2 / steps, mean_size / steps, it_bj / steps, it_agg / steps);
+    return 0;
+  }
 
   if (const char* spec = std::getenv("AGG")) {
     // AGG="θ:cap:cross_only;…": block-Jacobi (3×3) against aggregate block-Jacobi, 30 steps.
