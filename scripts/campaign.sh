@@ -174,6 +174,8 @@ print(m.get("engine") or "unknown", m.get("engine_commit") or "-")' "$saved/MANI
       done
       echo
     done
+    echo "running now:"
+    "$bin/client/foam" list --state running | tail -n +2 | awk '{print "  " $1, $NF, $6}'
     ;;
   *)
     awk 'NR > 1 && /^#/ {sub(/^# ?/, ""); print; next} NR > 1 {exit}' "$0"
