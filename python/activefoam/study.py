@@ -580,8 +580,9 @@ def _py(v: Any) -> Any:
 def carried_runs(study: Study, data_dir: os.PathLike) -> Carried:
     """The runs of data_dir that ended (succeeded, or failed in the simulation itself, which
     reruns the same way): each matched to this study's run by its seed and point values. A row
-    carrying the run's settings (collected since 2026-11-26) is taken only if they are this
-    run's today: a study file whose [spec] changed does not take the old runs."""
+    carrying the run's settings and base spec's hash (collected since 2026-11-26) is taken only
+    if they are this run's today: a study whose [spec] or base file changed does not take the
+    old runs."""
     import pandas as pd
     d = Path(data_dir)
     for f in ("runs.csv", "samples.csv.gz", "msrd.csv.gz"):
@@ -614,11 +615,18 @@ def carried_runs(study: Study, data_dir: os.PathLike) -> Carried:
             then = json.loads(settings)
             if set(now) != set(then) or not all(_same(now[k], then[k]) for k in now):
                 continue
+        base = row.get("base_sha256")
+        if isinstance(base, str) and base and base != _base_sha(study):
+            continue  # the base spec file changed since: another run
         rows[hit] = row
     ids = {r["job_id"] for r in rows.values()}
     samples = pd.read_csv(d / "samples.csv.gz")
     msrd = pd.read_csv(d / "msrd.csv.gz")
     return Carried(d, rows, samples[samples["job_id"].isin(ids)], msrd[msrd["job_id"].isin(ids)])
+
+
+def _base_sha(study: Study) -> str:
+    return hashlib.sha256(study.base_text.encode()).hexdigest()
 
 
 def _takes_carried(have: List[Any], carried: Optional[Carried], i: int) -> bool:
@@ -787,7 +795,8 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
     n_carried = 0
     for i, run in enumerate(study.runs()):
         row: Dict[str, Any] = {"run": i, **run.point, "seed": run.seed,
-                               "settings": json.dumps(study.settings(run), sort_keys=True)}
+                               "settings": json.dumps(study.settings(run), sort_keys=True),
+                               "base_sha256": _base_sha(study)}
         have = found.get(i, [])
         if _takes_carried(have, carried, i):
             old = carried.rows[i]

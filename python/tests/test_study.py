@@ -716,6 +716,12 @@ def test_carried_runs_whose_settings_changed_or_of_another_study_are_not_taken(t
         st.carried_runs(beta, tmp_path / "earlier")
     with pytest.raises(st.StudyError, match="runs.csv is missing"):
         st.carried_runs(study, tmp_path / "b")
+    # Collected with the base's hash: an edited base file takes none of them.
+    out = st.collect(study, _FakeFoamd({"alpha": 0.4375}), tmp_path / "c",
+                     st.carried_runs(study, tmp_path / "earlier"))
+    assert len(st.carried_runs(study, out).rows) == 2
+    (tmp_path / "base.toml").write_text('scene = "fusion"\nduration_s = 100\n')
+    assert st.carried_runs(st.load(study.path), out).rows == {}
     r = _run(["report", str(study.path), "--from-data", str(tmp_path / "earlier"),
               "--with-data", str(tmp_path / "earlier")])
     assert r.returncode == 2 and "--with-data: not with --from-data" in r.stderr
