@@ -870,7 +870,8 @@ def derive_metrics(study: Study, runs: Any, samples: Any, msrd: Any) -> Any:
     did not converge). θ, shape index and unique contacts at the end are the last finite sample;
     θ and the shape index over the last hour are the means of the finite samples in the run's
     last hour (its last half when it is shorter than 2 h): the plateau the last sample wanders
-    about (θ by ±3° over minutes as cells rearrange, the shape index by 0.05–0.10 in an hour). MSRD at the end is the curve's longest lag, over r²."""
+    about (θ by ±3° over minutes as cells rearrange, the shape index by 0.05–0.10 in an hour).
+    MSRD at the end is the curve's longest lag, over r²."""
     import numpy as np
     runs = runs.copy()
     last = {}
