@@ -62,8 +62,9 @@ case "$cmd" in
       # else this checkout's. When the checkout's engine has moved on since, that engine's
       # foamd is built from its commit in a worktree (build/campaign-engine), so the campaign
       # goes on unchanged while the engine is developed.
-      here_tree="$(git -C "$root" rev-parse HEAD:engine)"
-      want_tree="$here_tree" want_commit="$(git -C "$root" rev-parse HEAD)"
+      here_tree="$(git -C "$root" rev-parse HEAD:engine 2>/dev/null || echo unknown)"
+      here_commit="$(git -C "$root" rev-parse HEAD 2>/dev/null || echo -)"
+      want_tree="$here_tree" want_commit="$here_commit"
       restoring=0
       if [ -f "$db" ] && [ -f "$enginefile" ]; then
         read -r want_tree want_commit <"$enginefile"
@@ -75,7 +76,8 @@ print(m.get("engine") or "unknown", m.get("engine_commit") or "-")' "$saved/MANI
       fi
       foamd_bin="$bin/server/foamd"
       if [ "$want_tree" != "$here_tree" ]; then
-        if [ "${want_commit:--}" != - ] && git -C "$root" cat-file -e "$want_commit^{commit}" &&
+        if [ "${want_commit:--}" != - ] &&
+          git -C "$root" cat-file -e "$want_commit^{commit}" 2>/dev/null &&
           [ "$(git -C "$root" rev-parse "$want_commit:engine")" = "$want_tree" ]; then
           wt="$root/build/campaign-engine"
           if [ -e "$wt/.git" ]; then
@@ -90,7 +92,7 @@ print(m.get("engine") or "unknown", m.get("engine_commit") or "-")' "$saved/MANI
             cmake --build --preset release -j "$(nproc)" --target foamd >/dev/null)
           foamd_bin="$wt/build/release/server/foamd"
         elif [[ " $* " == *" --engine-changed "* ]]; then
-          want_tree="$here_tree" want_commit="$(git -C "$root" rev-parse HEAD)"
+          want_tree="$here_tree" want_commit="$here_commit"
         else
           echo "campaign: the store's jobs ran engine $want_tree, of no commit here; this" \
             "checkout's is $here_tree. If the step's results did not change, start with" \
@@ -99,7 +101,7 @@ print(m.get("engine") or "unknown", m.get("engine_commit") or "-")' "$saved/MANI
         fi
       fi
       if [ "$foamd_bin" = "$bin/server/foamd" ] &&
-        [ -n "$(git -C "$root" status --porcelain -- engine)" ]; then
+        [ -n "$(git -C "$root" status --porcelain -- engine 2>/dev/null)" ]; then
         echo "campaign: engine/ has uncommitted changes: commit them before running studies" >&2
         exit 2
       fi
