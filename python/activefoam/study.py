@@ -832,10 +832,13 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
                     curves += [[j.id, x, y] for x, y in zip(c.x, c.y)]
         rows.append(row)
     pd.DataFrame(rows).to_csv(out / "runs.csv", index=False)
+    # gzip without a timestamp: the same data gives the same bytes (a report regenerated from
+    # the store changes nothing in git unless the runs changed).
+    gz = {"method": "gzip", "mtime": 0}
     pd.DataFrame(samples, columns=["job_id", "t_s", *SAMPLE_COLUMNS]).to_csv(
-        out / "samples.csv.gz", index=False)
+        out / "samples.csv.gz", index=False, compression=gz)
     pd.DataFrame(curves, columns=["job_id", "lag_s", "msrd_um2"]).to_csv(
-        out / "msrd.csv.gz", index=False)
+        out / "msrd.csv.gz", index=False, compression=gz)
     meta = {"study": study.name, "file": str(study.path), "tag": study.tag,
             "collected_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
             "runs": len(rows), "stale_jobs": [j.id for j in stale],
