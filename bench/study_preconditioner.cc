@@ -143,6 +143,26 @@ struct IC0 {
 // its strongest not-yet-aggregated neighbours (block coupling ‖A_ij‖_F ≥ θ √(‖A_ii‖ ‖A_jj‖)),
 // up to `cap` vertices; each aggregate's dense block inverted (LDLT). Aggregates that pair an
 // interface vertex with its partners across the contact invert the stiff relative mode exactly.
+// The presets' 3×3 block-Jacobi of an assembled Γ: each vertex's diagonal block, inverted.
+static std::vector<Eigen::Matrix3d> blockJacobi(const SpMat& a) {
+  const int nb = static_cast<int>(a.rows() / 3);
+  std::vector<Eigen::Matrix3d> bj(nb);
+  for (int i = 0; i < nb; ++i) {
+    Eigen::Matrix3d d;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) d(r, c) = a.coeff(3 * i + r, 3 * i + c);
+    bj[i] = d.inverse();
+  }
+  return bj;
+}
+
+static Prec applyBlocks(const std::vector<Eigen::Matrix3d>& bj) {
+  return [&bj](const Eigen::VectorXd& r, Eigen::VectorXd& z) {
+    z.resize(r.size());
+    for (std::size_t i = 0; i < bj.size(); ++i) z.segment<3>(3 * i) = bj[i] * r.segment<3>(3 * i);
+  };
+}
+
 struct AggregateJacobi {
   std::vector<int> agg_begin, members;  // members of aggregate a: [agg_begin[a], agg_begin[a+1])
   std::vector<Eigen::LDLT<Eigen::MatrixXd>> inv;
@@ -399,21 +419,9 @@ int main(int argc, char** argv) {
       Eigen::VectorXd b;
       system(a, b);
       if (xprev.size() != a.rows()) xprev = Eigen::VectorXd::Zero(a.rows());
-      std::vector<Eigen::Matrix3d> bj(nb);
-      for (int i = 0; i < nb; ++i) {
-        Eigen::Matrix3d d;
-        for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c) d(r, c) = a.coeff(3 * i + r, 3 * i + c);
-        bj[i] = d.inverse();
-      }
+      const std::vector<Eigen::Matrix3d> bj = blockJacobi(a);
       Eigen::VectorXd x = xprev;
-      const Res r0 = pcg(
-          a, b, x,
-          [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) {
-            z.resize(r.size());
-            for (int i = 0; i < nb; ++i) z.segment<3>(3 * i) = bj[i] * r.segment<3>(3 * i);
-          },
-          tol);
+      const Res r0 = pcg(a, b, x, applyBlocks(bj), tol);
       const Eigen::VectorXd xs = x;
       x = xprev;
       const Res r1 = pcg(
@@ -476,22 +484,10 @@ int main(int argc, char** argv) {
       const int nb = static_cast<int>(a.rows() / 3);
       // 3×3 block-Jacobi (the presets')
       t1 = Clock::now();
-      std::vector<Eigen::Matrix3d> bj(nb);
-      for (int i = 0; i < nb; ++i) {
-        Eigen::Matrix3d d;
-        for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c) d(r, c) = a.coeff(3 * i + r, 3 * i + c);
-        bj[i] = d.inverse();
-      }
+      const std::vector<Eigen::Matrix3d> bj = blockJacobi(a);
       setup[0] += 1e3 * secs(t1);
       Eigen::VectorXd x = xprev;
-      const Res r0 = pcg(
-          a, b, x,
-          [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) {
-            z.resize(r.size());
-            for (int i = 0; i < nb; ++i) z.segment<3>(3 * i) = bj[i] * r.segment<3>(3 * i);
-          },
-          tol);
+      const Res r0 = pcg(a, b, x, applyBlocks(bj), tol);
       const Eigen::VectorXd xs = x;
       its[0] += r0.it;
       ms[0] += r0.ms;
