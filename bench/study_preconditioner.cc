@@ -163,6 +163,35 @@ static Prec applyBlocks(const std::vector<Eigen::Matrix3d>& bj) {
   };
 }
 
+// Greedy aggregation: each vertex not yet taken, in order, takes its strongest partners not yet
+// taken (nbr: each vertex's partners, strongest first) while their coupling is ≥ theta, up to
+// cap vertices. Returns each vertex's aggregate; members of aggregate g are
+// members[agg_begin[g] .. agg_begin[g + 1]).
+static std::vector<int> greedyAggregates(
+    const std::vector<std::vector<std::pair<int, double>>>& nbr, int cap, double theta,
+    std::vector<int>& agg_begin, std::vector<int>& members) {
+  const int nb = static_cast<int>(nbr.size());
+  std::vector<int> of(nb, -1);
+  agg_begin.assign(1, 0);
+  members.clear();
+  for (int i = 0; i < nb; ++i) {
+    if (of[i] >= 0) continue;
+    const int id = static_cast<int>(agg_begin.size()) - 1;
+    of[i] = id;
+    members.push_back(i);
+    int size = 1;
+    for (const auto& [j, w] : nbr[i]) {
+      if (size >= cap || w < theta) break;
+      if (of[j] >= 0) continue;
+      of[j] = id;
+      members.push_back(j);
+      ++size;
+    }
+    agg_begin.push_back(static_cast<int>(members.size()));
+  }
+  return of;
+}
+
 struct AggregateJacobi {
   std::vector<int> agg_begin, members;  // members of aggregate a: [agg_begin[a], agg_begin[a+1])
   std::vector<Eigen::LDLT<Eigen::MatrixXd>> inv;
@@ -191,27 +220,13 @@ struct AggregateJacobi {
       for (auto& v : nbr)
         std::sort(v.begin(), v.end(), [](auto& x, auto& y) { return x.second > y.second; });
     }
-    std::vector<int> of(nb, -1);
-    agg_begin.assign(1, 0);
-    members.clear();
+    greedyAggregates(nbr, cap, 0.0, agg_begin, members);  // nbr holds the pairs ≥ θ only
     cross = 0;
-    for (int i = 0; i < nb; ++i) {
-      if (of[i] >= 0) continue;
-      const int id = static_cast<int>(agg_begin.size()) - 1;
-      of[i] = id;
-      members.push_back(i);
-      int size = 1;
+    for (std::size_t g = 0; g + 1 < agg_begin.size(); ++g) {
       bool spans = false;
-      for (const auto& [j, w] : nbr[i]) {
-        if (size >= cap) break;
-        if (of[j] >= 0) continue;
-        of[j] = id;
-        members.push_back(j);
-        spans = spans || vcell[j] != vcell[i];
-        ++size;
-      }
+      for (int q = agg_begin[g] + 1; q < agg_begin[g + 1]; ++q)
+        spans = spans || vcell[members[q]] != vcell[members[agg_begin[g]]];
       cross += spans;
-      agg_begin.push_back(static_cast<int>(members.size()));
     }
     inv.clear();
     const int na = static_cast<int>(agg_begin.size()) - 1;
@@ -371,27 +386,13 @@ int main(int argc, char** argv) {
       t_pass1 += 1e3 * secs(c0);
       // Greedy aggregation, strongest partners first.
       c0 = Clock::now();
-      std::vector<int> of(nb, -1), agg_begin{0}, members;
+      std::vector<int> of, agg_begin, members;
       for (int i = 0; i < nb; ++i) {
         auto& row = nbr[i];
         for (auto& e : row) e.second /= std::sqrt(dn[i] * dn[e.first]);
         std::sort(row.begin(), row.end(), [](auto& x, auto& y) { return x.second > y.second; });
       }
-      for (int i = 0; i < nb; ++i) {
-        if (of[i] >= 0) continue;
-        const int id = static_cast<int>(agg_begin.size()) - 1;
-        of[i] = id;
-        members.push_back(i);
-        int size = 1;
-        for (const auto& [j, w] : nbr[i]) {
-          if (size >= cap || w < theta) break;
-          if (of[j] >= 0) continue;
-          of[j] = id;
-          members.push_back(j);
-          ++size;
-        }
-        agg_begin.push_back(static_cast<int>(members.size()));
-      }
+      of = greedyAggregates(nbr, cap, theta, agg_begin, members);
       t_greedy += 1e3 * secs(c0);
       // Pass 2: the blocks inside each aggregate, then its factor.
       c0 = Clock::now();
