@@ -343,8 +343,9 @@ int main(int argc, char** argv) {
     // diagonal and the couplings the product applies, sim.forEachFrictionBlock), not from an
     // assembled matrix: one pass summing each vertex pair's coupling strength (Frobenius norms,
     // a heuristic: the norm of the sum is not needed to choose partners), the greedy
-    // aggregation, a second pass summing the blocks inside aggregates, and a Cholesky factor per
-    // aggregate. Then its CG iterations on the assembled Γ against block-Jacobi's. 10 steps.
+    // aggregation, a second pass summing the blocks inside aggregates, and an LDLT factor per
+    // aggregate (AggregateJacobi's, which then preconditions CG). Then its CG iterations on the
+    // assembled Γ against block-Jacobi's. 10 steps.
     double theta = 0.1;
     int cap = 8;
     std::sscanf(spec, "%lf:%d", &theta, &cap);
@@ -411,8 +412,11 @@ int main(int argc, char** argv) {
         d.block<3, 3>(3 * local[i], 3 * local[j]) += m;
         if (i != j) d.block<3, 3>(3 * local[j], 3 * local[i]) += m.transpose();
       });
-      std::vector<Eigen::LLT<Eigen::MatrixXd>> llt(na);
-      for (int g = 0; g < na; ++g) llt[g].compute(dense[g]);
+      AggregateJacobi ag;  // its apply; the factors are timed here
+      ag.agg_begin = agg_begin;
+      ag.members = members;
+      ag.inv.reserve(na);
+      for (int g = 0; g < na; ++g) ag.inv.emplace_back(dense[g]);
       t_pass2 += 1e3 * secs(c0);
       mean_size += double(nb) / na;
       // Iterations on the assembled Γ: block-Jacobi (3×3) against these aggregates.
@@ -426,18 +430,7 @@ int main(int argc, char** argv) {
       const Eigen::VectorXd xs = x;
       x = xprev;
       const Res r1 = pcg(
-          a, b, x,
-          [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) {
-            z.resize(r.size());
-            for (int g = 0; g < na; ++g) {
-              const int b0 = agg_begin[g], sz = agg_begin[g + 1] - b0;
-              Eigen::VectorXd rg(3 * sz);
-              for (int q = 0; q < sz; ++q) rg.segment<3>(3 * q) = r.segment<3>(3 * members[b0 + q]);
-              const Eigen::VectorXd zg = llt[g].solve(rg);
-              for (int q = 0; q < sz; ++q) z.segment<3>(3 * members[b0 + q]) = zg.segment<3>(3 * q);
-            }
-          },
-          tol);
+          a, b, x, [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) { ag.apply(r, z); }, tol);
       it_bj += r0.it;
       it_agg += r1.it;
       xprev = xs;
