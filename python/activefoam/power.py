@@ -62,6 +62,33 @@ def detectable_effect(n: int, power: float = 0.8, trials: int = 400, step: float
     return math.inf
 
 
+def rule_pass_probability(n: int, metrics: int = 1, trials: int = 20000, seed: int = 1) -> float:
+    """P(the fitness rule calls two equal ensembles fit): n normal runs a side, `metrics`
+    independent metrics, each judged |Δ median| < IQR/2 (activefoam.trends.rule_ratios)."""
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(trials, n, metrics))
+    b = rng.normal(size=(trials, n, metrics))
+    return float((np.nanmax(trends.rule_ratios(a, b, min_seeds=1), axis=1) < 1).mean())
+
+
+def calibrated_power(n: int, shift_sigma: float, metrics: int = 8, shifted: int = 1,
+                     trials: int = 200, level: float = 0.05, max_splits: int = 2000,
+                     seed: int = 1) -> float:
+    """P(the calibrated fitness test finds a difference, p < level) when the candidate's first
+    `shifted` of `metrics` independent normal metrics are moved by shift_sigma σ (n runs a side;
+    activefoam.trends.fitness_permutation)."""
+    rng = np.random.default_rng(seed)
+    hits = 0
+    for _ in range(trials):
+        ref = rng.normal(size=(n, metrics))
+        cand = rng.normal(size=(n, metrics))
+        cand[:, :shifted] += shift_sigma
+        null = trends.fitness_permutation(ref, cand, max_splits=max_splits,
+                                          seed=int(rng.integers(1 << 31)))
+        hits += null.p_value < level
+    return hits / trials
+
+
 def spread(values: Sequence[float]) -> float:
     """σ of a normal with the values' IQR."""
     return trends.iqr(values) / IQR_OF_NORMAL
@@ -87,6 +114,26 @@ def table(values_by_metric: Dict[str, Sequence[float]], seeds: Sequence[int] = (
     return rows
 
 
+def fitness_rule_table(seeds: Sequence[int] = (3, 5, 10, 20, 30),
+                       power_seeds: Sequence[int] = (5, 10), shifts: Sequence[float] = (1, 2, 3, 4),
+                       metrics: int = 8, trials: int = 400) -> List[str]:
+    """Markdown: what the fitness rule gives equal ensembles, and how often the calibrated test
+    finds a shift of one metric or of all of them (normal, independent metrics)."""
+    lines = ["| runs a side | P(rule calls equal numerics fit), one metric | "
+             f"{metrics} independent metrics |", "|---|---|---|"]
+    for n in seeds:
+        lines.append(f"| {n} | {rule_pass_probability(n):.3f} | "
+                     f"{rule_pass_probability(n, metrics):.4f} |")
+    lines += ["", f"| runs a side | shift (σ) | P(calibrated p < 0.05), one of {metrics} metrics "
+              f"moved | all {metrics} moved |", "|---|---|---|---|"]
+    for n in power_seeds:
+        for k in (0.0,) + tuple(shifts):
+            lines.append(f"| {n} | {k:g} | "
+                         f"{calibrated_power(n, k, metrics, 1, trials):.2f} | "
+                         f"{calibrated_power(n, k, metrics, metrics, trials):.2f} |")
+    return lines
+
+
 def _value(text: str):
     if text in ("true", "True", "false", "False"):
         return text in ("true", "True")
@@ -102,14 +149,28 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     from activefoam import study as st
     ap = argparse.ArgumentParser(prog="python3 -m activefoam.power", description=__doc__.split(
         "\n\n")[0])
-    ap.add_argument("study", help="the study file whose data is read")
-    ap.add_argument("--data", required=True, help="its report's data folder")
+    ap.add_argument("study", nargs="?", help="the study file whose data is read")
+    ap.add_argument("--data", help="its report's data folder")
+    ap.add_argument("--fitness-rule", action="store_true",
+                    help="instead: what the fitness rule and its calibrated reading give on "
+                    "synthetic ensembles (no study needed)")
     ap.add_argument("--point", action="append", default=[], metavar="KEY=VALUE",
                     help="the runs to take (the base point), repeatable")
     ap.add_argument("--metrics", default=",".join(st.FITNESS_METRICS + ["mixing_time_s"]))
     ap.add_argument("--trials", type=int, default=400)
     ap.add_argument("--out", required=True, help="markdown table to write")
     args = ap.parse_args(argv)
+    if args.fitness_rule:
+        lines = ["The fitness rule |Δ median| < IQR/2 on synthetic normal ensembles (pass "
+                 f"rates from 20 000 draws, the calibrated test's from {args.trials} trials a "
+                 f"cell; `python3 -m activefoam.power --fitness-rule --trials {args.trials} "
+                 "--out FILE`)", ""] + fitness_rule_table(
+                     trials=args.trials)
+        Path(args.out).write_text("\n".join(lines) + "\n")
+        print(args.out)
+        return 0
+    if not args.study or not args.data:
+        ap.error("a study file and --data are needed (or --fitness-rule)")
     study = st.load(args.study)
     data = st.load_data(study, args.data)
     runs = data.runs[data.runs["state"] == "succeeded"]

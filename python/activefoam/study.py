@@ -1190,6 +1190,67 @@ def _point_label(point: Dict[str, Any], key: str) -> str:
                      [(k, v) for k, v in point.items() if k != key])
 
 
+def _fitness_pairs(study: Study, runs: Any) -> List[Tuple[Dict[str, Any], Any, Any]]:
+    """(candidate point, its reference runs, its own runs) for every candidate grid point."""
+    import pandas as pd
+    f = study.fitness or {}
+    key, ref = f["key"], f["reference"]
+    keys = study.swept_keys()
+    others = [k for k in keys if k != key]
+    points = [p for p in study.points() if key in p]
+    refs = [p for p in points if _same(p[key], ref)]
+    out = []
+    for cand in points:
+        if _same(cand[key], ref):
+            continue
+        matching = [r for r in refs
+                    if all(_same(r[k], cand.get(k)) for k in others if k in r)]
+        ref_runs = pd.concat([_runs_of_point(runs, r, keys) for r in matching]) if matching \
+            else runs.iloc[0:0]
+        out.append((cand, ref_runs, _runs_of_point(runs, cand, keys)))
+    return out
+
+
+CALIBRATION_NOTE = """
+**The rule's reading.** Two ensembles of equal numerics fail |Δ| < IQR/2 on one metric about
+half the time with 5 runs a side (two thirds with 3), so on eight metrics the rule calls equal
+numerics fit 0.2 % of the time with 5 seeds (independent metrics; 7 % with 10, 67 % with 30:
+docs/science/power.md, "What the fitness rule can certify"). "Not fit" at these ensemble sizes
+is therefore no evidence of a difference by itself. The calibrated line compares the rule's
+worst ratio with what the same runs give when their labels are shuffled (every split of the
+pooled runs into ensembles of the same sizes, a permutation test that keeps the metrics'
+correlations): p < 0.05 says the numerics moved some metric further than the seeds do; a larger
+p says no difference was found, not that there is none (its power is in power.md).
+"""
+
+
+def fitness_calibration(study: Study, runs: Any) -> Any:
+    """Per candidate: the rule's failures and their permutation distribution over splits of the
+    candidate's and its reference's runs (activefoam.trends.fitness_permutation)."""
+    import pandas as pd
+    metrics = (study.fitness or {})["metrics"]
+    rows = []
+    for cand, ref_runs, cand_runs in _fitness_pairs(study, runs):
+        # The rows fitness_table judges that have results (a metric a run lacks is NaN and
+        # left out by the rule).
+        ref_ok = ref_runs[ref_runs[metrics].notna().any(axis=1)]
+        cand_ok = cand_runs[cand_runs[metrics].notna().any(axis=1)]
+        label = _point_label(cand, study.fitness["key"])
+        if len(ref_ok) < trends.MIN_SEEDS or len(cand_ok) < trends.MIN_SEEDS:
+            rows.append({"candidate": label, "n_ref": len(ref_ok), "n": len(cand_ok)})
+            continue
+        null = trends.fitness_permutation(ref_ok[metrics].to_numpy(dtype=float),
+                                          cand_ok[metrics].to_numpy(dtype=float))
+        rows.append({"candidate": label, "n_ref": len(ref_ok), "n": len(cand_ok),
+                     "worst_ratio": null.worst,
+                     "worst_metric": metrics[null.worst_metric] if null.worst_metric >= 0
+                     else "", "failures": null.failures, "metrics": null.metrics,
+                     "splits": null.splits, "exact": null.exact, "p_value": null.p_value,
+                     "worst_ratio_95_equal": null.worst95,
+                     "rule_pass_rate_equal": null.pass_rate})
+    return pd.DataFrame(rows)
+
+
 def fitness_table(study: Study, runs: Any) -> Any:
     """Per candidate grid point (fitness.key at another value than the reference) and metric:
     the difference of medians against the reference runs with its bootstrap 95 % interval, the
@@ -1200,19 +1261,9 @@ def fitness_table(study: Study, runs: Any) -> Any:
     import pandas as pd
     f = study.fitness or {}
     key, ref = f["key"], f["reference"]
-    keys = study.swept_keys()
-    others = [k for k in keys if k != key]
-    points = [p for p in study.points() if key in p]
-    refs = [p for p in points if _same(p[key], ref)]
+    others = [k for k in study.swept_keys() if k != key]
     rows = []
-    for cand in points:
-        if _same(cand[key], ref):
-            continue
-        matching = [r for r in refs
-                    if all(_same(r[k], cand.get(k)) for k in others if k in r)]
-        ref_runs = pd.concat([_runs_of_point(runs, r, keys) for r in matching]) if matching \
-            else runs.iloc[0:0]
-        cand_runs = _runs_of_point(runs, cand, keys)
+    for cand, ref_runs, cand_runs in _fitness_pairs(study, runs):
         for m in f["metrics"]:
             fit = trends.fitness(ref_runs[m], cand_runs[m])
             row = {k: cand.get(k) for k in others}
@@ -1245,10 +1296,31 @@ def render_fitness(study: Study, data: Data, out: Path) -> List[Path]:
         else:
             bad = ", ".join(judged[judged["fit"] == "no"]["metric"])
             verdicts.append(f"- `{cand}`: **not fit** — {bad}")
+    calibration = fitness_calibration(study, data.runs)
+    calibration.to_csv(out / "fitness-calibration.csv", index=False)
+    lines = []
+    for verdict, (_, c) in zip(verdicts, calibration.iterrows()):
+        lines.append(verdict)
+        if "p_value" not in c or not (c["p_value"] == c["p_value"]):
+            continue
+        reading = ("**a difference** (p < 0.05): the numerics moved a metric further than "
+                   "95 % of the relabellings of the seeds do" if c["p_value"] < 0.05 else
+                   "no evidence of a difference" + (
+                       f" (with {int(c['n_ref'])} + {int(c['n'])} runs no split can show one at "
+                       f"5 %)" if (2 if c["n_ref"] == c["n"] else 1) / math.comb(
+                           int(c["n_ref"] + c["n"]), int(c["n"])) >= 0.05
+                       else ""))
+        lines.append(
+            f"  - calibrated: worst ratio |Δ|/(IQR/2) = {c['worst_ratio']:.3g} "
+            f"({c['worst_metric']}); among the {int(c['splits'])} splits of these "
+            f"{int(c['n_ref'] + c['n'])} runs into {int(c['n_ref'])} + {int(c['n'])} "
+            f"({'all' if c['exact'] else 'a sample'}), p = {c['p_value']:.3g} reach it, 95 % "
+            f"stay below {c['worst_ratio_95_equal']:.3g}, and the rule calls "
+            f"{100 * c['rule_pass_rate_equal']:.1f} % fit — {reading}")
     show = table.drop(columns=["why"]) if len(table) else table
     (out / "fitness.md").write_text(
         f"# {study.title}: fitness against `{f['key']} = {f['reference']}`\n\n"
-        + "\n".join(verdicts) + "\n\n" + _markdown(show))
+        + "\n".join(lines) + "\n\n" + _markdown(show) + "\n" + CALIBRATION_NOTE)
     # θ(t) ensemble bands of each value of the key.
     fig, ax = plt.subplots(figsize=(7, 4))
     points = [p for p in study.points() if f["key"] in p]
@@ -1266,7 +1338,8 @@ def render_fitness(study: Study, data: Data, out: Path) -> List[Path]:
     fig.tight_layout()
     fig.savefig(out / f"{study.name}-theta-bands.png", dpi=110)
     plt.close(fig)
-    return [out / "fitness.csv", out / "fitness.md", out / f"{study.name}-theta-bands.png"]
+    return [out / "fitness.csv", out / "fitness-calibration.csv", out / "fitness.md",
+            out / f"{study.name}-theta-bands.png"]
 
 
 # ---- command line ----------------------------------------------------------------------------

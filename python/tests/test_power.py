@@ -1,6 +1,8 @@
 """activefoam.power: the effects a trend verdict resolves with n seeds, on synthetic ensembles
 with known answers."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -41,3 +43,20 @@ def test_the_resolved_effect_shrinks_with_seeds_and_scales_with_the_spread():
     assert narrow["none_agrees_3"] > 0.95
     assert 0.2 < a["none_agrees_3"] < 0.5
     assert wide["none_agrees_3"] < 0.05
+
+
+def test_the_fitness_rule_rarely_passes_equal_ensembles_of_few_seeds():
+    # One metric: two thirds fail with 3 runs a side, half with 5; many runs pass. The large-n
+    # limit: the difference of medians is normal with σ √(π/n) and half the IQR is 0.674 σ.
+    p3, p5 = pw.rule_pass_probability(3), pw.rule_pass_probability(5)
+    assert 0.30 < p3 < p5 < 0.52
+    n = 41
+    z = 0.6745 / math.sqrt(math.pi / n)
+    assert pw.rule_pass_probability(n) == pytest.approx(math.erf(z / math.sqrt(2)), abs=0.02)
+    # Eight independent metrics: p5 to the eighth.
+    assert pw.rule_pass_probability(5, metrics=8) == pytest.approx(p5 ** 8, abs=0.002)
+
+
+def test_the_calibrated_test_sees_a_broad_shift_and_rarely_a_null_one():
+    assert pw.calibrated_power(5, 0.0, metrics=4, trials=120) <= 0.1
+    assert pw.calibrated_power(5, 4.0, metrics=4, shifted=4, trials=60) >= 0.6

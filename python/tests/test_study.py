@@ -11,6 +11,7 @@ import textwrap
 import time
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -463,6 +464,24 @@ def test_fitness_judges_a_candidate_of_a_second_grid_against_the_first_grids_ref
     md = (out / "fitness.md").read_text()
     assert "`numerics.dt_s = 0.5`: **fit**" in md
     assert "`numerics.dt_s = 1.0, numerics.cg_tol = 0.01`: **not fit** — theta_end_deg" in md
+    # The calibrated reading: θ_end of the runs at 0.25 s is noise[seed] (−2 … 2), at 1 s the
+    # same + 3. Of the 252 splits of these 10 runs into 5 + 5, those as far from fit as the
+    # observed one (worst ratio 3 / (2/2) = 3) are counted by hand: the rule's own definitions.
+    cal = pd.read_csv(out / "fitness-calibration.csv").set_index("candidate")
+    one = cal.loc["numerics.dt_s = 1.0, numerics.cg_tol = 0.01"]
+    import itertools
+    pooled = [n for n in range(-2, 3)] + [n + 3 for n in range(-2, 3)]
+
+    def ratio(a, b):
+        half = (np.subtract(*np.percentile(a, [75, 25])) +
+                np.subtract(*np.percentile(b, [75, 25]))) / 4
+        return abs(np.median(b) - np.median(a)) / half
+    far = sum(ratio([pooled[i] for i in s], [pooled[i] for i in range(10) if i not in s])
+              >= 3.0 - 1e-9 for s in itertools.combinations(range(10), 5))
+    assert one["worst_ratio"] == pytest.approx(3.0) and one["splits"] == 252
+    assert one["p_value"] == pytest.approx(far / 252)
+    assert cal.loc["numerics.dt_s = 0.5", "worst_ratio"] == pytest.approx(0.4)
+    assert f"p = {one['p_value']:.3g} reach it" in md and "The rule's reading" in md
 
 
 # ---- shared runs: a point two studies have in common runs once --------------------------------

@@ -55,6 +55,86 @@ def test_fitness_rule_is_half_the_iqr():
     assert trends.fitness([1.0, 1.0, 1.0], [1.1, 1.1, 1.1]).fit is False
 
 
+def _rule_fits_by_hand(a, b):
+    """The rule written out again, independently of activefoam.trends: every column's
+    |median(b) − median(a)| below half the mean of the two IQRs (pandas' quartiles)."""
+    import statistics
+    for j in range(len(a[0])):
+        ca, cb = [r[j] for r in a], [r[j] for r in b]
+        spread = (np.subtract(*np.percentile(ca, [75, 25]))
+                  + np.subtract(*np.percentile(cb, [75, 25]))) / 2
+        if not abs(statistics.median(cb) - statistics.median(ca)) < spread / 2:
+            return False
+    return True
+
+
+def test_the_permutation_null_counts_every_split_by_the_rule_itself():
+    import itertools
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        ref, cand = rng.normal(0, 1, (3, 2)), rng.normal(0.5, 1, (4, 2))
+        null = trends.fitness_permutation(ref, cand)
+        # The observed ensembles: the worst ratio is below 1 exactly when fitness() says fit.
+        fits = [trends.fitness(ref[:, j], cand[:, j]).fit for j in range(2)]
+        assert (null.worst < 1) == all(fits) == _rule_fits_by_hand(ref, cand)
+        assert null.failures == fits.count(False) and null.metrics == 2
+        # Every split of the 7 runs into 3 + 4, judged by hand.
+        pooled = np.vstack([ref, cand])
+        splits = list(itertools.combinations(range(7), 3))
+        assert null.exact and null.splits == len(splits) == 35
+        passing = sum(_rule_fits_by_hand(pooled[list(s)],
+                                         pooled[[i for i in range(7) if i not in s]])
+                      for s in splits)
+        assert null.pass_rate == pytest.approx(passing / 35)
+
+
+def test_the_permutation_p_value_of_separated_ensembles_is_the_smallest_a_split_allows():
+    rng = np.random.default_rng(3)
+    ref = rng.normal(0, 1, (5, 3))
+    cand = rng.normal(0, 1, (5, 3))
+    cand[:, 1] += 100.0          # one metric moved far beyond the seeds' spread
+    null = trends.fitness_permutation(ref, cand)
+    # The observed split, its mirror and the splits that move one run of each side across (the
+    # IQR shrugs off one far run) are as far: counted by hand, and below 5 %.
+    import itertools
+    import statistics
+
+    def worst(a, b):
+        return max(abs(statistics.median(b[:, j]) - statistics.median(a[:, j]))
+                   / ((np.subtract(*np.percentile(a[:, j], [75, 25]))
+                       + np.subtract(*np.percentile(b[:, j], [75, 25]))) / 4)
+                   for j in range(a.shape[1]))
+    pooled = np.vstack([ref, cand])
+    w = worst(ref, cand)
+    far = sum(worst(pooled[list(s)], pooled[[i for i in range(10) if i not in s]]) >= w - 1e-9
+              for s in itertools.combinations(range(10), 5))
+    assert null.worst == pytest.approx(w) and null.worst_metric == 1
+    assert null.p_value == pytest.approx(far / 252) and null.p_value < 0.05
+    # 3 + 3 runs cannot show a difference at 5 %: the smallest p is 2 / C(6, 3) = 0.1.
+    small = trends.fitness_permutation(ref[:3], cand[:3])
+    assert small.p_value == pytest.approx(0.1)
+
+
+def test_equal_ensembles_are_called_different_at_most_as_often_as_the_level():
+    rng = np.random.default_rng(11)
+    ps = [trends.fitness_permutation(rng.normal(0, 1, (5, 4)), rng.normal(0, 1, (5, 4))).p_value
+          for _ in range(300)]
+    assert np.mean(np.array(ps) < 0.05) <= 0.05 + 0.03
+    # A sample of splits when there are too many to enumerate: the same reading.
+    a, b = rng.normal(0, 1, (12, 2)), rng.normal(0, 1, (12, 2))
+    sampled = trends.fitness_permutation(a, b, max_splits=3000)
+    assert not sampled.exact and sampled.splits == 3000 and 0.0 < sampled.p_value <= 1.0
+
+
+def test_a_metric_without_enough_runs_is_not_judged_by_the_permutation_null():
+    ref = np.array([[1.0, 5.0], [2.0, np.nan], [3.0, np.nan], [4.0, np.nan]])
+    cand = ref + [0.1, 0.0]
+    null = trends.fitness_permutation(ref, cand)
+    assert null.metrics == 1 and null.worst_metric == 0
+    nothing = trends.fitness_permutation(ref[:, 1:], cand[:, 1:])
+    assert nothing.metrics == 0 and math.isnan(nothing.p_value)
+
+
 def test_trend_verdicts():
     low = [10.0, 11.0, 12.0, 13.0, 14.0]
     high = [20.0, 21.0, 22.0, 23.0, 24.0]
