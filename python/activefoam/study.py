@@ -13,7 +13,9 @@ has that value in the job's resolved spec, so rerunning `run` submits only the r
 job yet, or whose job was cancelled or failed for a reason other than the simulation itself (an
 engine error, a lost worker). A run that failed in the simulation (non-finite, volume drift,
 interpenetration, ...) is a result — the supplement's hatched cells — and is not run again unless
-`--retry-failed`. Exit codes: 0 done, 1 some runs failed, 2 bad study file or spec, 3 foamd
+`--retry-failed`. A job of the study that is no run of the file as it is now (an earlier
+version's [spec], grid or seeds) is named when it is queued or running, and cancelled with
+`--cancel-stale`. Exit codes: 0 done, 1 some runs failed, 2 bad study file or spec, 3 foamd
 unreachable, 4 token refused, 130 interrupted (the jobs go on in foamd; rerun to follow them).
 """
 
@@ -638,6 +640,33 @@ def _takes_carried(have: List[Any], carried: Optional[Carried], i: int) -> bool:
 
 
 # ---- run -----------------------------------------------------------------------------------------
+
+def live_stale_jobs(study: Study, client: Any) -> List[Any]:
+    """The study's queued or running jobs that are no run of the file as it is now (an earlier
+    version's: a changed [spec], grid or seed list). They would go on and take the machine."""
+    from activefoam.client import _state_name
+    _, stale = _jobs_by_run(study, client._list(tag=study.tag))
+    return [j for j in stale if _state_name(j.state) in ("queued", "running")]
+
+
+def cancel_stale(study: Study, client: Any, cancel: bool, out=sys.stderr) -> int:
+    """Names the live stale jobs; with `cancel`, cancels them. Returns how many there are."""
+    live = live_stale_jobs(study, client)
+    if not live:
+        return 0
+    ids = ", ".join(j.id for j in live[:8]) + (f" and {len(live) - 8} more" if len(live) > 8
+                                                else "")
+    if not cancel:
+        print(f"study {study.name}: {len(live)} queued or running jobs of tag {study.tag} are no "
+              f"run of {study.path.name} as it is now ({ids}): they go on; --cancel-stale "
+              "cancels them", file=out)
+        return len(live)
+    for j in live:
+        client.cancel(j.id, f"study {study.name}: no run of the study file as it is now")
+    print(f"study {study.name}: cancelled {len(live)} jobs that are no run of "
+          f"{study.path.name} as it is now ({ids})", file=out)
+    return len(live)
+
 
 def submit_missing(study: Study, client: Any, retry_failed: bool = False,
                    out=sys.stderr, carried: Optional[Carried] = None) -> Tuple[int, int]:
@@ -1369,6 +1398,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p_run.add_argument("--no-wait", action="store_true", help="submit and return")
     p_run.add_argument("--retry-failed", action="store_true",
                        help="also rerun runs that failed in the simulation itself")
+    p_run.add_argument("--cancel-stale", action="store_true",
+                       help="cancel the study's queued or running jobs that are no run of the "
+                       "file as it is now (an earlier version's [spec], grid or seeds); without "
+                       "it they are only named")
     p_run.add_argument("--report", metavar="DIR", default=None,
                        help="when every run has ended, collect and report into DIR")
     p_run.add_argument("--poll", type=float, default=2.0, help=argparse.SUPPRESS)
@@ -1459,6 +1492,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                   file=sys.stderr)
         if args.cmd == "run":
             with _client(args) as c:
+                # Stale jobs first: a changed step must not leave the old one's queue running.
+                cancel_stale(study, c, args.cancel_stale)
                 n_new, n_held = submit_missing(study, c, retry_failed=args.retry_failed,
                                                carried=carried)
                 print(f"study {study.name}: {n_new} runs submitted, {n_held} already in the "

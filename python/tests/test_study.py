@@ -155,6 +155,33 @@ def test_bad_study_files_exit_2_naming_the_key(tmp_path, text, message):
     assert message in r.stderr
 
 
+def test_a_changed_study_names_its_stale_jobs_and_cancels_them_when_asked(foamd, client,
+                                                                          tmp_path):
+    f = _study(tmp_path, [1], name="stale")
+    r = _run(["run", str(f), "--no-wait"], foamd)
+    assert r.returncode == 0 and "2 runs submitted" in r.stderr, r.stderr
+    old = set(client.jobs(tag="study:stale")["job_id"])
+    # The step changed (as a study moving to another Δt): the two jobs are no runs of it now.
+    f.write_text(f.read_text().replace("duration_s = 240", "duration_s = 240\n"
+                                       '"numerics.cg_tol" = 0.01'))
+    r = _run(["run", str(f), "--no-wait"], foamd)
+    assert r.returncode == 0, r.stderr
+    live = [j for j in old if client.job(j).state() in ("queued", "running")]
+    if live:   # unless both finished meanwhile: named, left alone
+        assert f"{len(live)} queued or running jobs of tag study:stale are no run" in r.stderr
+        assert "--cancel-stale" in r.stderr
+    assert "2 runs submitted" in r.stderr
+    r = _run(["run", str(f), "--no-wait", "--cancel-stale"], foamd)
+    assert r.returncode == 0 and "0 runs submitted, 2 already" in r.stderr, r.stderr
+    jobs = client.jobs(tag="study:stale").set_index("job_id")["state"]
+    for j in old:
+        assert jobs[j] in ("cancelled", "succeeded", "failed"), (j, jobs[j])
+    # The file's own runs are not touched.
+    assert set(jobs.drop(index=list(old))) <= {"queued", "running", "succeeded"}
+    while any(client.job(j).state() == "running" for j in old):
+        time.sleep(0.2)  # a cancelled running job stops at its next step
+
+
 def test_a_spec_foamd_refuses_submits_nothing(foamd, client, tmp_path):
     f = _study(tmp_path, [1], name="refused")
     text = f.read_text().replace('"cells.alpha" = [0.4375, 0.6]', '"cells.alpha" = [0.5, 1.5]')
