@@ -1245,17 +1245,21 @@ CALIBRATION_NOTE = """
 half the time with 5 runs a side (two thirds with 3), so on eight metrics the rule calls equal
 numerics fit 0.2 % of the time with 5 seeds (independent metrics; 7 % with 10, 67 % with 30:
 docs/science/power.md, "What the fitness rule can certify"). "Not fit" at these ensemble sizes
-is therefore no evidence of a difference by itself. The calibrated line compares the rule's
-worst ratio with what the same runs give when their labels are shuffled (every split of the
-pooled runs into ensembles of the same sizes, a permutation test that keeps the metrics'
-correlations): p < 0.05 says the numerics moved some metric further than the seeds do; a larger
-p says no difference was found, not that there is none (its power is in power.md).
+is therefore no evidence of a difference by itself. The calibrated line is a permutation test of
+"the numerics change nothing": the runs are relabelled — each seed's two runs swapped or not
+when both settings ran the same seeds (a seed prepares the same spheroids for both), else every
+split of the pooled runs — each metric's difference of means is ranked among its
+relabellings, and the smallest rank over the metrics is compared with the same for every
+relabelling (min-p: the metrics' correlations kept, no distribution assumed). p < 0.05 says
+some metric differs more than relabelling the runs makes it; a larger p says no difference was
+found, not that there is none.
 """
 
 
 def fitness_calibration(study: Study, runs: Any) -> Any:
-    """Per candidate: the rule's failures and their permutation distribution over splits of the
-    candidate's and its reference's runs (activefoam.trends.fitness_permutation)."""
+    """Per candidate: the permutation test of "the numerics change nothing" over relabellings of
+    the candidate's and its reference's runs (within each seed's pair when both ran the same
+    seeds), each metric's own p, and the rule's numbers (activefoam.trends.fitness_permutation)."""
     import pandas as pd
     metrics = (study.fitness or {})["metrics"]
     rows = []
@@ -1268,15 +1272,25 @@ def fitness_calibration(study: Study, runs: Any) -> Any:
         if len(ref_ok) < trends.MIN_SEEDS or len(cand_ok) < trends.MIN_SEEDS:
             rows.append({"candidate": label, "n_ref": len(ref_ok), "n": len(cand_ok)})
             continue
-        null = trends.fitness_permutation(ref_ok[metrics].to_numpy(dtype=float),
-                                          cand_ok[metrics].to_numpy(dtype=float))
-        rows.append({"candidate": label, "n_ref": len(ref_ok), "n": len(cand_ok),
-                     "worst_ratio": null.worst,
-                     "worst_metric": metrics[null.worst_metric] if null.worst_metric >= 0
-                     else "", "failures": null.failures, "metrics": null.metrics,
-                     "splits": null.splits, "exact": null.exact, "p_value": null.p_value,
-                     "worst_ratio_95_equal": null.worst95,
-                     "rule_pass_rate_equal": null.pass_rate})
+        null = trends.fitness_permutation(
+            ref_ok[metrics].to_numpy(dtype=float), cand_ok[metrics].to_numpy(dtype=float),
+            ref_seeds=[int(x) for x in ref_ok["seed"]] if "seed" in ref_ok else None,
+            cand_seeds=[int(x) for x in cand_ok["seed"]] if "seed" in cand_ok else None)
+        n_all = len(ref_ok) + len(cand_ok)
+        # The smallest p these runs allow: the observed labelling and its mirror (the same
+        # differences) when the sides are the same size.
+        total = 2 ** len(ref_ok) if null.paired else math.comb(n_all, len(cand_ok))
+        smallest = (2 if null.paired or len(ref_ok) == len(cand_ok) else 1) / total
+        row = {"candidate": label, "n_ref": len(ref_ok), "n": len(cand_ok),
+               "paired": null.paired, "relabellings": null.splits, "exact": null.exact,
+               "p_value": null.p_value, "smallest_p": smallest,
+               "most_different": metrics[null.most_metric] if null.most_metric >= 0 else "",
+               "worst_ratio": null.worst,
+               "worst_metric": metrics[null.worst_metric] if null.worst_metric >= 0 else "",
+               "failures": null.failures, "metrics": null.metrics,
+               "rule_pass_rate_equal": null.pass_rate}
+        row.update({f"p_{m}": v for m, v in zip(metrics, null.p_metric)})
+        rows.append(row)
     return pd.DataFrame(rows)
 
 
@@ -1332,20 +1346,23 @@ def render_fitness(study: Study, data: Data, out: Path) -> List[Path]:
         lines.append(verdict)
         if "p_value" not in c or not (c["p_value"] == c["p_value"]):
             continue
-        reading = ("**a difference** (p < 0.05): the numerics moved a metric further than "
-                   "95 % of the relabellings of the seeds do" if c["p_value"] < 0.05 else
-                   "no evidence of a difference" + (
-                       f" (with {int(c['n_ref'])} + {int(c['n'])} runs no split can show one at "
-                       f"5 %)" if (2 if c["n_ref"] == c["n"] else 1) / math.comb(
-                           int(c["n_ref"] + c["n"]), int(c["n"])) >= 0.05
-                       else ""))
+        if c["p_value"] < 0.05:
+            reading = (f"**a difference** (p < 0.05): {c['most_different']} differs more than "
+                       "relabelling the runs makes it")
+        elif c["smallest_p"] >= 0.05:
+            reading = (f"no difference found, and none could be: the smallest p "
+                       f"{int(c['relabellings'])} relabellings allow is {c['smallest_p']:.3g}")
+        else:
+            reading = "no difference found (not: none exists; power in docs/science/power.md)"
+        how = ("within each seed's pair" if c["paired"] else "splits of the pooled runs") + (
+            "" if c["exact"] else ", a sample")
         lines.append(
-            f"  - calibrated: worst ratio |Δ|/(IQR/2) = {c['worst_ratio']:.3g} "
-            f"({c['worst_metric']}); among the {int(c['splits'])} splits of these "
-            f"{int(c['n_ref'] + c['n'])} runs into {int(c['n_ref'])} + {int(c['n'])} "
-            f"({'all' if c['exact'] else 'a sample'}), p = {c['p_value']:.3g} reach it, 95 % "
-            f"stay below {c['worst_ratio_95_equal']:.3g}, and the rule calls "
-            f"{100 * c['rule_pass_rate_equal']:.1f} % fit — {reading}")
+            f"  - calibrated: p = {c['p_value']:.3g} over {int(c['relabellings'])} "
+            f"relabellings ({how}; min-p over {int(c['metrics'])} metrics), the most different "
+            f"{c['most_different']} (its own p = {c['p_' + c['most_different']]:.3g}); the "
+            f"rule's worst ratio |Δ|/(IQR/2) is {c['worst_ratio']:.3g} ({c['worst_metric']}) "
+            f"and it calls {100 * c['rule_pass_rate_equal']:.1f} % of the relabellings fit — "
+            f"{reading}")
     show = table.drop(columns=["why"]) if len(table) else table
     (out / "fitness.md").write_text(
         f"# {study.title}: fitness against `{f['key']} = {f['reference']}`\n\n"

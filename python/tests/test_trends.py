@@ -88,51 +88,82 @@ def test_the_permutation_null_counts_every_split_by_the_rule_itself():
         assert null.pass_rate == pytest.approx(passing / 35)
 
 
-def test_the_permutation_p_value_of_separated_ensembles_is_the_smallest_a_split_allows():
+def _min_p_by_hand(labellings):
+    """The min-p permutation p-value written out with loops: labellings is a list of (a, b)
+    ensembles (runs × metrics), the observed one first."""
+    m = labellings[0][0].shape[1]
+    diffs = [[abs(b[:, j].mean() - a[:, j].mean()) for j in range(m)] for a, b in labellings]
+    n = len(diffs)
+    ps = [min(sum(d2[j] >= d[j] - 1e-9 for d2 in diffs) / n for j in range(m)) for d in diffs]
+    return sum(p <= ps[0] + 1e-12 for p in ps) / n
+
+
+def test_the_permutation_p_value_is_counted_by_hand_for_free_splits_and_seed_pairs():
+    import itertools
     rng = np.random.default_rng(3)
     ref = rng.normal(0, 1, (5, 3))
     cand = rng.normal(0, 1, (5, 3))
     cand[:, 1] += 100.0          # one metric moved far beyond the seeds' spread
     null = trends.fitness_permutation(ref, cand)
-    # The observed split, its mirror and the splits that move one run of each side across (the
-    # IQR shrugs off one far run) are as far: counted by hand, and below 5 %.
-    import itertools
-    import statistics
-
-    def worst(a, b):
-        return max(abs(statistics.median(b[:, j]) - statistics.median(a[:, j]))
-                   / ((np.subtract(*np.percentile(a[:, j], [75, 25]))
-                       + np.subtract(*np.percentile(b[:, j], [75, 25]))) / 4)
-                   for j in range(a.shape[1]))
     pooled = np.vstack([ref, cand])
-    w = worst(ref, cand)
-    far = sum(worst(pooled[list(s)], pooled[[i for i in range(10) if i not in s]]) >= w - 1e-9
-              for s in itertools.combinations(range(10), 5))
-    assert null.worst == pytest.approx(w) and null.worst_metric == 1
-    assert null.p_value == pytest.approx(far / 252) and null.p_value < 0.05
-    # 3 + 3 runs cannot show a difference at 5 %: the smallest p is 2 / C(6, 3) = 0.1.
-    small = trends.fitness_permutation(ref[:3], cand[:3])
-    assert small.p_value == pytest.approx(0.1)
+    splits = [(pooled[list(c)], pooled[[i for i in range(10) if i not in c]])
+              for c in itertools.combinations(range(10), 5)]
+    assert not null.paired and null.splits == 252
+    assert null.p_value == pytest.approx(_min_p_by_hand(splits))
+    # The moved metric is the most different, at the smallest p a metric can have (the observed
+    # split and its mirror); the others' own extremes keep the min-p above it.
+    assert null.most_metric == 1 and null.p_metric[1] == pytest.approx(2 / 252)
+    assert null.p_value < 0.05
+    # The same seeds on both sides, listed in another order: each seed's two runs are swapped
+    # or not (2^5 relabellings), matched by seed.
+    order = [4, 2, 0, 1, 3]
+    paired = trends.fitness_permutation(ref, cand[order], ref_seeds=[1, 2, 3, 4, 5],
+                                        cand_seeds=[order[i] + 1 for i in range(5)])
+    flips = [(np.where(np.array(f)[:, None], cand, ref), np.where(np.array(f)[:, None], ref, cand))
+             for f in itertools.product([False, True], repeat=5)]
+    assert paired.paired and paired.splits == 32 and paired.exact
+    assert paired.p_value == pytest.approx(_min_p_by_hand(flips))
+    # Five pairs cannot show a difference at 5 %: the smallest p is 2 / 2^5.
+    assert paired.p_metric[1] == pytest.approx(2 / 32) and paired.p_value >= 2 / 32
+    # Ten pairs can: 1024 relabellings.
+    big_ref, big_cand = rng.normal(0, 1, (10, 3)), rng.normal(0, 1, (10, 3))
+    big_cand[:, 0] += 100.0
+    ten = trends.fitness_permutation(big_ref, big_cand, list(range(10)), list(range(10)))
+    assert ten.splits == 1024 and ten.p_value < 0.05 and ten.most_metric == 0
 
 
 def test_equal_ensembles_are_called_different_at_most_as_often_as_the_level():
     rng = np.random.default_rng(11)
-    ps = [trends.fitness_permutation(rng.normal(0, 1, (5, 4)), rng.normal(0, 1, (5, 4))).p_value
+    ps = [trends.fitness_permutation(rng.normal(0, 1, (6, 4)), rng.normal(0, 1, (6, 4))).p_value
           for _ in range(300)]
     assert np.mean(np.array(ps) < 0.05) <= 0.05 + 0.03
-    # A sample of splits when there are too many to enumerate: the same reading.
+    # Paired runs, correlated within a seed (as the studies' are): the same level.
+    ps = []
+    for _ in range(300):
+        a = rng.normal(0, 1, (8, 4))
+        ps.append(trends.fitness_permutation(a, 0.8 * a + 0.6 * rng.normal(0, 1, (8, 4)),
+                                             list(range(8)), list(range(8))).p_value)
+    assert np.mean(np.array(ps) < 0.05) <= 0.05 + 0.03
+    # A sample of relabellings when there are too many to enumerate: the observed one is
+    # counted, so p is never 0.
     a, b = rng.normal(0, 1, (12, 2)), rng.normal(0, 1, (12, 2))
+    b[:, 0] += 100.0
     sampled = trends.fitness_permutation(a, b, max_splits=3000)
-    assert not sampled.exact and sampled.splits == 3000 and 0.0 < sampled.p_value <= 1.0
+    assert not sampled.exact and sampled.splits == 3000
+    assert 1 / 3000 <= sampled.p_value < 0.05
 
 
 def test_a_metric_without_enough_runs_is_not_judged_by_the_permutation_null():
-    ref = np.array([[1.0, 5.0], [2.0, np.nan], [3.0, np.nan], [4.0, np.nan]])
+    ref = np.array([[1.0, 5.0], [2.0, np.nan], [3.0, np.inf], [4.0, np.nan]])
     cand = ref + [0.1, 0.0]
     null = trends.fitness_permutation(ref, cand)
-    assert null.metrics == 1 and null.worst_metric == 0
+    assert null.metrics == 1 and null.worst_metric == 0 and math.isnan(null.p_metric[1])
     nothing = trends.fitness_permutation(ref[:, 1:], cand[:, 1:])
     assert nothing.metrics == 0 and math.isnan(nothing.p_value)
+    # ±inf is dropped as fitness() drops it.
+    ref3 = np.array([[1.0], [2.0], [3.0], [np.inf]])
+    assert trends.rule_ratios(ref3[None], (ref3 + 0.1)[None])[0, 0] == pytest.approx(
+        0.1 / (trends.fitness(ref3[:, 0], ref3[:, 0] + 0.1).iqr / 2))
 
 
 def test_trend_verdicts():
