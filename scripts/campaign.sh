@@ -4,11 +4,13 @@
 # one session to the next in studies/store/ (scripts/study.sh save-store / restore-store), so a
 # run cut off by the end of a session resumes from its checkpoint in the next.
 #
-#   scripts/campaign.sh start [--engine-changed]
+#   scripts/campaign.sh start [--engine-changed] [--cancel-stale]
 #       restores the store from studies/store/ when there is none here, starts foamd on it (one
 #       one-thread job per core) and submits what is missing: a run whose results are committed
 #       (docs/science/NAME/data) counts as done even if the store was lost. foamd is built from
 #       the engine the store's jobs ran, in a worktree when the checkout's engine differs.
+#       Queued or running jobs that are no run of their study file as it is now (a study moved
+#       to another step) are named; --cancel-stale cancels them.
 #   scripts/campaign.sh report    every study with ended runs: docs/science/NAME (figures, data),
 #                                 and the verdict table (docs/science/verdicts)
 #   scripts/campaign.sh stop      stops foamd (its running jobs checkpoint and re-queue) and saves
@@ -123,6 +125,7 @@ print(m.get("engine") or "unknown", m.get("engine_commit") or "-")' "$saved/MANI
       data="$science/$(name_of "$f")/data"
       with=()
       [ -f "$data/runs.csv" ] && with=(--with-data "$data")
+      [[ " $* " == *" --cancel-stale "* ]] && with+=(--cancel-stale)
       study run "$(dirname "$list")/$f" --no-wait "${with[@]}"
     done
     ;;

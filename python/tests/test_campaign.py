@@ -88,5 +88,27 @@ def test_a_campaign_resumes_on_a_new_machine_and_takes_committed_runs_as_done(tm
     try:
         r = campaign("start")
         assert "2 ended runs in" in r.stderr and "0 runs submitted, 2 already" in r.stderr
+        # The study moves to another CG tolerance, then to a third: the second's jobs, queued or
+        # running, are no runs of the file any more; start names them, --cancel-stale cancels
+        # them (and leaves the third's alone).
+        tiny = studies / "tiny.toml"
+        plain = tiny.read_text()
+        tiny.write_text(plain.replace("duration_s = 1800",
+                                      'duration_s = 1800\n"numerics.cg_tol" = 0.01'))
+        assert "2 runs submitted" in campaign("start").stderr
+        with Client(env["FOAM_SERVER"]) as c:
+            second = {j.id for j in c._list(tag="study:tiny")}
+        tiny.write_text(plain.replace("duration_s = 1800",
+                                      'duration_s = 1800\n"numerics.cg_tol" = 0.002'))
+        r = campaign("start")
+        assert "2 queued or running jobs of tag study:tiny are no run" in r.stderr, r.stderr
+        assert "2 runs submitted" in r.stderr
+        r = campaign("start", "--cancel-stale")
+        assert "cancelled 2 jobs" in r.stderr and "0 runs submitted, 2 already" in r.stderr
+        with Client(env["FOAM_SERVER"]) as c:
+            states = {j.id: _state_name(j.state) for j in c._list(tag="study:tiny")}
+        # A running job stops at its next step; the third's are untouched.
+        assert all(states[j] in ("cancelled", "running") for j in second), states
+        assert all(s in ("queued", "running") for j, s in states.items() if j not in second)
     finally:
         subprocess.run([str(ROOT / "scripts/campaign.sh"), "stop"], env=env, capture_output=True)
