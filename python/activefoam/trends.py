@@ -213,7 +213,7 @@ def fitness_permutation(reference: Sequence[Sequence[float]], candidate: Sequenc
         return FitnessNull(math.nan, -1, 0, 0, paired, s_count, exact, math.nan,
                            np.full(m, math.nan), -1, math.nan)
     # Each metric's p for every relabelling: the share of relabellings at least as far. Ties
-    # (a relabelling and its mirror are equal; medians of few runs repeat) count as as far.
+    # (a relabelling and its mirror give the same difference) count as as far.
     pm = np.ones_like(d)
     for j in range(m):
         col = d[:, j]
