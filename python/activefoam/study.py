@@ -1276,14 +1276,9 @@ def fitness_calibration(study: Study, runs: Any) -> Any:
             ref_ok[metrics].to_numpy(dtype=float), cand_ok[metrics].to_numpy(dtype=float),
             ref_seeds=[int(x) for x in ref_ok["seed"]] if "seed" in ref_ok else None,
             cand_seeds=[int(x) for x in cand_ok["seed"]] if "seed" in cand_ok else None)
-        n_all = len(ref_ok) + len(cand_ok)
-        # The smallest p these runs allow: the observed labelling and its mirror (the same
-        # differences) when the sides are the same size.
-        total = 2 ** len(ref_ok) if null.paired else math.comb(n_all, len(cand_ok))
-        smallest = (2 if null.paired or len(ref_ok) == len(cand_ok) else 1) / total
         row = {"candidate": label, "n_ref": len(ref_ok), "n": len(cand_ok),
                "paired": null.paired, "relabellings": null.splits, "exact": null.exact,
-               "p_value": null.p_value, "smallest_p": smallest,
+               "p_value": null.p_value, "smallest_p": null.smallest_p,
                "most_different": metrics[null.most_metric] if null.most_metric >= 0 else "",
                "worst_ratio": null.worst,
                "worst_metric": metrics[null.worst_metric] if null.worst_metric >= 0 else "",
@@ -1331,20 +1326,22 @@ def render_fitness(study: Study, data: Data, out: Path) -> List[Path]:
     for cand, g in table.groupby("candidate", sort=False) if len(table) else []:
         judged = g[g["fit"] != "—"]
         if len(judged) < len(g):
-            verdicts.append(f"- `{cand}`: not decided — "
-                            f"{len(g) - len(judged)} of {len(g)} metrics lack runs")
+            verdicts.append((cand, f"- `{cand}`: not decided — "
+                                   f"{len(g) - len(judged)} of {len(g)} metrics lack runs"))
         elif (judged["fit"] == "yes").all():
-            verdicts.append(f"- `{cand}`: **fit** — every difference of medians "
-                            f"is below half the seed-to-seed IQR")
+            verdicts.append((cand, f"- `{cand}`: **fit** — every difference of medians "
+                                   f"is below half the seed-to-seed IQR"))
         else:
             bad = ", ".join(judged[judged["fit"] == "no"]["metric"])
-            verdicts.append(f"- `{cand}`: **not fit** — {bad}")
+            verdicts.append((cand, f"- `{cand}`: **not fit** — {bad}"))
     calibration = fitness_calibration(study, data.runs)
     calibration.to_csv(out / "fitness-calibration.csv", index=False)
+    by_candidate = {c["candidate"]: c for _, c in calibration.iterrows()}
     lines = []
-    for verdict, (_, c) in zip(verdicts, calibration.iterrows()):
+    for cand, verdict in verdicts:
         lines.append(verdict)
-        if "p_value" not in c or not (c["p_value"] == c["p_value"]):
+        c = by_candidate.get(cand)
+        if c is None or "p_value" not in c or not (c["p_value"] == c["p_value"]):
             continue
         if c["p_value"] < 0.05:
             reading = (f"**a difference** (p < 0.05): {c['most_different']} differs more than "

@@ -111,6 +111,8 @@ class FitnessNull:
     splits: int        # relabellings evaluated (the observed one included)
     exact: bool        # every relabelling enumerated
     p_value: float     # min-p over the metrics, adjusted by the relabellings (see below)
+    smallest_p: float  # the smallest p_value these runs allow: the observed labelling and, with
+                       # sides of one size, its mirror (the same differences) out of them all
     p_metric: np.ndarray  # each metric's own permutation p of |Δ mean| (NaN: not judged)
     most_metric: int   # the metric with the smallest p_metric
     pass_rate: float   # share of relabellings the rule calls fit: what it gives equal numerics
@@ -183,10 +185,11 @@ def fitness_permutation(reference: Sequence[Sequence[float]], candidate: Sequenc
     n_a, n_b, m = len(ra), len(rb), ra.shape[1]
     paired = (ref_seeds is not None and cand_seeds is not None and n_a == n_b
               and len(set(ref_seeds)) == n_a and set(ref_seeds) == set(cand_seeds))
+    total = 2 ** n_a if paired else math.comb(n_a + n_b, n_a)
+    smallest_p = (2 if paired or n_a == n_b else 1) / total
     rng = np.random.default_rng(seed)
     if paired:
         rb = rb[[list(cand_seeds).index(s) for s in ref_seeds]]   # pair i: ra[i], rb[i]
-        total = 2 ** n_a
         exact = total <= max_splits
         flips = (np.array(list(itertools.product([False, True], repeat=n_a)), dtype=bool)
                  if exact else np.vstack([np.zeros(n_a, dtype=bool),
@@ -196,7 +199,7 @@ def fitness_permutation(reference: Sequence[Sequence[float]], candidate: Sequenc
     else:
         pooled = np.vstack([ra, rb])
         n = n_a + n_b
-        exact = math.comb(n, n_a) <= max_splits
+        exact = total <= max_splits
         picks = (np.array(list(itertools.combinations(range(n), n_a)), dtype=int) if exact
                  else np.vstack([np.arange(n_a)[None],
                                  np.argsort(rng.random((max_splits - 1, n)), axis=1)[:, :n_a]]))
@@ -210,7 +213,7 @@ def fitness_permutation(reference: Sequence[Sequence[float]], candidate: Sequenc
     obs_ratio = ratio[0]
     judged = ~np.isnan(obs_ratio)
     if not judged.any():
-        return FitnessNull(math.nan, -1, 0, 0, paired, s_count, exact, math.nan,
+        return FitnessNull(math.nan, -1, 0, 0, paired, s_count, exact, math.nan, smallest_p,
                            np.full(m, math.nan), -1, math.nan)
     # Each metric's p for every relabelling: the share of relabellings at least as far. Ties
     # (a relabelling and its mirror give the same difference) count as as far.
@@ -232,7 +235,7 @@ def fitness_permutation(reference: Sequence[Sequence[float]], candidate: Sequenc
         worst_all = np.nanmax(np.where(np.isnan(ratio), -np.inf, ratio), axis=1)
     w = float(np.nanmax(obs_ratio))
     return FitnessNull(w, int(np.nanargmax(obs_ratio)), int((obs_ratio[judged] >= 1).sum()),
-                       int(judged.sum()), paired, s_count, exact, p_value, p_metric,
+                       int(judged.sum()), paired, s_count, exact, p_value, smallest_p, p_metric,
                        int(np.nanargmin(p_metric)), float((worst_all < 1).mean()))
 
 

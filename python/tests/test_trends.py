@@ -125,6 +125,8 @@ def test_the_permutation_p_value_is_counted_by_hand_for_free_splits_and_seed_pai
     assert paired.p_value == pytest.approx(_min_p_by_hand(flips))
     # Five pairs cannot show a difference at 5 %: the smallest p is 2 / 2^5.
     assert paired.p_metric[1] == pytest.approx(2 / 32) and paired.p_value >= 2 / 32
+    assert paired.smallest_p == pytest.approx(2 / 32) and null.smallest_p == pytest.approx(2 / 252)
+    assert trends.fitness_permutation(ref[:3], cand).smallest_p == pytest.approx(1 / 56)
     # Ten pairs can: 1024 relabellings.
     big_ref, big_cand = rng.normal(0, 1, (10, 3)), rng.normal(0, 1, (10, 3))
     big_cand[:, 0] += 100.0
