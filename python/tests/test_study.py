@@ -508,6 +508,15 @@ def test_fitness_judges_a_candidate_of_a_second_grid_against_the_first_grids_ref
     assert cal.loc["numerics.dt_s = 0.5", "worst_ratio"] == pytest.approx(0.4)
     assert "none could be: the smallest p 32 relabellings allow is 0.0625" in md
     assert "The rule's reading" in md
+    # Seed by seed: every seed's 1 s run is its 0.25 s run + 3, the 0.5 s run + 0.4.
+    paired = pd.read_csv(out / "fitness-paired.csv").set_index("candidate")
+    one = paired.loc["numerics.dt_s = 1.0, numerics.cg_tol = 0.01"]
+    assert one["metric"] == "theta_end_deg" and one["pairs"] == 5
+    assert one["paired_diff"] == pytest.approx(3.0) and one["paired_lo"] == pytest.approx(3.0)
+    assert one["coverage"] == pytest.approx(30 / 32)
+    assert one["higher"] == 5 and one["lower"] == 0
+    assert paired.loc["numerics.dt_s = 0.5", "paired_diff"] == pytest.approx(0.4)
+    assert "## Seed by seed" in md
 
 
 # ---- shared runs: a point two studies have in common runs once --------------------------------

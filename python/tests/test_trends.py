@@ -134,6 +134,51 @@ def test_the_permutation_p_value_is_counted_by_hand_for_free_splits_and_seed_pai
     assert ten.splits == 1024 and ten.p_value < 0.05 and ten.most_metric == 0
 
 
+def test_the_median_interval_takes_the_order_statistics_its_coverage_allows():
+    # Coverage of [x_(k), x_(n+1−k)]: 1 − 2 P(Binom(n, ½) ≤ k − 1).
+    lo, hi, c = trends.median_interval([3.0, 1.0, 2.0])
+    assert (lo, hi) == (1.0, 3.0) and c == pytest.approx(0.75)
+    x = list(range(10, 0, -1))                  # 10 values: k = 2 covers 1 − 2·11/1024 ≥ 95 %,
+    lo, hi, c = trends.median_interval(x)     # k = 3 only 1 − 2·56/1024 = 89 %
+    assert (lo, hi) == (2.0, 9.0) and c == pytest.approx(1 - 22 / 1024)
+    lo, hi, c = trends.median_interval(range(100))
+    assert c >= 0.95 and trends.median_interval(range(100), 0.5)[2] < c
+    assert 39 <= lo < 49.5 < hi <= 60
+    # The coverage is what it says: the interval holds the true median that often.
+    rng = np.random.default_rng(7)
+    hits = [lo <= 0 <= hi for lo, hi, _ in (trends.median_interval(rng.standard_cauchy(10))
+                                            for _ in range(4000))]
+    assert np.mean(hits) == pytest.approx(1 - 22 / 1024, abs=0.01)
+    assert math.isnan(trends.median_interval([math.nan])[0])
+
+
+def test_the_paired_difference_cancels_the_seed_spread_and_matches_runs_by_seed():
+    # Seeds spread by ±10, the candidate is each seed's reference + 1 (+ small noise): the
+    # difference of medians carries the seed spread in its interval, the paired one does not.
+    spread = {1: -10.0, 2: -5.0, 3: 0.0, 4: 5.0, 5: 10.0, 6: 7.0}
+    noise = {1: 0.1, 2: -0.1, 3: 0.2, 4: -0.2, 5: 0.0, 6: 0.0}
+    ref_seeds, cand_seeds = [1, 2, 3, 4, 5, 6], [5, 3, 1, 2, 4]   # seed 6 has no candidate run
+    ref = [100 + spread[s] for s in ref_seeds]
+    cand = [100 + spread[s] + 1 + noise[s] for s in cand_seeds]
+    d = trends.paired_difference(ref, cand, ref_seeds, cand_seeds)
+    assert d.n == 5 and d.higher == 5 and d.lower == 0
+    assert d.diff == pytest.approx(1.0)       # the median of 1.1, 0.9, 1.2, 0.8, 1.0
+    # Five pairs: no order-statistic interval reaches 95 %; the range, at 1 − 2/32.
+    assert (d.lo, d.hi) == pytest.approx((0.8, 1.2)) and d.coverage == pytest.approx(30 / 32)
+    unpaired = trends.diff_of_medians(ref, cand)
+    assert unpaired.hi - unpaired.lo > 10 * (d.hi - d.lo)
+    # A pair with a missing result is left out; so is a seed run twice on one side.
+    cand_nan = list(cand)
+    cand_nan[0] = math.nan
+    assert trends.paired_difference(ref, cand_nan, ref_seeds, cand_seeds).n == 4
+    assert trends.paired_difference(ref + [1.0], cand, ref_seeds + [5], cand_seeds).n == 4
+    lower = trends.paired_difference(cand, ref[:5], cand_seeds, ref_seeds[:5])
+    assert lower.diff == pytest.approx(-1.0) and lower.lower == 5
+    assert math.isnan(trends.paired_difference([1.0], [2.0], [1], [2]).diff)
+    with pytest.raises(ValueError):
+        trends.paired_difference([1.0, 2.0], [1.0], [1], [1])
+
+
 def test_equal_ensembles_are_called_different_at_most_as_often_as_the_level():
     rng = np.random.default_rng(11)
     ps = [trends.fitness_permutation(rng.normal(0, 1, (6, 4)), rng.normal(0, 1, (6, 4))).p_value
