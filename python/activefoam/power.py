@@ -92,6 +92,46 @@ def calibrated_power(n: int, shift_sigma: float, metrics: int = 8, shifted: int 
     return hits / trials
 
 
+_PAIRED_SHIFT_CACHE: Dict[tuple, float] = {}
+
+
+def paired_detectable_shift(n: int, metrics: int = 8, power: float = 0.8, level: float = 0.05,
+                            trials: int = 200, largest: float = 8.0, seed: int = 1) -> float:
+    """The shift of one metric, in units of the SD of its within-seed differences, that the
+    calibrated fitness test (activefoam.trends.fitness_permutation on n seed pairs, min-p over
+    `metrics` metrics) finds at p < level with probability `power`: normal, independent
+    differences; bisection to 0.05 σ on common random draws. inf when n pairs cannot reach
+    p < level at all (n ≤ 5 at 5 %) or no shift up to `largest` does."""
+    key = (n, metrics, power, level, trials, largest, seed)
+    if key in _PAIRED_SHIFT_CACHE:
+        return _PAIRED_SHIFT_CACHE[key]
+    if 2 / 2 ** n >= level:
+        _PAIRED_SHIFT_CACHE[key] = math.inf
+        return math.inf
+    rng = np.random.default_rng(seed)
+    draws = rng.normal(size=(trials, n, metrics))
+    perm_seeds = [int(x) for x in rng.integers(1 << 31, size=trials)]
+    zero, ids = np.zeros((n, metrics)), list(range(n))
+
+    def found(shift: float) -> float:
+        hits = 0
+        for d, ps in zip(draws, perm_seeds):
+            cand = d.copy()
+            cand[:, 0] += shift
+            hits += trends.fitness_permutation(zero, cand, ids, ids, seed=ps).p_value < level
+        return hits / trials
+
+    if found(largest) < power:
+        _PAIRED_SHIFT_CACHE[key] = math.inf
+        return math.inf
+    lo, hi = 0.0, largest
+    while hi - lo > 0.05:
+        mid = (lo + hi) / 2
+        lo, hi = (lo, mid) if found(mid) >= power else (mid, hi)
+    _PAIRED_SHIFT_CACHE[key] = hi
+    return hi
+
+
 def spread(values: Sequence[float]) -> float:
     """σ of a normal with the values' IQR."""
     return trends.iqr(values) / IQR_OF_NORMAL

@@ -249,6 +249,7 @@ class PairedDifference:
     lo: float          # distribution-free interval of that median: order statistics of the
     hi: float          # pairs' differences (see paired_difference)
     coverage: float    # its exact coverage (≥ LEVEL where the pairs allow it)
+    sd: float          # the differences' standard deviation (NaN below 2 pairs)
     n: int             # pairs with both runs finite
     higher: int        # pairs where the candidate is above its reference
     lower: int         # ... below
@@ -288,10 +289,11 @@ def paired_difference(reference: Sequence[float], candidate: Sequence[float],
     d = np.array([rb[sb.index(s)] - ra[sa.index(s)] for s in both], dtype=float)
     d = d[np.isfinite(d)]
     if len(d) == 0:
-        return PairedDifference(math.nan, math.nan, math.nan, math.nan, 0, 0, 0)
+        return PairedDifference(math.nan, math.nan, math.nan, math.nan, math.nan, 0, 0, 0)
     lo, hi, coverage = median_interval(d, level)
-    return PairedDifference(float(np.median(d)), lo, hi, coverage, len(d), int((d > 0).sum()),
-                            int((d < 0).sum()))
+    sd = float(np.std(d, ddof=1)) if len(d) > 1 else math.nan
+    return PairedDifference(float(np.median(d)), lo, hi, coverage, sd, len(d),
+                            int((d > 0).sum()), int((d < 0).sum()))
 
 
 EXPECTATIONS = ("increase", "decrease", "none")

@@ -66,3 +66,14 @@ def test_the_calibrated_test_finds_a_shift_with_ten_pairs_and_none_with_five():
     # Correlated pairs (one seed's two runs alike) show a 1 σ shift far more often.
     assert pw.calibrated_power(10, 1.0, metrics=4, trials=150, rho=0.8) > \
         pw.calibrated_power(10, 1.0, metrics=4, trials=150, rho=0.0) + 0.2
+
+
+def test_the_paired_shift_found_80_percent_of_the_time_matches_the_t_test_for_one_metric():
+    # One metric, ten pairs, normal differences of SD 1: a paired t-test at 5 % has 80 % power
+    # at (t_.975,9 + t_.8,9) / √10 ≈ 0.99; the sign-flip test needs about as much.
+    k1 = pw.paired_detectable_shift(10, 1, trials=100)
+    assert 0.8 <= k1 <= 1.3
+    # Eight metrics read at once (min-p) need a larger shift to find one of them; five pairs
+    # cannot reach p < 0.05 at all.
+    assert pw.paired_detectable_shift(10, 8, trials=100) > k1
+    assert math.isinf(pw.paired_detectable_shift(5, 8))

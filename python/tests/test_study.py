@@ -514,6 +514,8 @@ def test_fitness_judges_a_candidate_of_a_second_grid_against_the_first_grids_ref
     assert one["metric"] == "theta_end_deg" and one["pairs"] == 5
     assert one["paired_diff"] == pytest.approx(3.0) and one["paired_lo"] == pytest.approx(3.0)
     assert one["coverage"] == pytest.approx(30 / 32)
+    assert one["sd_diff"] == pytest.approx(0.0, abs=1e-9)
+    assert math.isinf(one["found_80"])   # five pairs cannot reach p < 0.05: nothing is found
     assert one["higher"] == 5 and one["lower"] == 0
     assert paired.loc["numerics.dt_s = 0.5", "paired_diff"] == pytest.approx(0.4)
     assert "## Seed by seed" in md
