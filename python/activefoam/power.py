@@ -21,7 +21,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from typing import Dict, List, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -183,6 +183,43 @@ def fitness_rule_table(seeds: Sequence[int] = (3, 5, 10, 20, 30),
     return lines
 
 
+def pair_divergence(runs: Any, samples: Any, arm_keys: Sequence[str], times: Sequence[float],
+                    column: str = "theta_deg") -> List[Dict]:
+    """How long the two runs of one seed under two numerics stay together: for each time, over
+    the seeds that ran both arms (the two values of `arm_keys` among `runs`' succeeded runs),
+    the correlation across seeds of the arms' `column` at that time (the sample nearest to it),
+    the median |difference| within a seed, and the spread (SD) of the first arm across seeds.
+    Pairing a fitness test's runs by seed helps a metric only while the correlation is high."""
+    import pandas as pd
+    ok = runs[runs["state"] == "succeeded"].copy()
+    ok["_arm"] = ok[list(arm_keys)].astype(str).agg("|".join, axis=1)
+    arms = list(dict.fromkeys(ok["_arm"]))
+    if len(arms) != 2:
+        raise ValueError(f"{', '.join(arm_keys)}: {len(arms)} settings among the runs, not 2")
+    by_job = {j: g.sort_values("t_s") for j, g in samples.groupby("job_id")}
+    rows = []
+    for t in times:
+        a, b = [], []
+        for _, g in ok.groupby("seed"):
+            if sorted(g["_arm"]) != sorted(arms):
+                continue
+            v = {}
+            for _, r in g.iterrows():
+                q = by_job.get(r["job_id"])
+                if q is None or not len(q):
+                    break
+                v[r["_arm"]] = float(q[column].iloc[int((q["t_s"] - t).abs().argmin())])
+            if len(v) == 2:
+                a.append(v[arms[0]])
+                b.append(v[arms[1]])
+        xa, xb = np.array(a), np.array(b)
+        corr = float(pd.Series(xa).corr(pd.Series(xb))) if len(xa) > 2 else math.nan
+        rows.append({"t_s": t, "seeds": len(xa), "corr": corr,
+                     "median_abs_diff": float(np.median(np.abs(xa - xb))) if len(xa) else math.nan,
+                     "sd_seeds": float(np.std(xa, ddof=1)) if len(xa) > 1 else math.nan})
+    return rows
+
+
 def _value(text: str):
     if text in ("true", "True", "false", "False"):
         return text in ("true", "True")
@@ -203,6 +240,11 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ap.add_argument("--fitness-rule", action="store_true",
                     help="instead: what the fitness rule and its calibrated reading give on "
                     "synthetic ensembles (no study needed)")
+    ap.add_argument("--pairs", metavar="KEY[,KEY]",
+                    help="instead: how long the two runs of a seed under the two settings of "
+                    "these keys stay together (θ at --times)")
+    ap.add_argument("--times", default="600,1800,3600,7200,10800,14400",
+                    help="with --pairs: the times (s)")
     ap.add_argument("--point", action="append", default=[], metavar="KEY=VALUE",
                     help="the runs to take (the base point), repeatable")
     ap.add_argument("--metrics", default=",".join(st.FITNESS_METRICS + ["mixing_time_s"]))
@@ -222,6 +264,29 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         ap.error("a study file and --data are needed (or --fitness-rule)")
     study = st.load(args.study)
     data = st.load_data(study, args.data)
+    if args.pairs:
+        keys = [k for k in args.pairs.split(",") if k]
+        missing = [k for k in keys if k not in data.runs]
+        if missing:
+            print(f"error: --pairs: no column {missing[0]!r} in the data", file=sys.stderr)
+            return 2
+        try:
+            rows = pair_divergence(data.runs, data.samples, keys,
+                                   [float(t) for t in args.times.split(",") if t])
+        except ValueError as e:
+            print(f"error: --pairs: {e}", file=sys.stderr)
+            return 2
+        lines = [f"The two runs of a seed under the two settings of {', '.join(keys)}: "
+                 f"{study.name} (`python3 -m activefoam.power {args.study} --data {args.data} "
+                 f"--pairs {args.pairs} --out FILE`)", "",
+                 "| t (h) | seeds | correlation of θ across seeds | median \\|θ₁ − θ₂\\| within "
+                 "a seed (°) | SD of θ across seeds (°) |", "|---|---|---|---|---|"]
+        for r in rows:
+            lines.append(f"| {r['t_s'] / 3600:.2g} | {r['seeds']} | {r['corr']:.2f} | "
+                         f"{r['median_abs_diff']:.2f} | {r['sd_seeds']:.2f} |")
+        Path(args.out).write_text("\n".join(lines) + "\n")
+        print(args.out)
+        return 0
     runs = data.runs[data.runs["state"] == "succeeded"]
     for p in args.point:
         key, _, value = p.partition("=")

@@ -77,3 +77,31 @@ def test_the_paired_shift_found_80_percent_of_the_time_matches_the_t_test_for_on
     # cannot reach p < 0.05 at all.
     assert pw.paired_detectable_shift(10, 8, trials=100) > k1
     assert math.isinf(pw.paired_detectable_shift(5, 8))
+
+
+def test_pair_divergence_follows_a_seeds_two_runs_apart():
+    import pandas as pd
+    # Five seeds; the two arms agree exactly until 1 h (θ = 40 + 2·seed), after which the second
+    # arm's θ is an unrelated permutation of the seeds' values.
+    rows, samples = [], []
+    later = {1: 5, 2: 3, 3: 1, 4: 2, 5: 4}
+    for seed in range(1, 6):
+        for arm in (0.25, 0.5):
+            jid = f"j-{arm}-{seed}"
+            rows.append({"seed": seed, "numerics.dt_s": arm, "job_id": jid,
+                         "state": "succeeded"})
+            for t in (0, 1800, 3600, 7200):
+                s = seed if (t <= 3600 or arm == 0.25) else later[seed]
+                samples.append({"job_id": jid, "t_s": t, "theta_deg": 40 + 2 * s})
+    rows.append({"seed": 6, "numerics.dt_s": 0.25, "job_id": "j-alone", "state": "succeeded"})
+    samples.append({"job_id": "j-alone", "t_s": 0, "theta_deg": 90.0})
+    out = pw.pair_divergence(pd.DataFrame(rows), pd.DataFrame(samples), ["numerics.dt_s"],
+                             [1800, 3700, 7000])
+    assert [r["seeds"] for r in out] == [5, 5, 5]        # seed 6 ran one arm only
+    assert out[0]["corr"] == pytest.approx(1.0) and out[0]["median_abs_diff"] == 0
+    assert out[1]["corr"] == pytest.approx(1.0)          # the nearest sample to 3700 s is 3600
+    assert out[2]["corr"] == pytest.approx(np.corrcoef([1, 2, 3, 4, 5], [5, 3, 1, 2, 4])[0, 1])
+    assert out[2]["median_abs_diff"] == pytest.approx(4.0)   # |2 (s − later[s])|: 8 2 4 4 2
+    assert out[0]["sd_seeds"] == pytest.approx(2 * np.std([1, 2, 3, 4, 5], ddof=1))
+    with pytest.raises(ValueError):
+        pw.pair_divergence(pd.DataFrame(rows[:2]), pd.DataFrame(samples), ["seed"], [0])
