@@ -1256,6 +1256,16 @@ found, not that there is none.
 """
 
 
+def _with_results(runs: Any, metrics: Sequence[str]) -> Any:
+    """The runs the calibrated test reads: those with a result for some metric (a metric a run
+    lacks is NaN and left out by the rule)."""
+    return runs[runs[list(metrics)].notna().any(axis=1)]
+
+
+def _seeds(runs: Any) -> Optional[List[int]]:
+    return [int(x) for x in runs["seed"]] if "seed" in runs else None
+
+
 def fitness_calibration(study: Study, runs: Any) -> Any:
     """Per candidate: the permutation test of "the numerics change nothing" over relabellings of
     the candidate's and its reference's runs (within each seed's pair when both ran the same
@@ -1264,18 +1274,14 @@ def fitness_calibration(study: Study, runs: Any) -> Any:
     metrics = (study.fitness or {})["metrics"]
     rows = []
     for cand, ref_runs, cand_runs in _fitness_pairs(study, runs):
-        # The rows fitness_table judges that have results (a metric a run lacks is NaN and
-        # left out by the rule).
-        ref_ok = ref_runs[ref_runs[metrics].notna().any(axis=1)]
-        cand_ok = cand_runs[cand_runs[metrics].notna().any(axis=1)]
+        ref_ok, cand_ok = _with_results(ref_runs, metrics), _with_results(cand_runs, metrics)
         label = _point_label(cand, study.fitness["key"])
         if len(ref_ok) < trends.MIN_SEEDS or len(cand_ok) < trends.MIN_SEEDS:
             rows.append({"candidate": label, "n_ref": len(ref_ok), "n": len(cand_ok)})
             continue
         null = trends.fitness_permutation(
             ref_ok[metrics].to_numpy(dtype=float), cand_ok[metrics].to_numpy(dtype=float),
-            ref_seeds=[int(x) for x in ref_ok["seed"]] if "seed" in ref_ok else None,
-            cand_seeds=[int(x) for x in cand_ok["seed"]] if "seed" in cand_ok else None)
+            ref_seeds=_seeds(ref_ok), cand_seeds=_seeds(cand_ok))
         row = {"candidate": label, "n_ref": len(ref_ok), "n": len(cand_ok),
                "paired": null.paired, "relabellings": null.splits, "exact": null.exact,
                "p_value": null.p_value, "smallest_p": null.smallest_p,
@@ -1322,8 +1328,9 @@ def fitness_paired(study: Study, runs: Any) -> Any:
     reference within each seed's pair, its order-statistic interval with its exact coverage,
     how many pairs went up and down, and `found_80`: the shift of this metric alone that the
     calibrated test finds 80 % of the time with these pairs, from the differences' measured SD
-    (activefoam.power.paired_detectable_shift; inf where the pairs cannot reach p < 0.05).
-    Candidates with fewer than MIN_SEEDS such pairs are left out."""
+    (activefoam.power.paired_detectable_shift; inf where the pairs cannot reach p < 0.05; NaN
+    where the calibrated test did not relabel within seed pairs because the two sides' seeds
+    differ). Candidates with fewer than MIN_SEEDS such pairs are left out."""
     import pandas as pd
 
     from activefoam import power
@@ -1333,16 +1340,19 @@ def fitness_paired(study: Study, runs: Any) -> Any:
         if "seed" not in ref_runs or "seed" not in cand_runs:
             continue
         rs, cs = [int(x) for x in ref_runs["seed"]], [int(x) for x in cand_runs["seed"]]
+        calibrated_in_pairs = trends.is_paired(_seeds(_with_results(ref_runs, f["metrics"])),
+                                               _seeds(_with_results(cand_runs, f["metrics"])))
         for m in f["metrics"]:
             d = trends.paired_difference(ref_runs[m], cand_runs[m], rs, cs)
             if d.n < trends.MIN_SEEDS:
                 continue
-            k = power.paired_detectable_shift(d.n, len(f["metrics"]))
+            k = (power.paired_detectable_shift(d.n, len(f["metrics"])) if calibrated_in_pairs
+                 else math.nan)
             rows.append({"candidate": _point_label(cand, f["key"]), "metric": m,
                          "pairs": d.n, "paired_diff": d.diff, "paired_lo": d.lo,
                          "paired_hi": d.hi, "coverage": d.coverage, "higher": d.higher,
                          "lower": d.lower, "sd_diff": d.sd,
-                         "found_80": k * d.sd if math.isfinite(k) else math.inf})
+                         "found_80": k * d.sd if math.isfinite(k) else k})
     return pd.DataFrame(rows, columns=["candidate", "metric", "pairs", "paired_diff", "paired_lo",
                                        "paired_hi", "coverage", "higher", "lower", "sd_diff",
                                        "found_80"])
@@ -1359,10 +1369,13 @@ with 3 pairs, 94 % with 5), where a bootstrap would claim 95 % for the same rang
 that excludes 0 on one metric is not the calibrated verdict (eight metrics are read at once;
 the min-p line above corrects for that); it says how large and how regular the effect is.
 `found_80` is what the calibrated reading could have missed: the shift of that metric alone
-(on top of the others' measured scatter) that its test finds 80 % of the time with these pairs —
-1.5 SDs of the differences with 10 pairs and eight metrics (normal, independent differences;
+(the others unshifted) that its test finds 80 % of the time with these pairs — 1.5 SDs of the
+differences with 10 pairs and eight metrics (modelled as normal and independent;
 `activefoam.power.paired_detectable_shift`), `inf` where the pairs cannot reach p < 0.05 at all
-(5 pairs or fewer). A "no difference found" rules out shifts of about that size, not smaller ones.
+(with eight metrics, 8 pairs or fewer: each metric's extreme labelling ties at the least p, so
+the least p is about 2·8/2ⁿ), empty where the two sides' seeds differ and the test split the
+runs freely. Its SD comes from the same few pairs (±25 % with 10, more with fewer): a "no
+difference found" rules out shifts of about that size, not smaller ones.
 """
 
 

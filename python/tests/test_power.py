@@ -96,12 +96,17 @@ def test_pair_divergence_follows_a_seeds_two_runs_apart():
     rows.append({"seed": 6, "numerics.dt_s": 0.25, "job_id": "j-alone", "state": "succeeded"})
     samples.append({"job_id": "j-alone", "t_s": 0, "theta_deg": 90.0})
     out = pw.pair_divergence(pd.DataFrame(rows), pd.DataFrame(samples), ["numerics.dt_s"],
-                             [1800, 3700, 7000])
+                             [1800, 3700, 7100])
     assert [r["seeds"] for r in out] == [5, 5, 5]        # seed 6 ran one arm only
     assert out[0]["corr"] == pytest.approx(1.0) and out[0]["median_abs_diff"] == 0
     assert out[1]["corr"] == pytest.approx(1.0)          # the nearest sample to 3700 s is 3600
     assert out[2]["corr"] == pytest.approx(np.corrcoef([1, 2, 3, 4, 5], [5, 3, 1, 2, 4])[0, 1])
     assert out[2]["median_abs_diff"] == pytest.approx(4.0)   # |2 (s − later[s])|: 8 2 4 4 2
     assert out[0]["sd_seeds"] == pytest.approx(2 * np.std([1, 2, 3, 4, 5], ddof=1))
+    # A run whose samples end before a time has no value there: its seed is left out.
+    cut = pd.DataFrame(samples)
+    cut = cut[~((cut["job_id"] == "j-0.5-1") & (cut["t_s"] > 3600))]
+    late = pw.pair_divergence(pd.DataFrame(rows), cut, ["numerics.dt_s"], [3600, 7200])
+    assert [r["seeds"] for r in late] == [5, 4]
     with pytest.raises(ValueError):
         pw.pair_divergence(pd.DataFrame(rows[:2]), pd.DataFrame(samples), ["seed"], [0])

@@ -786,3 +786,48 @@ def test_carried_runs_whose_settings_changed_or_of_another_study_are_not_taken(t
     r = _run(["report", str(study.path), "--from-data", str(tmp_path / "earlier"),
               "--with-data", str(tmp_path / "earlier")])
     assert r.returncode == 2 and "--with-data: not with --from-data" in r.stderr
+
+
+def test_found_80_scales_the_pairs_sd_and_is_left_out_when_the_test_did_not_pair(tmp_path,
+                                                                                monkeypatch):
+    from activefoam import power
+    from activefoam import study as st
+    f = tmp_path / "pairs.toml"
+    f.write_text(textwrap.dedent("""\
+        [study]
+        name = "pairs"
+        seeds = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]
+        [spec]
+        scene = "fusion"
+        [[grid]]
+        "numerics.dt_s" = [0.25, 0.5]
+        [fitness]
+        key = "numerics.dt_s"
+        reference = 0.25
+        metrics = ["theta_end_deg", "tau_f_s"]
+        """))
+    study = st.load(f)
+    shifts = [0.5, -0.5, 1.0, -1.0, 0.0, 2.0, -2.0, 0.25, -0.25, 0.0]   # SD known exactly
+    rows = []
+    for seed in range(1, 11):
+        for dt in (0.25, 0.5):
+            rows.append({"numerics.dt_s": dt, "seed": seed, "theta_end_deg":
+                         90 + seed + (shifts[seed - 1] if dt == 0.5 else 0.0),
+                         "tau_f_s": 2000.0 + 10 * seed})
+    calls = []
+    monkeypatch.setattr(power, "paired_detectable_shift",
+                        lambda n, metrics: calls.append((n, metrics)) or 1.5)
+    runs = pd.DataFrame(rows)
+    t = st.fitness_paired(study, runs).set_index("metric")
+    sd = float(np.std(shifts, ddof=1))
+    assert t.loc["theta_end_deg", "pairs"] == 10 and calls[0] == (10, 2)
+    assert t.loc["theta_end_deg", "sd_diff"] == pytest.approx(sd)
+    assert t.loc["theta_end_deg", "found_80"] == pytest.approx(1.5 * sd)
+    assert t.loc["tau_f_s", "found_80"] == pytest.approx(0.0)
+    # Seed 10's candidate has no results: the calibrated test splits the runs freely (9 against
+    # 10 seeds), so no paired shift is claimed for it, though the 9 pairs are still shown.
+    runs.loc[(runs["seed"] == 10) & (runs["numerics.dt_s"] == 0.5),
+             ["theta_end_deg", "tau_f_s"]] = math.nan
+    t = st.fitness_paired(study, runs).set_index("metric")
+    assert t.loc["theta_end_deg", "pairs"] == 9
+    assert math.isnan(t.loc["theta_end_deg", "found_80"])

@@ -98,6 +98,16 @@ def _min_p_by_hand(labellings):
     return sum(p <= ps[0] + 1e-12 for p in ps) / n
 
 
+def _smallest_p_by_hand(labellings):
+    """The least p-value any labelling of these runs could have: the share of labellings whose
+    smallest per-metric p is the least of all (each metric's own extreme and its mirror tie)."""
+    m = labellings[0][0].shape[1]
+    diffs = [[abs(b[:, j].mean() - a[:, j].mean()) for j in range(m)] for a, b in labellings]
+    n = len(diffs)
+    ps = [min(sum(d2[j] >= d[j] - 1e-9 for d2 in diffs) / n for j in range(m)) for d in diffs]
+    return sum(p <= min(ps) + 1e-12 for p in ps) / n
+
+
 def test_the_permutation_p_value_is_counted_by_hand_for_free_splits_and_seed_pairs():
     import itertools
     rng = np.random.default_rng(3)
@@ -123,10 +133,22 @@ def test_the_permutation_p_value_is_counted_by_hand_for_free_splits_and_seed_pai
              for f in itertools.product([False, True], repeat=5)]
     assert paired.paired and paired.splits == 32 and paired.exact
     assert paired.p_value == pytest.approx(_min_p_by_hand(flips))
-    # Five pairs cannot show a difference at 5 %: the smallest p is 2 / 2^5.
+    # Five pairs cannot show a difference at 5 %: a metric's smallest p is 2 / 2^5, and with
+    # three metrics each one's extreme labelling (and its mirror) ties there, so no labelling of
+    # these runs reads below 2 · 3 / 2^5 — the least p counted by hand.
     assert paired.p_metric[1] == pytest.approx(2 / 32) and paired.p_value >= 2 / 32
-    assert paired.smallest_p == pytest.approx(2 / 32) and null.smallest_p == pytest.approx(2 / 252)
-    assert trends.fitness_permutation(ref[:3], cand).smallest_p == pytest.approx(1 / 56)
+    assert paired.smallest_p == pytest.approx(_smallest_p_by_hand(flips))
+    assert 2 / 32 < paired.smallest_p <= 6 / 32
+    assert null.smallest_p == pytest.approx(_smallest_p_by_hand(splits))
+    assert null.p_value >= null.smallest_p
+    three = trends.fitness_permutation(ref[:3], cand)
+    pooled3 = np.vstack([ref[:3], cand])
+    splits3 = [(pooled3[list(c)], pooled3[[i for i in range(8) if i not in c]])
+               for c in itertools.combinations(range(8), 3)]
+    assert three.smallest_p == pytest.approx(_smallest_p_by_hand(splits3))
+    assert 1 / 56 <= three.smallest_p <= 3 / 56     # unequal sides: no mirror
+    one = trends.fitness_permutation(ref[:, :1], cand[:, :1], [1, 2, 3, 4, 5], [1, 2, 3, 4, 5])
+    assert one.smallest_p == pytest.approx(2 / 32)  # one metric: its extreme and its mirror
     # Ten pairs can: 1024 relabellings.
     big_ref, big_cand = rng.normal(0, 1, (10, 3)), rng.normal(0, 1, (10, 3))
     big_cand[:, 0] += 100.0
