@@ -173,7 +173,7 @@ def fitness_rule_table(seeds: Sequence[int] = (3, 5, 10, 20, 30),
               "moved in the last column)", "",
               "| runs a side | relabelled | seed-to-seed correlation of paired runs | " +
               " | ".join(f"k = {k:g}" for k in (0.0,) + tuple(shifts)) +
-              f" | all moved, k = 2 |", "|---|---|---|" + "---|" * (len(shifts) + 2)]
+              " | all moved, k = 2 |", "|---|---|---|" + "---|" * (len(shifts) + 2)]
     for n, paired, rho in cases:
         cells = [calibrated_power(n, k, metrics, 1, trials, paired=paired, rho=rho)
                  for k in (0.0,) + tuple(shifts)]
@@ -285,8 +285,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         lines = [f"The two runs of a seed under the two settings of {', '.join(keys)}: "
                  f"{study.name} (`python3 -m activefoam.power {args.study} --data {args.data} "
                  f"--pairs {args.pairs} --out FILE`)", "",
-                 "| t (h) | seeds | correlation of θ across seeds | median \\|θ₁ − θ₂\\| within "
-                 "a seed (°) | SD of θ across seeds (°) |", "|---|---|---|---|---|"]
+                 "| t (h) | seeds | correlation of θ across seeds | median \\|θ₁ − θ₂\\| "
+                 "within a seed (°) | SD of θ across seeds (°) |", "|---|---|---|---|---|"]
         for r in rows:
             lines.append(f"| {r['t_s'] / 3600:.2g} | {r['seeds']} | {r['corr']:.2f} | "
                          f"{r['median_abs_diff']:.2f} | {r['sd_seeds']:.2f} |")
