@@ -8,7 +8,8 @@ a four-panel figure and a summary, fetched from foamd.
 --same-as checks that the job's samples equal those of JOB2, another job in the same foamd
 store, wherever both have them, wall time aside: a run of the same spec and seed for a shorter
 duration must be the same bits. (A study's committed samples keep 16 digits, not every bit.)
-Writes job.txt, results.txt, samples.csv, msrd.csv, fusion.png and summary.md into OUT_DIR.
+Writes job.txt, spec.json (the resolved spec: `foam-run spec.json --out DIR` runs it again),
+results.txt, samples.csv, msrd.csv, fusion.png and summary.md into OUT_DIR.
 """
 import argparse
 import json
@@ -68,6 +69,7 @@ def main() -> int:
              f"{num['triangles_per_cell']} triangles, {num['preconditioner']}",
              f"outcome:   {info.outcome}", f"tag:       {info.tag}"]
     (out / "job.txt").write_text("\n".join(lines) + "\n")
+    (out / "spec.json").write_text(json.dumps(spec, indent=2, sort_keys=True) + "\n")
     (out / "results.txt").write_text(
         "".join(f"{k:26s} {v:.6g}\n" for k, v in sorted(res.items())))
     s.to_csv(out / "samples.csv", index=False)
@@ -164,7 +166,7 @@ def main() -> int:
                    and n else f"differ at t = {diff[0]:.0f} s in {diff[1]} ({diff[2]!r} against "
                    f"{diff[3]!r}), after {n} common samples." if diff else "no common samples.")]
     (out / "summary.md").write_text("\n".join(md) + "\n")
-    for f in ("job.txt", "results.txt", "samples.csv", "msrd.csv", "fusion.png", "summary.md"):
+    for f in ("job.txt", "spec.json", "results.txt", "samples.csv", "msrd.csv", "fusion.png", "summary.md"):
         print(out / f)
     return 0
 
