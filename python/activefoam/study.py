@@ -383,6 +383,7 @@ def _spec_value(spec: Dict[str, Any], key: str) -> Any:
 # sweeps the key could never find its reference runs among the older jobs).
 KEYS_ADDED_LATER = {"numerics.contact_max_facing_deg": 90.0,
                     "numerics.contact_max_overlap_um": 0.0,
+                    "numerics.contact_within_prisms": False,
                     "numerics.remesh_on_surface": False}
 
 

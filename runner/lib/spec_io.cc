@@ -638,7 +638,8 @@ std::vector<SpecError> checkSceneKeys(const SceneSpec& spec, const std::vector<s
       {"numerics.max_penetration_um", "numerics.max_penetration_um", contacts},
       {"numerics.max_oscillating_steps", "numerics.max_oscillating_steps", contacts},
       {"numerics.contact_max_facing_deg", "numerics.contact_max_facing_deg", contacts},
-      {"numerics.contact_max_overlap_um", "numerics.contact_max_overlap_um", contacts}};
+      {"numerics.contact_max_overlap_um", "numerics.contact_max_overlap_um", contacts},
+      {"numerics.contact_within_prisms", "numerics.contact_within_prisms", contacts}};
   std::vector<SpecError> errors;
   std::vector<std::string_view> seen;
   for (const std::string& key : keys)

@@ -135,6 +135,14 @@ std::array<double, 3> bary2(const std::array<Vec2, 3>& p, const Vec2& y) {
   return {l0, l1, 1 - l0 - l1};
 }
 
+// Whether p lies over triangle t: its projection along t's normal falls inside t.
+bool over(const Tri3& t, const Vec3& p) {
+  const Vec3 n = triNormal(t);
+  for (int i = 0; i < 3; ++i)
+    if (n.dot((t[(i + 1) % 3] - t[i]).cross(p - t[i])) < 0) return false;
+  return true;
+}
+
 GridReference gridIntegrate(const Tri3& a, const Tri3& b, const ContactLaw& law, int n_grid) {
   const Vec3 na = triNormal(a), nb = triNormal(b);
   const Vec3 n = (na - nb).normalized();
@@ -165,6 +173,8 @@ GridReference gridIntegrate(const Tri3& a, const Tri3& b, const ContactLaw& law,
       const double sA = na.dot(a[0] - X) / na.dot(n), sB = nb.dot(b[0] - X) / nb.dot(n);
       const double g = sB - sA;
       if (!(g < law.h0)) continue;
+      // ContactLaw::within_prisms: B's point over A and A's point over B.
+      if (law.within_prisms && !(over(a, X + sB * n) && over(b, X + sA * n))) continue;
       r.g_min = std::min(r.g_min, g);
       // P = k max(g, −c) with c = law.max_overlap > 0 (the energy density's linear continuation
       // below −c), else k g.
@@ -824,6 +834,122 @@ TEST(ContactNarrowPhase, ASaturatedPressureMatchesTheGridAndItsEnergy) {
   EXPECT_GT(kept, 20);
   EXPECT_GT(fd, 20);
   EXPECT_GT(gridded, 30);
+}
+
+// numerics.contact_within_prisms: a pair's polygon keeps only the points where B's point lies
+// over A and A's over B. The pair that started the runaway of step fitness's seed 8 at Δt 0.5 s
+// (cells 20 and 27 at t = 4 099.5 s; docs/science/motion-convergence.md): two triangles 0.19 µm
+// apart at n̂_A·n̂_B = −0.13 whose planes cross beside them read a mean gap of −1.85 µm over
+// 0.445 µm² along the bisector (58.6 nN); over each other they are nowhere within h0.
+TEST(ContactNarrowPhase, WithinPrismsTheObliquePairThatBlewUpSeed8IsApart) {
+  const Tri3 a{Vec3(-0.71473498413431003, -0.90190029979868758, 1.2308333131784792),
+               Vec3(1.117319105989651, -0.22447818566602784, -1.1349120439527667),
+               Vec3(-0.3532954872741243, 1.1220257897960906, -0.10711276345514165)};
+  const Tri3 b{Vec3(-0.83649036103684438, -0.78063818627418424, 1.0147309210419841),
+               Vec3(-3.8407429793389305, 1.1726991761196892, 0.070249998023594884),
+               Vec3(-5.351770333574084, -0.7304665235113772, -2.7170223808851084)};
+  ContactLaw law;
+  law.k = 71.1;
+  law.h0 = 0.0632;
+  EXPECT_NEAR(triNormal(a).dot(triNormal(b)), -0.127, 1e-3);
+  const TriangleContact plain = computeTriangleContact(a, b, law, ContactQuadrature::Exact);
+  ASSERT_TRUE(plain.active);
+  EXPECT_NEAR(plain.mean_gap, -1.854, 1e-3);
+  EXPECT_NEAR(plain.area, 0.4449, 1e-3);
+  ContactLaw prisms = law;
+  prisms.within_prisms = true;
+  for (ContactQuadrature q : kAllQuadratures) {
+    const TriangleContact c = computeTriangleContact(a, b, prisms, q);
+    EXPECT_FALSE(c.active);
+    EXPECT_EQ(c.force, Vec3::Zero());
+  }
+  // The grid agrees: no sample of the plain polygon has both points over the other triangle.
+  EXPECT_GT(gridIntegrate(a, b, law, 400).area, 0.4);
+  EXPECT_EQ(gridIntegrate(a, b, prisms, 400).area, 0);
+}
+
+// Within prisms, random facing pairs up to 70° from antiparallel match the brute-force grid
+// (area, ∫P, nodal weights, energy); between exactly antiparallel triangles the prisms' sides are
+// the projected edges, and the polygon is the plain law's (to roundoff).
+TEST(ContactNarrowPhase, WithinPrismsMatchesTheGridAndKeepsParallelPairs) {
+  ContactLaw plain;
+  ContactLaw prisms;
+  prisms.within_prisms = true;
+  std::mt19937 rng(11);
+  int gridded = 0, clipped = 0, parallel = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    const Pair pr = randomFacingPair(rng, -0.4, 0.05, 1.2);
+    const TriangleContact p = computeTriangleContact(pr.a, pr.b, plain, ContactQuadrature::Exact);
+    const TriangleContact c = computeTriangleContact(pr.a, pr.b, prisms, ContactQuadrature::Exact);
+    ASSERT_TRUE(allFinite(c));
+    if (!p.active) {
+      EXPECT_FALSE(c.active) << trial;  // the prisms only take away
+      continue;
+    }
+    if (c.active) {
+      EXPECT_LE(c.area, p.area * (1 + 1e-12)) << trial;
+    }
+    if (c.area < p.area * (1 - 1e-6)) ++clipped;
+    if (!(c.active && c.area > 0.02)) continue;
+    ++gridded;
+    const GridReference r = gridIntegrate(pr.a, pr.b, prisms, 500);
+    const double scale = prisms.k * c.area * 0.4;
+    EXPECT_NEAR(c.area, r.area, 2e-2 * c.area) << trial;
+    EXPECT_NEAR(c.force.dot(c.normal), r.int_p, 1e-2 * scale) << trial;
+    EXPECT_NEAR(c.energy, r.energy, 1e-2 * scale * 0.4) << trial;
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_NEAR(c.force_weight_a[i], r.wa[i], 1e-2 * scale) << trial;
+      EXPECT_NEAR(c.force_weight_b[i], r.wb[i], 1e-2 * scale) << trial;
+    }
+  }
+  EXPECT_GT(gridded, 60);
+  EXPECT_GT(clipped, 30);
+  for (int trial = 0; trial < 200; ++trial) {
+    const Pair pr = randomFacingPair(rng, -0.3, 0.05, 0.0);
+    for (ContactQuadrature q : kAllQuadratures) {
+      ContactMoments mp, mc;
+      const TriangleContact p = computeTriangleContact(pr.a, pr.b, plain, q, &mp);
+      const TriangleContact c = computeTriangleContact(pr.a, pr.b, prisms, q, &mc);
+      ASSERT_EQ(c.active, p.active) << trial;
+      if (!p.active || p.area < 1e-6) continue;
+      ++parallel;
+      const double fs = plain.k * p.area * 0.3 + 1e-12;
+      EXPECT_NEAR(c.area, p.area, 1e-9 * p.area) << trial;
+      EXPECT_NEAR(c.mean_gap, p.mean_gap, 1e-9) << trial;
+      EXPECT_NEAR(c.force.dot(p.normal), p.force.dot(p.normal), 1e-9 * fs) << trial;
+      for (int i = 0; i < 3; ++i) {
+        EXPECT_NEAR(c.force_weight_a[i], p.force_weight_a[i], 1e-9 * fs) << trial;
+        EXPECT_NEAR(c.force_weight_b[i], p.force_weight_b[i], 1e-9 * fs) << trial;
+      }
+      // The centroid rule's moments depend on the polygon's fan (not exact for λλ).
+      if (q != ContactQuadrature::Centroid) {
+        for (int i = 0; i < 9; ++i) EXPECT_NEAR(mc.ab[i], mp.ab[i], 1e-9 * p.area) << trial;
+      }
+    }
+  }
+  EXPECT_GT(parallel, 150);
+}
+
+// A corner of one cell pressed 0.2 µm into the face of another, its triangle 50° from
+// antiparallel: where the corner is under the face both points lie over the other triangle, so
+// the prisms keep a repulsive contact there.
+TEST(ContactNarrowPhase, WithinPrismsACornerPressedIntoAFaceStillRepels) {
+  const Tri3 a{Vec3(-2, -2, 0), Vec3(2, -2, 0), Vec3(0, 2, 0)};  // n̂_A = +z
+  Tri3 b{Vec3(0, 0, -0.2), Vec3(1, -0.6, 1), Vec3(1, 0.6, 1)};
+  if (triNormal(b).z() > 0) std::swap(b[1], b[2]);
+  ASSERT_LT(triNormal(a).dot(triNormal(b)), -0.5);
+  ContactLaw prisms;
+  prisms.within_prisms = true;
+  const TriangleContact plain =
+      computeTriangleContact(a, b, ContactLaw{}, ContactQuadrature::Exact);
+  const TriangleContact c = computeTriangleContact(a, b, prisms, ContactQuadrature::Exact);
+  ASSERT_TRUE(plain.active);
+  ASSERT_TRUE(c.active);
+  EXPECT_LT(c.mean_gap, 0);
+  EXPECT_LT(c.force.dot(c.normal), 0);  // P = k g < 0 over the polygon: the cells pushed apart
+  const GridReference r = gridIntegrate(a, b, prisms, 1000);
+  EXPECT_NEAR(c.area, r.area, 2e-2 * c.area);
+  EXPECT_NEAR(c.force.dot(c.normal), r.int_p, 2e-2 * std::abs(r.int_p));
 }
 
 // numerics.contact_max_facing_deg: the law's facing bound drops the pairs whose normals are

@@ -691,6 +691,23 @@ TEST(SpecFields, TheContactOverlapBoundStartsAtTheAdhesionRangeAndKeepsEarlierFi
   EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
 }
 
+// numerics.contact_within_prisms (the contact polygon kept where the triangles overlie each
+// other): false by default and then left out of the fingerprint (checkpoints and prepared
+// spheroids of earlier versions stay valid); true runs differently and names it.
+TEST(SpecFields, TheContactPrismsAreOffByDefaultAndKeepEarlierFingerprints) {
+  SceneSpec s = resolve(SceneSpec{});
+  EXPECT_FALSE(s.numerics.contact_within_prisms);
+  const std::string before = specFingerprint(s);
+  EXPECT_EQ(before.find("contact_within_prisms"), std::string::npos);
+  ASSERT_EQ(setField(s, "numerics.contact_within_prisms", true), std::nullopt);
+  EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+  EXPECT_NE(specFingerprint(s).find("numerics.contact_within_prisms=1;"), std::string::npos)
+      << specFingerprint(s);
+  const auto error = setField(s, "numerics.contact_within_prisms", 2.0);
+  ASSERT_TRUE(error.has_value());
+  EXPECT_NE(error->message.find("true or false"), std::string::npos) << error->message;
+}
+
 }  // namespace
 }  // namespace activefoam
 

@@ -156,7 +156,8 @@ TEST(SpecConvert, ContactAndMotilityKeysOnASingleCellAreRefused) {
         "cells.xi_tangential=0.1", "cells.p_a=0", "cells.tau_p_s=60", "cells.pa_reduced=0.5",
         "cells.l_eta_reduced=1", "numerics.contact_quadrature=centroid",
         "numerics.max_penetration_um=0.5", "numerics.max_oscillating_steps=5",
-        "numerics.contact_max_facing_deg=60", "numerics.contact_max_overlap_um=0.3"}) {
+        "numerics.contact_max_facing_deg=60", "numerics.contact_max_overlap_um=0.3",
+        "numerics.contact_within_prisms=true"}) {
     const std::string key = std::string(set).substr(0, std::string(set).find('='));
     ConvertResult r = convertSpec(v1::SceneSpec{}, "", {"scene=cell", set});
     ASSERT_FALSE(r.ok()) << set;

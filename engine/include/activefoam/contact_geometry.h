@@ -26,6 +26,11 @@ struct ContactLaw {
   double facing_dot = 0;
   // The pressure is k max(g, −max_overlap) (numerics.contact_max_overlap_um); 0: k g.
   double max_overlap = 0;
+  // The contact polygon keeps only the points y whose point on B lies over A (inside A's prism
+  // along n̂_A) and whose point on A lies over B (numerics.contact_within_prisms): a nearly
+  // perpendicular pair whose planes cross beside its triangles reads micrometres of "overlap"
+  // along the bisector where neither triangle is over the other.
+  bool within_prisms = false;
 };
 
 // ∫ λ^A_i λ^B_k dS, ∫ λ^A_i λ^A_j dS, ∫ λ^B_k λ^B_l dS (row-major 3 × 3) over a pair's contact

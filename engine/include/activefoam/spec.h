@@ -90,6 +90,13 @@ struct NumericsParams {
   // bisector; saturating the pressure there keeps the rims that a facing bound drops
   // (docs/science/motion-convergence.md). Not applied in the spheroids' preparation.
   double contact_max_overlap_um = 0;
+  // A pair's contact keeps only the part of its polygon where each triangle's point lies over
+  // the other triangle (inside its prism along its normal). false: the whole polygon of the
+  // projections onto the bisector plane (DESIGN.md's term 6, the supplement's law), where a
+  // nearly perpendicular pair whose planes cross beside the triangles reads an overlap of
+  // micrometres between triangles that are apart (docs/numerics.md). Not applied in the
+  // spheroids' preparation.
+  bool contact_within_prisms = false;
   // Adaptive time step (time_stepper.h): a step that fails one of the checks above is
   // undone and retried at half the length, down to dt_min_s (default Δt/64); after a run of good
   // steps Δt grows back. false: the first failed step ends the run (the studies measure that).

@@ -29,9 +29,11 @@ inline double cross2(const Vec2& u, const Vec2& v) {
   return u.x() * v.y() - u.y() * v.x();
 }
 
-// Convex polygon with at most 3 + 3 + 1 vertices (triangle clipped by 3 edges and one line). One
-// more slot than the cap: a clip may write a vertex and a crossing before it checks the cap.
-constexpr int kMaxPolygon = 8;
+// Convex polygon with at most 3 + 13 vertices (a triangle clipped by the other's 3 edges, the
+// law's range and, with ContactLaw::within_prisms, both triangles' 3 prism sides; each clip of
+// a convex polygon adds at most one vertex). One more slot than the cap: a clip may write a
+// vertex and a crossing before it checks the cap.
+constexpr int kMaxPolygon = 16;
 struct Polygon {
   std::array<Vec2, kMaxPolygon + 1> v;
   int n = 0;
@@ -338,7 +340,27 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
   }
   // ... and by the range of the law, g < h0.
   clipHalfPlane(buf[cur], buf[cur ^ 1], [&](const Vec2& y) { return law.h0 - gap(y); });
-  const Polygon& poly = buf[cur ^ 1];
+  cur ^= 1;
+  if (law.within_prisms) {
+    // ... and to where B's point p_B(y) = o + y + s_B(y) n lies over A — inside A's prism along
+    // n̂_A: m·(p_B(y) − a_i) ≥ 0 for the inward edge normals m = n̂_A × (a_{i+1} − a_i) (n̂_A·(e ×
+    // w) = (n̂_A × e)·w, so the component of p_B along n̂_A drops out) — and A's point over B.
+    // Each is affine in y. Where n̂_B = −n̂_A the lines are A's and B's own projected edges: a
+    // pair of parallel triangles keeps its polygon.
+    auto overlie = [&](const std::array<Vec3, 3>& t, const Vec3& nt, double s0,
+                       const Vec2& s_grad) {
+      for (int i = 0; i < 3 && buf[cur].n > 0; ++i, cur ^= 1) {
+        const Vec3 m = nt.cross(t[i == 2 ? 0 : i + 1] - t[i]);
+        const double mn = m.dot(n);
+        const double c0 = m.dot(o - t[i]) + s0 * mn;
+        const Vec2 c(m.dot(e1) + s_grad.x() * mn, m.dot(e2) + s_grad.y() * mn);
+        clipHalfPlane(buf[cur], buf[cur ^ 1], [&](const Vec2& y) { return c0 + c.dot(y); });
+      }
+    };
+    overlie(a, na, sb0, sb_grad);
+    overlie(b, nb, sa0, sa_grad);
+  }
+  const Polygon& poly = buf[cur];
   if (poly.n < 3) return out;
 
   double poly_area = 0;

@@ -94,6 +94,8 @@ std::string specFingerprint(const SceneSpec& spec) {
     // Added later; at 0 the pressure grows without bound, as in earlier versions.
     if (f.key == "numerics.contact_max_overlap_um" && spec.numerics.contact_max_overlap_um == 0)
       continue;
+    // Added later; false is the law of earlier versions.
+    if (f.key == "numerics.contact_within_prisms" && !spec.numerics.contact_within_prisms) continue;
     os << f.key << '=';
     if (const auto v = getField(spec, f.key)) std::visit([&](const auto& x) { os << x; }, *v);
     os << ';';

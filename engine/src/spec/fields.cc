@@ -189,6 +189,11 @@ const std::vector<Entry>& entries() {
                       "overlap of two triangles beyond which the contact pressure stops "
                       "growing (at least the adhesion range h0); 0: it grows without bound"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.contact_max_overlap_um; }});
+    t.push_back({boolean("numerics.contact_within_prisms",
+                         "a pair's contact keeps only the points where each triangle lies over "
+                         "the other (inside its normal prism); false: the whole overlap of their "
+                         "projections on the bisector plane"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.contact_within_prisms; }});
     t.push_back({integer("numerics.max_oscillating_steps", 1, 1e6,
                          "consecutive steps of reversing contact velocities (explicit-scheme "
                          "instability) that stop the run as failed"),
