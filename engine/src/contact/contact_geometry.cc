@@ -31,9 +31,9 @@ inline double cross2(const Vec2& u, const Vec2& v) {
 
 // Convex polygon with at most 3 + 13 vertices (a triangle clipped by the other's 3 edges, the
 // law's range and, with ContactLaw::within_prisms, both triangles' 3 prism sides; each clip of
-// a convex polygon adds at most one vertex). One more slot than the cap: a clip may write a
-// vertex and a crossing before it checks the cap.
-constexpr int kMaxPolygon = 16;
+// a convex polygon adds at most one vertex), and one to spare. One more slot than the cap: a
+// clip may write a vertex and a crossing before it checks the cap.
+constexpr int kMaxPolygon = 17;
 struct Polygon {
   std::array<Vec2, kMaxPolygon + 1> v;
   int n = 0;
@@ -48,7 +48,7 @@ struct Polygon {
 template <class F>
 void clipHalfPlane(const Polygon& in, Polygon& out, F&& dist) {
   const int n = in.n;
-  std::array<double, kMaxPolygon> d;
+  std::array<double, kMaxPolygon + 1> d;  // in.n ≤ kMaxPolygon + 1 (the slot above)
   for (int i = 0; i < n; ++i) d[i] = dist(in.v[i]);
   int m = 0;
   for (int i = 0; i < n; ++i) {
