@@ -136,10 +136,8 @@ SceneSpec spheroidPrepSpec(const SceneSpec& spec, std::int64_t n_cells, std::uin
   p.numerics.max_penetration_um = d.max_penetration_um;
   p.numerics.max_oscillating_steps = d.max_oscillating_steps;
   p.numerics.adaptive = d.adaptive;
-  // The contact law's experimental bounds are the run's, not the aggregates': without these
-  // lines a run with a bound started from spheroids prepared under it (so not the same initial
-  // condition as its reference run; the docs have said "not applied in the preparation" since
-  // the keys came in, 2026-11-26).
+  // The contact law's experimental bounds belong to the run, not to the aggregates: a run with
+  // a bound starts from its reference run's prepared spheroids, so the two are seed pairs.
   p.numerics.contact_max_facing_deg = d.contact_max_facing_deg;
   p.numerics.contact_max_overlap_um = d.contact_max_overlap_um;
   p.numerics.contact_within_prisms = d.contact_within_prisms;
