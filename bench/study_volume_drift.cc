@@ -32,21 +32,13 @@
 #include "activefoam/run.h"
 #include "activefoam/simulation.h"
 #include "activefoam/spec_io.h"
+#include "activefoam/spheroid.h"
 #include "activefoam/step_loop.h"
 
 using namespace activefoam;
 namespace fs = std::filesystem;
 
 namespace {
-
-CellSet placeholder(const SceneSpec& spec) {  // as runScene's: the checkpoint replaces them
-  CellSet cells;
-  const double r = spec.cells.radius_mean_um;
-  const int tris = static_cast<int>(spec.numerics.triangles_per_cell);
-  for (std::int64_t c = 0; c < sceneCellCount(spec); ++c)
-    cells.addCell(ellipsoidCell(r, 1.0, tris, Vec3(3 * r * static_cast<double>(c), 0, 0)), r);
-  return cells;
-}
 
 double volumeError(const Simulation& sim, int c) {
   const double v0 = sim.cells().target_volume[c];
@@ -184,7 +176,7 @@ int main(int argc, char** argv) {
   }
 
   // 2. The replay from that checkpoint, every step logged.
-  Simulation sim(spec, placeholder(spec));
+  Simulation sim(spec, placeholderCells(spec));
   sim.loadState(kept.front().second);
   std::printf("replay from t = %.6g s\n", sim.time());
 

@@ -82,6 +82,10 @@ CellSet buildFusionCells(const SceneSpec& spec, const SpheroidCache* cache,
                          const PrepObserver& observer = {},
                          std::vector<PreparedSpheroid>* info = nullptr);
 
+// Cells of the right count and sizes for a fusion run that is about to load a checkpoint (the
+// checkpoint replaces them): no preparation is repeated.
+CellSet placeholderCells(const SceneSpec& spec);
+
 // Radius of gyration of the cells' volume centroids (volume-weighted), µm.
 double radiusOfGyration(const CellSet& cells, const std::vector<double>& volumes,
                         const std::vector<Vec3>& centroids);

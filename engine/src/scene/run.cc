@@ -68,17 +68,6 @@ double spheroidRadius(const CellSet& cells) {
   return 0.5 * (std::cbrt(3 * v[0] / (4 * M_PI)) + std::cbrt(3 * v[1] / (4 * M_PI)));
 }
 
-// Cells of the right count and sizes for a fusion run that is about to load a checkpoint (the
-// checkpoint replaces them): no preparation is repeated.
-CellSet placeholderCells(const SceneSpec& spec) {
-  CellSet cells;
-  const double r = spec.cells.radius_mean_um;
-  const int tris = static_cast<int>(spec.numerics.triangles_per_cell);
-  for (std::int64_t c = 0; c < sceneCellCount(spec); ++c)
-    cells.addCell(ellipsoidCell(r, 1.0, tris, Vec3(3 * r * static_cast<double>(c), 0, 0)), r);
-  return cells;
-}
-
 // The aggregate's surface contact angle and GSI = cos θ_c (spheroid and fusion samples).
 void addSurfaceAngle(const Simulation& sim, std::vector<std::pair<std::string, double>>& out) {
   const SurfaceContactAngle sca = surfaceContactAngle(sim.cells(), sim.contacts());

@@ -148,6 +148,15 @@ SceneSpec spheroidPrepSpec(const SceneSpec& spec, std::int64_t n_cells, std::uin
   return resolve(p);
 }
 
+CellSet placeholderCells(const SceneSpec& spec) {
+  CellSet cells;
+  const double r = spec.cells.radius_mean_um;
+  const int tris = static_cast<int>(spec.numerics.triangles_per_cell);
+  for (std::int64_t c = 0; c < sceneCellCount(spec); ++c)
+    cells.addCell(ellipsoidCell(r, 1.0, tris, Vec3(3 * r * static_cast<double>(c), 0, 0)), r);
+  return cells;
+}
+
 std::uint64_t spheroidSeed(std::uint64_t seed, int which) {
   Rng r(seed, 0x5350484552ULL + static_cast<std::uint64_t>(which));  // "SPHER" + which
   return r.next();
