@@ -276,16 +276,16 @@ int main(int argc, char** argv) {
   prisms.facing_dot = contactFacingDot(spec.numerics);
   prisms.max_overlap = spec.numerics.contact_max_overlap_um;
   prisms.within_prisms = true;
-  const double h0 = contactRangeH0(spec.cells);
   auto scanStep = [&](const StepReport& r) {
     const CellSet& c = sim.cells();
-    const double k = spec.cells.k_contact;
     int deep = 0, apart = 0;
     double area[3] = {0, 0, 0}, kept[3] = {0, 0, 0};
     // A deep pair is "false" when, over each other (within prisms), its triangles are not
     // 0.3 µm into each other: its depth was read beside them.
     int deep_false = 0;
     double false_force = 0, false_max = 0;
+    double worst_gap = 0, worst_area = 0, worst_dot = 0, worst_dist = 0, worst_force = 0,
+           apart_force = 0;
     for (const ContactPair& p : sim.contacts().pairs) {
       const std::array<Vec3, 3> a{c.x.col(c.tri[p.ta][0]), c.x.col(c.tri[p.ta][1]),
                                   c.x.col(c.tri[p.ta][2])};
@@ -296,25 +296,16 @@ int main(int argc, char** argv) {
       const TriangleContact q =
           computeTriangleContact(a, b, prisms, spec.numerics.contact_quadrature);
       if (q.active) kept[cls] += q.area;
-      if (cls == 0 && !(q.active && q.mean_gap < -0.3)) {
-        const double force = spec.cells.k_contact * std::abs(p.c.mean_gap) * p.c.area;
+      if (cls != 0) continue;
+      ++deep;
+      const double force = prisms.k * std::abs(p.c.mean_gap) * p.c.area;
+      if (!(q.active && q.mean_gap < -0.3)) {
         ++deep_false;
         false_force += force;
         false_max = std::max(false_max, force);
       }
-    }
-    double worst_gap = 0, worst_area = 0, worst_dot = 0, worst_dist = 0, worst_force = 0,
-           apart_force = 0;
-    for (const ContactPair& p : sim.contacts().pairs) {
-      if (!(p.c.mean_gap < -0.3)) continue;
-      ++deep;
-      const std::array<Vec3, 3> a{c.x.col(c.tri[p.ta][0]), c.x.col(c.tri[p.ta][1]),
-                                  c.x.col(c.tri[p.ta][2])};
-      const std::array<Vec3, 3> b{c.x.col(c.tri[p.tb][0]), c.x.col(c.tri[p.tb][1]),
-                                  c.x.col(c.tri[p.tb][2])};
       const double dist = triangleDistance(a, b);
-      const double force = k * std::abs(p.c.mean_gap) * p.c.area;
-      if (dist < h0) continue;
+      if (dist < prisms.h0) continue;
       ++apart;
       apart_force += force;
       if (p.c.mean_gap < worst_gap) {
