@@ -639,7 +639,8 @@ std::vector<SpecError> checkSceneKeys(const SceneSpec& spec, const std::vector<s
       {"numerics.max_oscillating_steps", "numerics.max_oscillating_steps", contacts},
       {"numerics.contact_max_facing_deg", "numerics.contact_max_facing_deg", contacts},
       {"numerics.contact_max_overlap_um", "numerics.contact_max_overlap_um", contacts},
-      {"numerics.contact_within_prisms", "numerics.contact_within_prisms", contacts}};
+      {"numerics.contact_within_prisms", "numerics.contact_within_prisms", contacts},
+      {"numerics.contact_prisms_overlap_only", "numerics.contact_prisms_overlap_only", contacts}};
   std::vector<SpecError> errors;
   std::vector<std::string_view> seen;
   for (const std::string& key : keys)

@@ -173,8 +173,11 @@ GridReference gridIntegrate(const Tri3& a, const Tri3& b, const ContactLaw& law,
       const double sA = na.dot(a[0] - X) / na.dot(n), sB = nb.dot(b[0] - X) / nb.dot(n);
       const double g = sB - sA;
       if (!(g < law.h0)) continue;
-      // ContactLaw::within_prisms: B's point over A and A's point over B.
-      if (law.within_prisms && !(over(a, X + sB * n) && over(b, X + sA * n))) continue;
+      // ContactLaw::within_prisms: B's point over A and A's point over B (with
+      // prisms_overlap_only, only where they overlap, g < 0).
+      if (law.within_prisms && (!law.prisms_overlap_only || g < 0) &&
+          !(over(a, X + sB * n) && over(b, X + sA * n)))
+        continue;
       r.g_min = std::min(r.g_min, g);
       // P = k max(g, −c) with c = law.max_overlap > 0 (the energy density's linear continuation
       // below −c), else k g.
@@ -949,6 +952,128 @@ TEST(ContactNarrowPhase, WithinPrismsACornerPressedIntoAFaceStillRepels) {
   EXPECT_LT(c.force.dot(c.normal), 0);  // P = k g < 0 over the polygon: the cells pushed apart
   const GridReference r = gridIntegrate(a, b, prisms, 1000);
   EXPECT_NEAR(c.area, r.area, 2e-2 * c.area);
+  EXPECT_NEAR(c.force.dot(c.normal), r.int_p, 2e-2 * std::abs(r.int_p));
+}
+
+// ContactLaw::prisms_overlap_only: the prisms bound only the overlapping part (g < 0), the
+// adhesive part (0 ≤ g < h0) is kept whole. Seed 8's oblique pair keeps only its adhesive sliver
+// (no repulsion of micrometres); random pairs match the grid, whose points are kept by the same
+// rule; a pair with no overlap, or an antiparallel one, is the plain law's to roundoff; a corner
+// pressed into a face still repels.
+TEST(ContactNarrowPhase, PrismsOnTheOverlapOnlyKeepTheAdhesivePartWhole) {
+  ContactLaw plain;
+  ContactLaw all = plain;
+  all.within_prisms = true;
+  ContactLaw overlap = all;
+  overlap.prisms_overlap_only = true;
+  {
+    const Tri3 a{Vec3(-0.71473498413431003, -0.90190029979868758, 1.2308333131784792),
+                 Vec3(1.117319105989651, -0.22447818566602784, -1.1349120439527667),
+                 Vec3(-0.3532954872741243, 1.1220257897960906, -0.10711276345514165)};
+    const Tri3 b{Vec3(-0.83649036103684438, -0.78063818627418424, 1.0147309210419841),
+                 Vec3(-3.8407429793389305, 1.1726991761196892, 0.070249998023594884),
+                 Vec3(-5.351770333574084, -0.7304665235113772, -2.7170223808851084)};
+    ContactLaw law = overlap;
+    law.h0 = 0.0632;
+    for (ContactQuadrature q : kAllQuadratures) {
+      const TriangleContact c = computeTriangleContact(a, b, law, q);
+      if (c.active) {
+        EXPECT_GE(c.mean_gap, 0);
+        EXPECT_GE(c.force.dot(c.normal), 0);  // attraction only, and little of it
+        EXPECT_LT(c.area, 0.1);
+      }
+    }
+    const GridReference r = gridIntegrate(a, b, law, 400);
+    EXPECT_GE(r.g_min, 0);
+  }
+  std::mt19937 rng(13);
+  int gridded = 0, differs = 0, adhesive_kept = 0, same = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    const Pair pr = randomFacingPair(rng, -0.4, 0.05, 1.2);
+    const TriangleContact p = computeTriangleContact(pr.a, pr.b, plain, ContactQuadrature::Exact);
+    const TriangleContact c = computeTriangleContact(pr.a, pr.b, overlap, ContactQuadrature::Exact);
+    const TriangleContact w = computeTriangleContact(pr.a, pr.b, all, ContactQuadrature::Exact);
+    ASSERT_TRUE(allFinite(c));
+    if (!p.active) {
+      EXPECT_FALSE(c.active) << trial;
+      continue;
+    }
+    if (c.active) {
+      EXPECT_LE(c.area, p.area * (1 + 1e-12)) << trial;
+      EXPECT_GE(c.area, w.area * (1 - 1e-12)) << trial;  // between the plain law and all-prisms
+    }
+    if (c.area < p.area * (1 - 1e-6)) ++differs;
+    if (c.area > w.area * (1 + 1e-6)) ++adhesive_kept;
+    if (!(c.active && c.area > 0.02)) continue;
+    ++gridded;
+    const GridReference r = gridIntegrate(pr.a, pr.b, overlap, 500);
+    const double scale = overlap.k * c.area * 0.4;
+    EXPECT_NEAR(c.area, r.area, 2e-2 * c.area) << trial;
+    EXPECT_NEAR(c.force.dot(c.normal), r.int_p, 1e-2 * scale) << trial;
+    EXPECT_NEAR(c.energy, r.energy, 1e-2 * scale * 0.4) << trial;
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_NEAR(c.force_weight_a[i], r.wa[i], 1e-2 * scale) << trial;
+      EXPECT_NEAR(c.force_weight_b[i], r.wb[i], 1e-2 * scale) << trial;
+    }
+  }
+  EXPECT_GT(gridded, 60);
+  EXPECT_GT(differs, 20);
+  EXPECT_GT(adhesive_kept, 10);
+  // Without overlap (nearly antiparallel, 0.02–0.055 µm apart) the pair is the plain law's, bit
+  // for bit.
+  for (int trial = 0; trial < 100; ++trial) {
+    const Pair pr = randomFacingPair(rng, 0.02, 0.055, 0.01);
+    if (!(gridIntegrate(pr.a, pr.b, plain, 100).g_min > 0.005)) continue;
+    ContactMoments mp, mc;
+    const TriangleContact p =
+        computeTriangleContact(pr.a, pr.b, plain, ContactQuadrature::Exact, &mp);
+    const TriangleContact c =
+        computeTriangleContact(pr.a, pr.b, overlap, ContactQuadrature::Exact, &mc);
+    if (!p.active) continue;
+    ++same;
+    EXPECT_EQ(c.force, p.force) << trial;
+    EXPECT_EQ(c.area, p.area) << trial;
+    EXPECT_EQ(c.energy, p.energy) << trial;
+    EXPECT_EQ(c.force_weight_a, p.force_weight_a) << trial;
+    EXPECT_EQ(c.force_weight_b, p.force_weight_b) << trial;
+    EXPECT_EQ(mc.ab, mp.ab) << trial;
+  }
+  EXPECT_GT(same, 30);
+  // Antiparallel pairs: the moments of the two pieces add up to the plain polygon's.
+  int parallel = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    const Pair pr = randomFacingPair(rng, -0.3, 0.05, 0.0);
+    for (ContactQuadrature q : {ContactQuadrature::Exact, ContactQuadrature::Dunavant7}) {
+      ContactMoments mp, mc;
+      const TriangleContact p = computeTriangleContact(pr.a, pr.b, plain, q, &mp);
+      const TriangleContact c = computeTriangleContact(pr.a, pr.b, overlap, q, &mc);
+      ASSERT_EQ(c.active, p.active) << trial;
+      if (!p.active || p.area < 1e-6) continue;
+      ++parallel;
+      const double fs = plain.k * p.area * 0.3 + 1e-12;
+      EXPECT_NEAR(c.area, p.area, 1e-9 * p.area) << trial;
+      EXPECT_NEAR(c.mean_gap, p.mean_gap, 1e-9) << trial;
+      EXPECT_NEAR(c.energy, p.energy, 1e-9 * fs) << trial;
+      for (int i = 0; i < 3; ++i) {
+        EXPECT_NEAR(c.force_weight_a[i], p.force_weight_a[i], 1e-9 * fs) << trial;
+        EXPECT_NEAR(c.force_weight_b[i], p.force_weight_b[i], 1e-9 * fs) << trial;
+      }
+      for (int i = 0; i < 9; ++i) {
+        EXPECT_NEAR(mc.ab[i], mp.ab[i], 1e-9 * p.area) << trial;
+        EXPECT_NEAR(mc.aa[i], mp.aa[i], 1e-9 * p.area) << trial;
+        EXPECT_NEAR(mc.bb[i], mp.bb[i], 1e-9 * p.area) << trial;
+      }
+    }
+  }
+  EXPECT_GT(parallel, 150);
+  // The corner pressed 0.2 µm into a face, 50° from antiparallel: still repelled.
+  const Tri3 a{Vec3(-2, -2, 0), Vec3(2, -2, 0), Vec3(0, 2, 0)};
+  Tri3 b{Vec3(0, 0, -0.2), Vec3(1, -0.6, 1), Vec3(1, 0.6, 1)};
+  if (triNormal(b).z() > 0) std::swap(b[1], b[2]);
+  const TriangleContact c = computeTriangleContact(a, b, overlap, ContactQuadrature::Exact);
+  ASSERT_TRUE(c.active);
+  EXPECT_LT(c.force.dot(c.normal), 0);
+  const GridReference r = gridIntegrate(a, b, overlap, 1000);
   EXPECT_NEAR(c.force.dot(c.normal), r.int_p, 2e-2 * std::abs(r.int_p));
 }
 

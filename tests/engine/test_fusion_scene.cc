@@ -114,10 +114,12 @@ TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
   other.numerics.contact_max_facing_deg = 60;
   other.numerics.contact_max_overlap_um = 0.3;
   other.numerics.contact_within_prisms = true;
+  other.numerics.contact_prisms_overlap_only = true;
   EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
   EXPECT_EQ(spheroidPrepSpec(other, 3, 11).numerics.contact_max_facing_deg, 90);
   EXPECT_EQ(spheroidPrepSpec(other, 3, 11).numerics.contact_max_overlap_um, 0);
   EXPECT_FALSE(spheroidPrepSpec(other, 3, 11).numerics.contact_within_prisms);
+  EXPECT_FALSE(spheroidPrepSpec(other, 3, 11).numerics.contact_prisms_overlap_only);
   // The preparation's preconditioner is its own, Jacobi, whatever the run's and the presets'
   // (block-Jacobi since 2026-11-24): caches prepared before that stay valid.
   EXPECT_EQ(prep.numerics.preconditioner, PreconditionerKind::Jacobi);

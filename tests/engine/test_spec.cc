@@ -708,6 +708,24 @@ TEST(SpecFields, TheContactPrismsAreOffByDefaultAndKeepEarlierFingerprints) {
   EXPECT_NE(error->message.find("true or false"), std::string::npos) << error->message;
 }
 
+// numerics.contact_prisms_overlap_only narrows the prisms to the overlapping part of a pair's
+// contact: off by default and out of the fingerprint; without the prisms it is refused by name
+// (a run would ignore it).
+TEST(SpecFields, ThePrismsOverlapOnlyIsOffByDefaultAndNeedsThePrisms) {
+  SceneSpec s = resolve(SceneSpec{});
+  EXPECT_FALSE(s.numerics.contact_prisms_overlap_only);
+  EXPECT_EQ(specFingerprint(s).find("overlap_only"), std::string::npos);
+  ASSERT_EQ(setField(s, "numerics.contact_prisms_overlap_only", true), std::nullopt);
+  auto errors = validate(s);
+  ASSERT_TRUE(hasErrorFor(errors, "numerics.contact_prisms_overlap_only")) << joined(errors);
+  EXPECT_NE(joined(errors).find("numerics.contact_within_prisms = true"), std::string::npos)
+      << joined(errors);
+  ASSERT_EQ(setField(s, "numerics.contact_within_prisms", true), std::nullopt);
+  EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+  EXPECT_NE(specFingerprint(s).find("numerics.contact_prisms_overlap_only=1;"), std::string::npos)
+      << specFingerprint(s);
+}
+
 }  // namespace
 }  // namespace activefoam
 

@@ -184,6 +184,25 @@ TEST(SpecConvert, ContactAndMotilityKeysOnASingleCellAreRefused) {
                   .empty());
 }
 
+// numerics.contact_prisms_overlap_only (proto field 22) reaches the engine from the typed
+// message and from settings; without the prisms it is refused by name.
+TEST(SpecConvert, ThePrismsOverlapOnlyTravelsAndNeedsThePrisms) {
+  v1::SceneSpec typed;
+  typed.mutable_numerics()->set_contact_within_prisms(true);
+  typed.mutable_numerics()->set_contact_prisms_overlap_only(true);
+  ConvertResult r = convertSpec(typed, "", {"scene=doublet"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_TRUE(r.spec->numerics.contact_prisms_overlap_only);
+  r = convertSpec(v1::SceneSpec{}, "",
+                  {"scene=doublet", "numerics.contact_prisms_overlap_only=true"});
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.errors[0].field, "numerics.contact_prisms_overlap_only");
+  r = convertSpec(v1::SceneSpec{}, "",
+                  {"scene=cell", "numerics.contact_within_prisms=true",
+                   "numerics.contact_prisms_overlap_only=true"});
+  EXPECT_FALSE(r.ok());
+}
+
 TEST(SpecConvert, MissingSceneNamesTheSceneKey) {
   ConvertResult r = convertSpec(v1::SceneSpec{});
   ASSERT_FALSE(r.ok());

@@ -31,6 +31,9 @@ struct ContactLaw {
   // perpendicular pair whose planes cross beside its triangles reads micrometres of "overlap"
   // along the bisector where neither triangle is over the other.
   bool within_prisms = false;
+  // With within_prisms, only the overlapping part (g < 0) is restricted to the prisms; the
+  // adhesive part (0 ≤ g < h0) is kept whole.
+  bool prisms_overlap_only = false;
 };
 
 // ∫ λ^A_i λ^B_k dS, ∫ λ^A_i λ^A_j dS, ∫ λ^B_k λ^B_l dS (row-major 3 × 3) over a pair's contact

@@ -97,6 +97,11 @@ struct NumericsParams {
   // micrometres between triangles that are apart (docs/numerics.md). Not applied in the
   // spheroids' preparation.
   bool contact_within_prisms = false;
+  // With contact_within_prisms: only the overlapping part of the polygon (g < 0) is kept within
+  // the prisms, the adhesive part (0 ≤ g < h0) whole — the false overlaps are all at g < 0,
+  // while the junctions' rims, where the spheroid's surface angle is read, are adhesive. Not
+  // applied in the spheroids' preparation.
+  bool contact_prisms_overlap_only = false;
   // Adaptive time step (time_stepper.h): a step that fails one of the checks above is
   // undone and retried at half the length, down to dt_min_s (default Δt/64); after a run of good
   // steps Δt grows back. false: the first failed step ends the run (the studies measure that).

@@ -196,23 +196,24 @@ void integrateExact(const Polygon& poly, double g0, const Vec2& grad_g, const Ba
                                  Affine{at[2], -g0x - g1x, -g0y - g1y}};
   };
   const std::array<Affine, 3> la = lambdas(lam_a), lb = lambdas(lam_b);
-  I.area = area;
+  // Accumulated (+=), so that the pieces of a pair's contact add into one Integrals.
+  I.area += area;
   const double ig = int1(g);
-  I.y = Vec2(v0.x() * area + mx, v0.y() * area + my);
-  I.g = ig;
-  I.g2 = int2(g, g);
+  I.y += Vec2(v0.x() * area + mx, v0.y() * area + my);
+  I.g += ig;
+  I.g2 += int2(g, g);
   // ∫ g y = v0 ∫ g + ∫ g z.
-  I.gy = Vec2(v0.x() * ig + int2(g, Affine{0, 1, 0}), v0.y() * ig + int2(g, Affine{0, 0, 1}));
+  I.gy += Vec2(v0.x() * ig + int2(g, Affine{0, 1, 0}), v0.y() * ig + int2(g, Affine{0, 0, 1}));
   for (int i = 0; i < 3; ++i) {
-    I.ga[i] = int2(g, la[i]);
-    I.gb[i] = int2(g, lb[i]);
+    I.ga[i] += int2(g, la[i]);
+    I.gb[i] += int2(g, lb[i]);
   }
   if (!moments) return;
   for (int i = 0; i < 3; ++i)
     for (int k = 0; k < 3; ++k) {
-      I.ab[3 * i + k] = int2(la[i], lb[k]);
-      I.aa[3 * i + k] = int2(la[i], la[k]);
-      I.bb[3 * i + k] = int2(lb[i], lb[k]);
+      I.ab[3 * i + k] += int2(la[i], lb[k]);
+      I.aa[3 * i + k] += int2(la[i], la[k]);
+      I.bb[3 * i + k] += int2(lb[i], lb[k]);
     }
 }
 
@@ -341,7 +342,16 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
   // ... and by the range of the law, g < h0.
   clipHalfPlane(buf[cur], buf[cur ^ 1], [&](const Vec2& y) { return law.h0 - gap(y); });
   cur ^= 1;
+  // The contact is one convex polygon, or two with ContactLaw::prisms_overlap_only: the adhesive
+  // part (g ≥ 0) whole and the overlapping part (g < 0) within the prisms.
+  std::array<const Polygon*, 2> pieces{&buf[cur], nullptr};
+  Polygon adhesive;
   if (law.within_prisms) {
+    if (law.prisms_overlap_only) {
+      clipHalfPlane(buf[cur], adhesive, [&](const Vec2& y) { return gap(y); });
+      clipHalfPlane(buf[cur], buf[cur ^ 1], [&](const Vec2& y) { return -gap(y); });
+      cur ^= 1;
+    }
     // ... and to where B's point p_B(y) = o + y + s_B(y) n lies over A — inside A's prism along
     // n̂_A: m·(p_B(y) − a_i) ≥ 0 for the inward edge normals m = n̂_A × (a_{i+1} − a_i) (n̂_A·(e ×
     // w) = (n̂_A × e)·w, so the component of p_B along n̂_A drops out) — and A's point over B.
@@ -359,13 +369,15 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
     };
     overlie(a, na, sb0, sb_grad);
     overlie(b, nb, sa0, sa_grad);
+    pieces[0] = &buf[cur];
+    if (law.prisms_overlap_only) pieces[1] = &adhesive;
   }
-  const Polygon& poly = buf[cur];
-  if (poly.n < 3) return out;
-
   double poly_area = 0;
-  for (int t = 1; t + 1 < poly.n; ++t)
-    poly_area += 0.5 * cross2(poly.v[t] - poly.v[0], poly.v[t + 1] - poly.v[0]);
+  for (const Polygon* poly : pieces) {
+    if (!poly) continue;
+    for (int t = 1; t + 1 < poly->n; ++t)
+      poly_area += 0.5 * cross2(poly->v[t] - poly->v[0], poly->v[t + 1] - poly->v[0]);
+  }
   const double ref_area = std::max(std::abs(cross2(pa[1] - pa[0], pa[2] - pa[0])),
                                    std::abs(cross2(pb[1] - pb[0], pb[2] - pb[0])));
   if (!(poly_area > kEmptyPolygonRel * ref_area)) return out;
@@ -390,39 +402,46 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
   // integrates P at g = −c, a constant: its force weights ∫ λ (−c), no stiffness (dP/dg = 0),
   // and the energy density's linear continuation ½ k c² − k c (g + c), so that the force stays
   // the energy's gradient. The true gap still gives the mean gap (the penetration guard's).
+  // Each piece adds into I (a single piece's sums are its own: 0 + x is x).
   double g_true = 0, deep_energy = 0;
-  bool split = false;
-  if (law.max_overlap > 0) {
-    double g_min = gap(poly.v[0]);
-    for (int i = 1; i < poly.n; ++i) g_min = std::min(g_min, gap(poly.v[i]));
-    split = g_min < -law.max_overlap;
-  }
-  if (split) {
-    const double c = law.max_overlap;
-    Polygon shallow, deep;
-    clipHalfPlane(poly, shallow, [&](const Vec2& y) { return gap(y) + c; });
-    clipHalfPlane(poly, deep, [&](const Vec2& y) { return -(gap(y) + c); });
-    // I.g2 (the energy's ½ k ∫ g²) stays the shallow part's: the deep part's energy is below.
-    if (shallow.n >= 3) integrateOver(shallow, g0, g_grad, moments != nullptr, I);
-    g_true = I.g;
-    if (deep.n >= 3) {
-      Integrals D;
-      integrateOver(deep, -c, Vec2::Zero(), false, D);
-      const double deep_g = g0 * D.area + g_grad.dot(D.y);  // ∫ g over it (g is affine)
-      g_true += deep_g;
-      deep_energy = 0.5 * law.k * c * c * D.area - law.k * c * (deep_g + c * D.area);
-      I.area += D.area;
-      I.y += D.y;
-      I.g += D.g;
-      I.gy += D.gy;
-      for (int i = 0; i < 3; ++i) {
-        I.ga[i] += D.ga[i];
-        I.gb[i] += D.gb[i];
-      }
+  for (const Polygon* piece : pieces) {
+    if (!piece || piece->n < 3) continue;
+    const Polygon& poly = *piece;
+    const double g_before = I.g;
+    bool split = false;
+    if (law.max_overlap > 0) {
+      double g_min = gap(poly.v[0]);
+      for (int i = 1; i < poly.n; ++i) g_min = std::min(g_min, gap(poly.v[i]));
+      split = g_min < -law.max_overlap;
     }
-  } else {
-    integrateOver(poly, g0, g_grad, moments != nullptr, I);
-    g_true = I.g;
+    if (split) {
+      const double c = law.max_overlap;
+      Polygon shallow, deep;
+      clipHalfPlane(poly, shallow, [&](const Vec2& y) { return gap(y) + c; });
+      clipHalfPlane(poly, deep, [&](const Vec2& y) { return -(gap(y) + c); });
+      // I.g2 (the energy's ½ k ∫ g²) stays the shallow part's: the deep part's energy is below.
+      if (shallow.n >= 3) integrateOver(shallow, g0, g_grad, moments != nullptr, I);
+      double piece_g = I.g - g_before;
+      if (deep.n >= 3) {
+        Integrals D;
+        integrateOver(deep, -c, Vec2::Zero(), false, D);
+        const double deep_g = g0 * D.area + g_grad.dot(D.y);  // ∫ g over it (g is affine)
+        piece_g += deep_g;
+        deep_energy += 0.5 * law.k * c * c * D.area - law.k * c * (deep_g + c * D.area);
+        I.area += D.area;
+        I.y += D.y;
+        I.g += D.g;
+        I.gy += D.gy;
+        for (int i = 0; i < 3; ++i) {
+          I.ga[i] += D.ga[i];
+          I.gb[i] += D.gb[i];
+        }
+      }
+      g_true += piece_g;
+    } else {
+      integrateOver(poly, g0, g_grad, moments != nullptr, I);
+      g_true += I.g - g_before;
+    }
   }
 
   auto toMidSurface = [&](const Vec2& y) {
@@ -443,7 +462,8 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
   if (outputs == ContactOutputs::All) {
     out.centroid = toMidSurface(centroid2);
     double g_max = 0;
-    for (int i = 0; i < poly.n; ++i) g_max = std::max(g_max, std::abs(gap(poly.v[i])));
+    for (const Polygon* poly : pieces)
+      for (int i = 0; poly && i < poly->n; ++i) g_max = std::max(g_max, std::abs(gap(poly->v[i])));
     const bool loaded = std::abs(I.g) > kZeroLoadRel * I.area * g_max;
     out.center_of_pressure = loaded ? toMidSurface(I.gy / I.g) : out.centroid;
   }

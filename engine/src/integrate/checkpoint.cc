@@ -96,6 +96,9 @@ std::string specFingerprint(const SceneSpec& spec) {
       continue;
     // Added later; false is the law of earlier versions.
     if (f.key == "numerics.contact_within_prisms" && !spec.numerics.contact_within_prisms) continue;
+    if (f.key == "numerics.contact_prisms_overlap_only" &&
+        !spec.numerics.contact_prisms_overlap_only)
+      continue;
     os << f.key << '=';
     if (const auto v = getField(spec, f.key)) std::visit([&](const auto& x) { os << x; }, *v);
     os << ';';

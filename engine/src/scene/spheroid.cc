@@ -141,6 +141,7 @@ SceneSpec spheroidPrepSpec(const SceneSpec& spec, std::int64_t n_cells, std::uin
   p.numerics.contact_max_facing_deg = d.contact_max_facing_deg;
   p.numerics.contact_max_overlap_um = d.contact_max_overlap_um;
   p.numerics.contact_within_prisms = d.contact_within_prisms;
+  p.numerics.contact_prisms_overlap_only = d.contact_prisms_overlap_only;
   p.numerics.dt_min_s.reset();  // resolve() derives it from the preparation's Δt
   p.duration_s = spec.scene_params.prep_max_s;
   p.sample_every_s = kWindowS;

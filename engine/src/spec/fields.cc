@@ -194,6 +194,11 @@ const std::vector<Entry>& entries() {
                          "the other (inside its normal prism); false: the whole overlap of their "
                          "projections on the bisector plane"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.contact_within_prisms; }});
+    t.push_back({boolean("numerics.contact_prisms_overlap_only",
+                         "with numerics.contact_within_prisms: only the overlapping part of a "
+                         "pair's contact (gap < 0) is kept within the prisms, the adhesive part "
+                         "whole; false: the whole contact"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.contact_prisms_overlap_only; }});
     t.push_back({integer("numerics.max_oscillating_steps", 1, 1e6,
                          "consecutive steps of reversing contact velocities (explicit-scheme "
                          "instability) that stop the run as failed"),

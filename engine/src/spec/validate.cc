@@ -141,6 +141,13 @@ std::vector<SpecError> validate(const SceneSpec& spec) {
                 formatNumber(h0) + ", 10] µm");
   }
 
+  // A modifier of the prisms, meaningless without them (a run would silently ignore it).
+  if (spec.numerics.contact_prisms_overlap_only && !spec.numerics.contact_within_prisms &&
+      ok({"numerics.contact_prisms_overlap_only", "numerics.contact_within_prisms"}))
+    error("numerics.contact_prisms_overlap_only",
+          "true needs numerics.contact_within_prisms = true (it narrows what the prisms "
+          "bound to the overlapping part of a pair's contact)");
+
   // Size of the problem.
   if (ok({"scene", "scene.n_cells", "scene.n_cells_a", "scene.n_cells_b",
           "numerics.triangles_per_cell"})) {
