@@ -6,9 +6,11 @@
 //
 // Same scene, numerics (`standard`) and durations as the test
 // Alphas/PassiveDoublet.ContactAngleIsArccosAlphaAtStandard; one row per (α, φ):
-//   OMP_NUM_THREADS=1 build/release/bench/study_facing [φ | prisms ...]  (default φ: 90 75 60 45)
+//   OMP_NUM_THREADS=1 build/release/bench/study_facing [φ | prisms | overlap ...]
+//                                                     (default φ: 90 75 60 45)
 // `prisms`: every facing pair (90°) with numerics.contact_within_prisms, the contact polygon
-// kept where the triangles overlie each other.
+// kept where the triangles overlie each other; `overlap`: the same with
+// numerics.contact_prisms_overlap_only (only the polygon's overlapping part, g < 0, bounded).
 // Prints a Markdown table (θ_c, its error against arccos α and the change from 90°, the
 // largest volume error, the wall time). ~3 min per φ on one core.
 #include <cmath>
@@ -37,7 +39,8 @@ int main(int argc, char** argv) {
   std::map<double, double> at90;
   for (const Case& c : cases) {
     for (const std::string& law : laws) {
-      const bool prisms = law == "prisms";
+      const bool overlap = law == "overlap";
+      const bool prisms = law == "prisms" || overlap;
       const double phi = prisms ? 90 : std::atof(law.c_str());
       SceneSpec s;
       s.scene = SceneKind::Doublet;
@@ -46,6 +49,7 @@ int main(int argc, char** argv) {
       s.cells.alpha = c.alpha;
       s.numerics.contact_max_facing_deg = phi;
       s.numerics.contact_within_prisms = prisms;
+      s.numerics.contact_prisms_overlap_only = overlap;
       if (!validate(s).empty()) {
         std::fprintf(stderr, "invalid spec at α = %g, %s\n", c.alpha, law.c_str());
         return 2;
@@ -63,7 +67,7 @@ int main(int argc, char** argv) {
       if (at90.count(c.alpha) && !plain)
         std::snprintf(change, sizeof change, "%+.2f°", e.theta_c_deg - at90[c.alpha]);
       std::printf("| %g | %.2f° | %s | %.2f° | %+.2f° | %s | %.3f %% | %.0f s |\n", c.alpha, target,
-                  prisms ? "prisms" : (law + "°").c_str(), e.theta_c_deg, e.theta_c_deg - target,
+                  prisms ? law.c_str() : (law + "°").c_str(), e.theta_c_deg, e.theta_c_deg - target,
                   change, 100 * e.volume_error_max, e.wall_s);
       std::fflush(stdout);
     }
