@@ -58,6 +58,24 @@ void BM_NarrowPhase(benchmark::State& state) {
 }
 BENCHMARK(BM_NarrowPhase<ContactQuadrature::Exact>);
 BENCHMARK(BM_NarrowPhase<ContactQuadrature::Dunavant7>);
+
+// The contact law's bounds on the same pairs (Exact): 0 the law, 1 within prisms (six more
+// clips), 2 the overlapping part only within prisms (the polygon split at g = 0 first). The
+// pairs are near-parallel, as in a junction: the prisms seldom cut them, so this is the clips'
+// own cost.
+void BM_NarrowPhaseLaw(benchmark::State& state) {
+  const auto pairs = facingPairs(4096);
+  ContactLaw law;
+  law.within_prisms = state.range(0) >= 1;
+  law.prisms_overlap_only = state.range(0) == 2;
+  size_t i = 0;
+  for (auto _ : state) {
+    const auto& [a, b] = pairs[i++ & 4095];
+    benchmark::DoNotOptimize(computeTriangleContact(a, b, law, ContactQuadrature::Exact));
+  }
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_NarrowPhaseLaw)->Arg(0)->Arg(1)->Arg(2);
 BENCHMARK(BM_NarrowPhase<ContactQuadrature::Centroid>);
 
 // The engine's icosphere as plain vectors.
