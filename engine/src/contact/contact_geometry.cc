@@ -155,9 +155,6 @@ void integrate(const Polygon& poly, const Rule& rule, double g0, const Vec2& gra
 // functions of y, so the polygon's area, first moments and second moments (fan triangles from
 // v0, in z = y − v0) give them all. This is the edge-midpoint rule's value up to roundoff at
 // about a third of its cost (it evaluated both barycentric maps at 3 points per fan triangle).
-// Accumulate: add into I (a pair's second piece, ContactLaw::prisms_overlap_only) instead of
-// assigning (its first: into zeros the same bits, ~3 % fewer instructions a pair).
-template <bool Accumulate>
 void integrateExact(const Polygon& poly, double g0, const Vec2& grad_g, const Barycentric& lam_a,
                     const Barycentric& lam_b, bool moments, Integrals& I) {
   const Vec2& v0 = poly.v[0];
@@ -199,29 +196,24 @@ void integrateExact(const Polygon& poly, double g0, const Vec2& grad_g, const Ba
                                  Affine{at[2], -g0x - g1x, -g0y - g1y}};
   };
   const std::array<Affine, 3> la = lambdas(lam_a), lb = lambdas(lam_b);
-  auto put = [](auto& to, const auto& v) {
-    if constexpr (Accumulate)
-      to += v;
-    else
-      to = v;
-  };
-  put(I.area, area);
+  // Accumulated (+=), so that the pieces of a pair's contact add into one Integrals.
+  I.area += area;
   const double ig = int1(g);
-  put(I.y, Vec2(v0.x() * area + mx, v0.y() * area + my));
-  put(I.g, ig);
-  put(I.g2, int2(g, g));
+  I.y += Vec2(v0.x() * area + mx, v0.y() * area + my);
+  I.g += ig;
+  I.g2 += int2(g, g);
   // ∫ g y = v0 ∫ g + ∫ g z.
-  put(I.gy, Vec2(v0.x() * ig + int2(g, Affine{0, 1, 0}), v0.y() * ig + int2(g, Affine{0, 0, 1})));
+  I.gy += Vec2(v0.x() * ig + int2(g, Affine{0, 1, 0}), v0.y() * ig + int2(g, Affine{0, 0, 1}));
   for (int i = 0; i < 3; ++i) {
-    put(I.ga[i], int2(g, la[i]));
-    put(I.gb[i], int2(g, lb[i]));
+    I.ga[i] += int2(g, la[i]);
+    I.gb[i] += int2(g, lb[i]);
   }
   if (!moments) return;
   for (int i = 0; i < 3; ++i)
     for (int k = 0; k < 3; ++k) {
-      put(I.ab[3 * i + k], int2(la[i], lb[k]));
-      put(I.aa[3 * i + k], int2(la[i], la[k]));
-      put(I.bb[3 * i + k], int2(lb[i], lb[k]));
+      I.ab[3 * i + k] += int2(la[i], lb[k]);
+      I.aa[3 * i + k] += int2(la[i], la[k]);
+      I.bb[3 * i + k] += int2(lb[i], lb[k]);
     }
 }
 
@@ -391,15 +383,11 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
   if (!(poly_area > kEmptyPolygonRel * ref_area)) return out;
 
   const Barycentric lam_a(pa), lam_b(pb);
-  // `add`: `into` holds an earlier piece's sums (the other rules always add).
   auto integrateOver = [&](const Polygon& p, double p_g0, const Vec2& p_grad, bool with_moments,
-                           Integrals& into, bool add) {
+                           Integrals& into) {
     switch (quadrature) {
       case ContactQuadrature::Exact:
-        if (add)
-          integrateExact<true>(p, p_g0, p_grad, lam_a, lam_b, with_moments, into);
-        else
-          integrateExact<false>(p, p_g0, p_grad, lam_a, lam_b, with_moments, into);
+        integrateExact(p, p_g0, p_grad, lam_a, lam_b, with_moments, into);
         break;
       case ContactQuadrature::Dunavant7:
         integrate(p, dunavant7Rule(), p_g0, p_grad, lam_a, lam_b, with_moments, into);
@@ -416,7 +404,6 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
   // the energy's gradient. The true gap still gives the mean gap (the penetration guard's).
   // Each piece adds into I (a single piece's sums are its own: 0 + x is x).
   double g_true = 0, deep_energy = 0;
-  bool written = false;  // I holds a piece's sums
   for (const Polygon* piece : pieces) {
     if (!piece || piece->n < 3) continue;
     const Polygon& poly = *piece;
@@ -433,11 +420,11 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
       clipHalfPlane(poly, shallow, [&](const Vec2& y) { return gap(y) + c; });
       clipHalfPlane(poly, deep, [&](const Vec2& y) { return -(gap(y) + c); });
       // I.g2 (the energy's ½ k ∫ g²) stays the shallow part's: the deep part's energy is below.
-      if (shallow.n >= 3) integrateOver(shallow, g0, g_grad, moments != nullptr, I, written);
+      if (shallow.n >= 3) integrateOver(shallow, g0, g_grad, moments != nullptr, I);
       double piece_g = I.g - g_before;
       if (deep.n >= 3) {
         Integrals D;
-        integrateOver(deep, -c, Vec2::Zero(), false, D, false);
+        integrateOver(deep, -c, Vec2::Zero(), false, D);
         const double deep_g = g0 * D.area + g_grad.dot(D.y);  // ∫ g over it (g is affine)
         piece_g += deep_g;
         deep_energy += 0.5 * law.k * c * c * D.area - law.k * c * (deep_g + c * D.area);
@@ -452,10 +439,9 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
       }
       g_true += piece_g;
     } else {
-      integrateOver(poly, g0, g_grad, moments != nullptr, I, written);
+      integrateOver(poly, g0, g_grad, moments != nullptr, I);
       g_true += I.g - g_before;
     }
-    written = true;
   }
 
   auto toMidSurface = [&](const Vec2& y) {
