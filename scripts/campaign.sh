@@ -8,7 +8,9 @@
 #       restores the store from studies/store/ when there is none here, starts foamd on it (one
 #       one-thread job per core) and submits what is missing: a run whose results are committed
 #       (docs/science/NAME/data) counts as done even if the store was lost. foamd is built from
-#       the engine the store's jobs ran, in a worktree when the checkout's engine differs.
+#       the engine the store's jobs ran, in a worktree when the checkout's engine differs;
+#       --engine-changed runs the checkout's engine instead, from then on (only after checking
+#       that it gives a stored job's samples the same bits: the running jobs resume under it).
 #       Queued or running jobs that are no run of their study file as it is now (a study moved
 #       to another step) are named; --cancel-stale cancels them.
 #   scripts/campaign.sh report    every study with ended runs: docs/science/NAME (figures, data),
@@ -77,6 +79,13 @@ m = json.load(open(sys.argv[1]))
 print(m.get("engine") or "unknown", m.get("engine_commit") or "-")' "$saved/MANIFEST.json")
       fi
       foamd_bin="$bin/server/foamd"
+      if [ "$want_tree" != "$here_tree" ] && [[ " $* " == *" --engine-changed "* ]]; then
+        # The operator checked that the checkout's engine gives the store's runs the same bits
+        # (a stored job's samples rerun with it): it takes over, checkpoints and all.
+        echo "campaign: the store's engine was $want_tree (commit $want_commit); this" \
+          "checkout's $here_tree takes over (--engine-changed)" >&2
+        want_tree="$here_tree" want_commit="$here_commit"
+      fi
       if [ "$want_tree" != "$here_tree" ]; then
         if [ "${want_commit:--}" != - ] &&
           git -C "$root" cat-file -e "$want_commit^{commit}" 2>/dev/null &&
@@ -93,8 +102,6 @@ print(m.get("engine") or "unknown", m.get("engine_commit") or "-")' "$saved/MANI
             cmake --preset release >/dev/null &&
             cmake --build --preset release -j "$(nproc)" --target foamd >/dev/null)
           foamd_bin="$wt/build/release/server/foamd"
-        elif [[ " $* " == *" --engine-changed "* ]]; then
-          want_tree="$here_tree" want_commit="$here_commit"
         else
           echo "campaign: the store's jobs ran engine $want_tree, of no commit here; this" \
             "checkout's is $here_tree. If the step's results did not change, start with" \

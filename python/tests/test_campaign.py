@@ -112,3 +112,17 @@ def test_a_campaign_resumes_on_a_new_machine_and_takes_committed_runs_as_done(tm
         assert all(s in ("queued", "running") for j, s in states.items() if j not in second)
     finally:
         subprocess.run([str(ROOT / "scripts/campaign.sh"), "stop"], env=env, capture_output=True)
+
+    # The store's engine is not this checkout's (and of no commit here): start refuses, naming
+    # --engine-changed; with it the checkout's engine takes over and is recorded for next time.
+    engine_file = tmp_path / "machine" / "c-engine.txt"
+    here = engine_file.read_text().split()
+    engine_file.write_text("0" * 40 + " -\n")
+    try:
+        r = campaign("start", ok=False)
+        assert "--engine-changed" in r.stderr, r.stderr
+        r = campaign("start", "--engine-changed")
+        assert "takes over (--engine-changed)" in r.stderr, r.stderr
+        assert engine_file.read_text().split() == here
+    finally:
+        subprocess.run([str(ROOT / "scripts/campaign.sh"), "stop"], env=env, capture_output=True)
