@@ -125,7 +125,9 @@ struct GridReference {
   double area = 0, int_p = 0, energy = 0;
   std::array<double, 3> wa{0, 0, 0}, wb{0, 0, 0};
   Vec3 centroid = Vec3::Zero();
-  double g_min = std::numeric_limits<double>::infinity();  // the smallest gap sampled
+  double g_min = std::numeric_limits<double>::infinity();   // the smallest gap sampled
+  double g_max = -std::numeric_limits<double>::infinity();  // the largest
+  std::array<double, 9> ab{};                               // ∫ λ^A_i λ^B_k dS
 };
 
 std::array<double, 3> bary2(const std::array<Vec2, 3>& p, const Vec2& y) {
@@ -179,6 +181,7 @@ GridReference gridIntegrate(const Tri3& a, const Tri3& b, const ContactLaw& law,
           !(over(a, X + sB * n) && over(b, X + sA * n)))
         continue;
       r.g_min = std::min(r.g_min, g);
+      r.g_max = std::max(r.g_max, g);
       // P = k max(g, −c) with c = law.max_overlap > 0 (the energy density's linear continuation
       // below −c), else k g.
       const double c = law.max_overlap;
@@ -191,6 +194,7 @@ GridReference gridIntegrate(const Tri3& a, const Tri3& b, const ContactLaw& law,
       for (int k = 0; k < 3; ++k) {
         r.wa[k] += P * la[k] * dA;
         r.wb[k] += P * lb[k] * dA;
+        for (int l = 0; l < 3; ++l) r.ab[3 * k + l] += la[k] * lb[l] * dA;
       }
       r.centroid += (X + 0.5 * (sA + sB) * n) * dA;
     }
@@ -956,10 +960,10 @@ TEST(ContactNarrowPhase, WithinPrismsACornerPressedIntoAFaceStillRepels) {
 }
 
 // ContactLaw::prisms_overlap_only: the prisms bound only the overlapping part (g < 0), the
-// adhesive part (0 ≤ g < h0) is kept whole. Seed 8's oblique pair keeps only its adhesive sliver
-// (no repulsion of micrometres); random pairs match the grid, whose points are kept by the same
-// rule; a pair with no overlap, or an antiparallel one, is the plain law's to roundoff; a corner
-// pressed into a face still repels.
+// adhesive part (0 ≤ g < h0) is kept whole. Seed 8's oblique pair, all of it read as overlap, is
+// apart (no repulsion of micrometres); random pairs match the grid, whose points are kept by the
+// same rule; a pair with no overlap is the plain law's bit for bit, an antiparallel one to
+// roundoff; touching faces count once; a corner pressed into a face still repels.
 TEST(ContactNarrowPhase, PrismsOnTheOverlapOnlyKeepTheAdhesivePartWhole) {
   ContactLaw plain;
   ContactLaw all = plain;
@@ -975,19 +979,22 @@ TEST(ContactNarrowPhase, PrismsOnTheOverlapOnlyKeepTheAdhesivePartWhole) {
                  Vec3(-5.351770333574084, -0.7304665235113772, -2.7170223808851084)};
     ContactLaw law = overlap;
     law.h0 = 0.0632;
+    ContactLaw its_plain = plain;
+    its_plain.h0 = law.h0;
+    // The law's whole polygon reads as overlap (no adhesive part to keep), and none of it lies
+    // within the prisms: the pair is apart, as within prisms.
+    const GridReference rp = gridIntegrate(a, b, its_plain, 400);
+    ASSERT_GT(rp.area, 0.4);
+    EXPECT_LT(rp.g_max, 0);
+    EXPECT_EQ(gridIntegrate(a, b, law, 400).area, 0);
     for (ContactQuadrature q : kAllQuadratures) {
       const TriangleContact c = computeTriangleContact(a, b, law, q);
-      if (c.active) {
-        EXPECT_GE(c.mean_gap, 0);
-        EXPECT_GE(c.force.dot(c.normal), 0);  // attraction only, and little of it
-        EXPECT_LT(c.area, 0.1);
-      }
+      EXPECT_FALSE(c.active);
+      EXPECT_EQ(c.force, Vec3::Zero());
     }
-    const GridReference r = gridIntegrate(a, b, law, 400);
-    EXPECT_GE(r.g_min, 0);
   }
   std::mt19937 rng(13);
-  int gridded = 0, differs = 0, adhesive_kept = 0, same = 0;
+  int gridded = 0, differs = 0, adhesive_kept = 0, same = 0, two_pieces = 0;
   for (int trial = 0; trial < 300; ++trial) {
     const Pair pr = randomFacingPair(rng, -0.4, 0.05, 1.2);
     const TriangleContact p = computeTriangleContact(pr.a, pr.b, plain, ContactQuadrature::Exact);
@@ -1015,10 +1022,32 @@ TEST(ContactNarrowPhase, PrismsOnTheOverlapOnlyKeepTheAdhesivePartWhole) {
       EXPECT_NEAR(c.force_weight_a[i], r.wa[i], 1e-2 * scale) << trial;
       EXPECT_NEAR(c.force_weight_b[i], r.wb[i], 1e-2 * scale) << trial;
     }
+    // Pairs in two pieces: what else the step reads — the mean gap, the centroid (friction's
+    // barycentrics), the friction and stiffness moments — against the grid, for every rule
+    // that is exact for them; and with a saturated pressure (each piece split again at −c).
+    if (!(r.g_min < -0.01 && r.g_max > 0.01)) continue;
+    ++two_pieces;
+    EXPECT_NEAR(c.mean_gap, r.int_p / (overlap.k * r.area), 2e-2 * 0.4) << trial;
+    EXPECT_LT((c.centroid - r.centroid).norm(), 2e-2) << trial;
+    for (ContactQuadrature q : {ContactQuadrature::Exact, ContactQuadrature::Dunavant7}) {
+      ContactMoments m;
+      computeTriangleContact(pr.a, pr.b, overlap, q, &m);
+      for (int i = 0; i < 9; ++i) EXPECT_NEAR(m.ab[i], r.ab[i], 2e-2 * c.area) << trial;
+    }
+    ContactLaw saturated = overlap;
+    saturated.max_overlap = 0.1;
+    const TriangleContact cs =
+        computeTriangleContact(pr.a, pr.b, saturated, ContactQuadrature::Exact);
+    const GridReference rs = gridIntegrate(pr.a, pr.b, saturated, 500);
+    EXPECT_NEAR(cs.area, c.area, 1e-9 * c.area) << trial;
+    EXPECT_NEAR(cs.force.dot(cs.normal), rs.int_p, 1e-2 * scale) << trial;
+    EXPECT_NEAR(cs.energy, rs.energy, 1e-2 * scale * 0.4) << trial;
+    EXPECT_NEAR(cs.mean_gap, c.mean_gap, 1e-9) << trial;  // the true gap, whatever the cap
   }
   EXPECT_GT(gridded, 60);
   EXPECT_GT(differs, 20);
   EXPECT_GT(adhesive_kept, 10);
+  EXPECT_GT(two_pieces, 10);
   // Without overlap (nearly antiparallel, 0.02–0.055 µm apart) the pair is the plain law's, bit
   // for bit.
   for (int trial = 0; trial < 100; ++trial) {
@@ -1037,9 +1066,24 @@ TEST(ContactNarrowPhase, PrismsOnTheOverlapOnlyKeepTheAdhesivePartWhole) {
     EXPECT_EQ(c.force_weight_a, p.force_weight_a) << trial;
     EXPECT_EQ(c.force_weight_b, p.force_weight_b) << trial;
     EXPECT_EQ(mc.ab, mp.ab) << trial;
+    EXPECT_EQ(c.mean_gap, p.mean_gap) << trial;
+    EXPECT_EQ(c.centroid, p.centroid) << trial;
   }
   EXPECT_GT(same, 30);
-  // Antiparallel pairs: the moments of the two pieces add up to the plain polygon's.
+  // Touching antiparallel faces, g ≡ 0 over the polygon: one piece, not counted twice.
+  {
+    const Tri3 a{Vec3(-1, -1, 0), Vec3(1, -1, 0), Vec3(0, 1, 0)};
+    const Tri3 b{Vec3(-1, 1, 0), Vec3(1, 1, 0), Vec3(0, -1, 0)};
+    ASSERT_NEAR(triNormal(a).dot(triNormal(b)), -1, 1e-15);
+    ContactMoments mp, mc;
+    const TriangleContact p = computeTriangleContact(a, b, plain, ContactQuadrature::Exact, &mp);
+    const TriangleContact c = computeTriangleContact(a, b, overlap, ContactQuadrature::Exact, &mc);
+    ASSERT_TRUE(p.active);
+    EXPECT_EQ(c.area, p.area);
+    EXPECT_EQ(mc.ab, mp.ab);
+  }
+  // Antiparallel pairs (a constant gap: one piece each, overlapping or adhesive) are the plain
+  // law's, their moments included.
   int parallel = 0;
   for (int trial = 0; trial < 200; ++trial) {
     const Pair pr = randomFacingPair(rng, -0.3, 0.05, 0.0);

@@ -3,6 +3,7 @@
 
 #include <google/protobuf/descriptor.h>
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 
@@ -200,7 +201,10 @@ TEST(SpecConvert, ThePrismsOverlapOnlyTravelsAndNeedsThePrisms) {
   r = convertSpec(v1::SceneSpec{}, "",
                   {"scene=cell", "numerics.contact_within_prisms=true",
                    "numerics.contact_prisms_overlap_only=true"});
-  EXPECT_FALSE(r.ok());
+  ASSERT_FALSE(r.ok());
+  EXPECT_TRUE(std::any_of(r.errors.begin(), r.errors.end(), [](const SpecError& e) {
+    return e.field == "numerics.contact_prisms_overlap_only";
+  })) << errorText(r.errors);
 }
 
 TEST(SpecConvert, MissingSceneNamesTheSceneKey) {

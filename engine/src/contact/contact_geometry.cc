@@ -29,10 +29,10 @@ inline double cross2(const Vec2& u, const Vec2& v) {
   return u.x() * v.y() - u.y() * v.x();
 }
 
-// Convex polygon with at most 3 + 13 vertices (a triangle clipped by the other's 3 edges, the
-// law's range and, with ContactLaw::within_prisms, both triangles' 3 prism sides; each clip of
-// a convex polygon adds at most one vertex), and one to spare. One more slot than the cap: a
-// clip may write a vertex and a crossing before it checks the cap.
+// Convex polygon with at most 3 + 11 vertices (a triangle clipped by the other's 3 edges, the
+// law's range and, with ContactLaw::within_prisms, the split at g = 0 and both triangles' 3 prism
+// sides; each clip of a convex polygon adds at most one vertex), and slots to spare. One more
+// slot than the cap: a clip may write a vertex and a crossing before it checks the cap.
 constexpr int kMaxPolygon = 17;
 struct Polygon {
   std::array<Vec2, kMaxPolygon + 1> v;
@@ -343,15 +343,29 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
   clipHalfPlane(buf[cur], buf[cur ^ 1], [&](const Vec2& y) { return law.h0 - gap(y); });
   cur ^= 1;
   // The contact is one convex polygon, or two with ContactLaw::prisms_overlap_only: the adhesive
-  // part (g ≥ 0) whole and the overlapping part (g < 0) within the prisms.
+  // part (g ≥ 0) whole and the overlapping part (g < 0) within the prisms. A polygon on one side
+  // of g = 0 is not split: both clips keep the points at g = 0, so a pair at g ≡ 0 (touching
+  // antiparallel faces) would be counted twice.
   std::array<const Polygon*, 2> pieces{&buf[cur], nullptr};
   Polygon adhesive;
-  if (law.within_prisms) {
-    if (law.prisms_overlap_only) {
+  bool clip_to_prisms = law.within_prisms;
+  if (law.within_prisms && law.prisms_overlap_only && buf[cur].n > 0) {
+    double g_lo = gap(buf[cur].v[0]), g_hi = g_lo;
+    for (int i = 1; i < buf[cur].n; ++i) {
+      const double g = gap(buf[cur].v[i]);
+      g_lo = std::min(g_lo, g);
+      g_hi = std::max(g_hi, g);
+    }
+    if (g_lo >= 0) {
+      clip_to_prisms = false;  // adhesive only: the law's polygon
+    } else if (g_hi > 0) {
       clipHalfPlane(buf[cur], adhesive, [&](const Vec2& y) { return gap(y); });
       clipHalfPlane(buf[cur], buf[cur ^ 1], [&](const Vec2& y) { return -gap(y); });
       cur ^= 1;
-    }
+      pieces[1] = &adhesive;
+    }  // else overlapping only: all of it within the prisms
+  }
+  if (clip_to_prisms) {
     // ... and to where B's point p_B(y) = o + y + s_B(y) n lies over A — inside A's prism along
     // n̂_A: m·(p_B(y) − a_i) ≥ 0 for the inward edge normals m = n̂_A × (a_{i+1} − a_i) (n̂_A·(e ×
     // w) = (n̂_A × e)·w, so the component of p_B along n̂_A drops out) — and A's point over B.
@@ -370,7 +384,6 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
     overlie(a, na, sb0, sb_grad);
     overlie(b, nb, sa0, sa_grad);
     pieces[0] = &buf[cur];
-    if (law.prisms_overlap_only) pieces[1] = &adhesive;
   }
   double poly_area = 0;
   for (const Polygon* poly : pieces) {
