@@ -556,6 +556,20 @@ TEST(SpecIntegrator, ContactImplicitConsistentIsAKeyValueWithItsOwnFingerprintAn
   EXPECT_EQ(e[0].message.find("adaptive step would run it"), std::string::npos) << e[0].message;
   s.numerics.dt_s = 0.75;
   EXPECT_TRUE(measuredUnstable(s).empty());
+  // The motile failures were the law's false overlaps: with the overlap kept within the prisms
+  // the map's 2 s applies; the prisms on the whole polygon alone were not measured at 1 s.
+  SceneSpec bounded = s;
+  bounded.numerics.contact_within_prisms = true;
+  bounded.numerics.dt_s = 1;
+  EXPECT_FALSE(measuredUnstable(bounded).empty());
+  bounded.numerics.contact_prisms_overlap_only = true;
+  EXPECT_TRUE(measuredUnstable(bounded).empty());
+  bounded.numerics.dt_s = 2;
+  e = measuredUnstable(bounded);
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_NE(e[0].message.find("contact-implicit-consistent was measured to fail from 2 s"),
+            std::string::npos)
+      << e[0].message;
   // Passive cells: the map's 2 s.
   SceneSpec passive = s;
   passive.cells.p_a = 0;
