@@ -385,7 +385,8 @@ KEYS_ADDED_LATER = {"numerics.contact_max_facing_deg": 90.0,
                     "numerics.contact_max_overlap_um": 0.0,
                     "numerics.contact_within_prisms": False,
                     "numerics.contact_prisms_overlap_only": False,
-                    "numerics.remesh_on_surface": False}
+                    "numerics.remesh_on_surface": False,
+                    "scene.polarity_from_preparation": False}
 
 
 def _resolved_value(spec: Dict[str, Any], key: str) -> Any:

@@ -625,6 +625,7 @@ std::vector<SpecError> checkSceneKeys(const SceneSpec& spec, const std::vector<s
       {"scene.prep_min_s", "scene.prep_min_s", {kFusion}},
       {"scene.compact_rate_per_s", "scene.compact_rate_per_s", {kFusion}},
       {"scene.allow_uncompacted", "scene.allow_uncompacted", {kFusion}},
+      {"scene.polarity_from_preparation", "scene.polarity_from_preparation", {kFusion}},
       {"cells.alpha", "cells.alpha", contacts},
       {"cells.k_contact", "cells.k_contact", contacts},
       {"cells.xi", "cells.xi", contacts},

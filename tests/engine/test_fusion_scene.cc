@@ -76,6 +76,39 @@ TEST(FusionScene, TwoLabelledSpheroidsPlacedTouchingAlongX) {
   EXPECT_NE(spheroidSeed(s.seed, 0), spheroidSeed(s.seed, 1));
 }
 
+// scene.polarity_from_preparation: each cell starts the fusion with the polarity its spheroid's
+// preparation ended with (no start-up kick to every protrusion), else one drawn afresh; the
+// cells are the same either way, and the key is in the fingerprint only when set.
+TEST(FusionScene, PolaritiesComeFromThePreparationOrAreDrawnAfresh) {
+  SceneSpec s = smallFusionSpec();
+  ASSERT_GT(s.cells.p_a, 0);  // motile: the preparation turns the polarities
+  std::vector<PreparedSpheroid> info;
+  const CellSet drawn = buildFusionCells(s, nullptr, {}, &info);
+  s.scene_params.polarity_from_preparation = true;
+  std::vector<PreparedSpheroid> info_kept;
+  const CellSet kept = buildFusionCells(s, nullptr, {}, &info_kept);
+  ASSERT_EQ(drawn.numCells(), 7);
+  EXPECT_EQ(drawn.x, kept.x);
+  int differ = 0;
+  for (int c = 0; c < 7; ++c) {
+    const CellSet& prep = info_kept[c < 3 ? 0 : 1].cells;
+    const Vec3 p = prep.polarity[c < 3 ? c : c - 3];
+    EXPECT_EQ(kept.polarity[c], p) << c;
+    EXPECT_NEAR(p.norm(), 1, 1e-12) << c;
+    EXPECT_NEAR(drawn.polarity[c].norm(), 1, 1e-12) << c;
+    if (drawn.polarity[c] != p) ++differ;
+  }
+  EXPECT_EQ(differ, 7);
+  // Not the default's UnitX everywhere: the preparation's own polarities, cell by cell.
+  EXPECT_NE(info_kept[0].cells.polarity[0], info_kept[0].cells.polarity[1]);
+  EXPECT_NE(info_kept[0].cells.polarity[0], Vec3::UnitX());
+  SceneSpec off = s;
+  off.scene_params.polarity_from_preparation = false;
+  EXPECT_NE(specFingerprint(s).find("polarity_from_preparation"), std::string::npos);
+  // Off, the key is left out: checkpoints and prepared spheroids of earlier versions stay valid.
+  EXPECT_EQ(specFingerprint(off).find("polarity_from_preparation"), std::string::npos);
+}
+
 TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
   TempDir dir;
   const SpheroidCache cache(dir.path.string());

@@ -207,6 +207,20 @@ TEST(SpecConvert, ThePrismsOverlapOnlyTravelsAndNeedsThePrisms) {
   })) << errorText(r.errors);
 }
 
+TEST(SpecConvert, ThePolarityFromThePreparationTravelsAndIsTheFusionsOnly) {
+  v1::SceneSpec typed;
+  typed.mutable_fusion()->set_polarity_from_preparation(true);
+  ConvertResult r = convertSpec(typed, "", {});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_TRUE(r.spec->scene_params.polarity_from_preparation);
+  r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion", "scene.polarity_from_preparation=true"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_TRUE(r.spec->scene_params.polarity_from_preparation);
+  r = convertSpec(v1::SceneSpec{}, "", {"scene=doublet", "scene.polarity_from_preparation=true"});
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.errors[0].field, "scene.polarity_from_preparation");
+}
+
 TEST(SpecConvert, MissingSceneNamesTheSceneKey) {
   ConvertResult r = convertSpec(v1::SceneSpec{});
   ASSERT_FALSE(r.ok());

@@ -135,6 +135,11 @@ struct SceneParams {
   // A spheroid not compact after prep_max_s (> 0) fails the job unless this is set (its rate of
   // compaction is named). prep_max_s = 0 asks for the packed cells as they are.
   bool allow_uncompacted = false;
+  // Fusion: each cell keeps the polarity its spheroid's preparation ended with, instead of one
+  // drawn afresh at t = 0. A fresh draw moves every protrusion to a new side at once, and at high
+  // motility the cells swell past the volume guard within seconds (docs/science/fig8-pa1-probe/);
+  // false: the draw, as in earlier versions.
+  bool polarity_from_preparation = false;
 
   friend bool operator==(const SceneParams&, const SceneParams&) = default;
 };

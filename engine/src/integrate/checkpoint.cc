@@ -81,6 +81,9 @@ std::string specFingerprint(const SceneSpec& spec) {
     // Changes no state: whether a run may start from uncompacted spheroids (left out at its
     // default, so that keys of earlier versions stay valid).
     if (f.key == "scene.allow_uncompacted" && !spec.scene_params.allow_uncompacted) continue;
+    // Added later; false draws the polarities as earlier versions did.
+    if (f.key == "scene.polarity_from_preparation" && !spec.scene_params.polarity_from_preparation)
+      continue;
     // Added later; at 0 the relaxation is the one of earlier versions.
     if (f.key == "scene.prep_min_s" && spec.scene_params.prep_min_s == 0) continue;
     if (f.key == "numerics.dt_min_s" && dtMinS(spec.numerics) == defaultDtMinS(spec.numerics.dt_s))

@@ -340,13 +340,15 @@ CellSet buildFusionCells(const SceneSpec& spec, const SpheroidCache* cache, cons
       if (s == 1) m.x.row(0).array() += shift;
       cells.addCell(m, src.radius[c], s);
       cells.pi_integral.back() = src.pi_integral[c];
+      if (sp.polarity_from_preparation) cells.polarity.back() = src.polarity[c];
     }
   }
-  for (Vec3& p : cells.polarity) {
-    const double z = 2 * rng.uniform() - 1, phi = 2 * M_PI * rng.uniform();
-    const double r = std::sqrt(1 - z * z);
-    p = Vec3(r * std::cos(phi), r * std::sin(phi), z);
-  }
+  if (!sp.polarity_from_preparation)
+    for (Vec3& p : cells.polarity) {
+      const double z = 2 * rng.uniform() - 1, phi = 2 * M_PI * rng.uniform();
+      const double r = std::sqrt(1 - z * z);
+      p = Vec3(r * std::cos(phi), r * std::sin(phi), z);
+    }
   if (info) *info = {std::move(a), std::move(b)};
   return cells;
 }

@@ -254,6 +254,11 @@ const std::vector<Entry>& entries() {
                          "fusion: fuse spheroids that are not compact after scene.prep_max_s "
                          "as they are; false: the job fails with preparation-failed"),
                  [](SceneSpec& s) -> Slot { return &s.scene_params.allow_uncompacted; }});
+    t.push_back({boolean("scene.polarity_from_preparation",
+                         "fusion: each cell keeps the polarity its spheroid's preparation ended "
+                         "with; false: polarities drawn afresh at t = 0 (a start-up kick to "
+                         "every protrusion)"),
+                 [](SceneSpec& s) -> Slot { return &s.scene_params.polarity_from_preparation; }});
     // ---- [accuracy]
     t.push_back({real("accuracy.contact_angle_deg", kOpen, 0, 90, kClosed, "°",
                       "accuracy target instead of numerics: largest acceptable error of the "
