@@ -386,6 +386,7 @@ KEYS_ADDED_LATER = {"numerics.contact_max_facing_deg": 90.0,
                     "numerics.contact_within_prisms": False,
                     "numerics.contact_prisms_overlap_only": False,
                     "numerics.remesh_on_surface": False,
+                    "numerics.remesh_rescue": False,
                     "scene.polarity_from_preparation": False}
 
 

@@ -153,6 +153,10 @@ TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
   EXPECT_EQ(spheroidPrepSpec(other, 3, 11).numerics.contact_max_overlap_um, 0);
   EXPECT_FALSE(spheroidPrepSpec(other, 3, 11).numerics.contact_within_prisms);
   EXPECT_FALSE(spheroidPrepSpec(other, 3, 11).numerics.contact_prisms_overlap_only);
+  // Nor the remesher's rescue of locked cells.
+  other.numerics.remesh_rescue = true;
+  EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
+  EXPECT_FALSE(spheroidPrepSpec(other, 3, 11).numerics.remesh_rescue);
   // The preparation's preconditioner is its own, Jacobi, whatever the run's and the presets'
   // (block-Jacobi since 2026-11-24): caches prepared before that stay valid.
   EXPECT_EQ(prep.numerics.preconditioner, PreconditionerKind::Jacobi);

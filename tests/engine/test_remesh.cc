@@ -1,10 +1,12 @@
 // Remeshing (DESIGN.md §5): invariants and physics, never hard-coded outputs.
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <random>
 #include <set>
+#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -214,20 +216,135 @@ TEST(Remesh, ForcedCollapsesPreserveVolume) {
 
 TEST(Remesh, CollapseGuardsStopAtValidMesh) {
   // Every triangle is "too small": collapses run until the guards refuse; the mesh must stay
-  // a valid closed 2-manifold with valence ≥ 4 and at least min_vertices vertices.
-  for (int level : {1, 2}) {
-    TriMesh m = icosphere(level);
-    m.x *= kRadius;
-    RemeshParams p;
-    p.min_area = 1e6;
-    p.max_passes = 50;
-    const RemeshStats st = remesh(m, p);
-    EXPECT_GT(st.collapses, 0);
-    EXPECT_GT(st.refused_collapses, 0);
-    expectValid(m);
-    EXPECT_GE(m.numVertices(), p.min_vertices);
-    EXPECT_NEAR(st.volume_after, st.volume_before, 1e-10 * st.volume_before);
+  // a valid closed 2-manifold with valence ≥ 4 and at least min_vertices vertices. With the
+  // rescue (every triangle stays below half of A_m, so it runs) collapses may leave valence 3,
+  // never less.
+  for (int level : {1, 2})
+    for (bool rescue : {false, true}) {
+      SCOPED_TRACE(std::to_string(level) + (rescue ? " with the rescue" : ""));
+      TriMesh m = icosphere(level);
+      m.x *= kRadius;
+      RemeshParams p;
+      p.min_area = 1e6;
+      p.max_passes = 50;
+      p.rescue = rescue;
+      const RemeshStats st = remesh(m, p);
+      EXPECT_EQ(st.rescues, rescue ? 1 : 0);
+      EXPECT_GT(st.collapses, 0);
+      EXPECT_GT(st.refused_collapses, 0);
+      EXPECT_EQ(checkClosedManifold(m), "");
+      EXPECT_GT(meshVolume(m), 0);
+      EXPECT_GE(minValence(m), rescue ? 3 : 4);
+      EXPECT_GE(m.numVertices(), p.min_vertices);
+      EXPECT_NEAR(st.volume_after, st.volume_before, 1e-10 * st.volume_before);
+    }
+}
+
+// A cell that the remesher could not repair (tests/engine/data/locked-cell.obj): a squeezed cell
+// of a motile fusion at Δt 1 s (p_a r/2γ = 1, α 0.4375, seed 3; docs/science/fig8-pa1-probe),
+// remeshed at every step for 78 steps while its smallest triangle flattened to 2e-5 of 4πr²/N
+// and then inverted. That triangle's vertices are three of valence 4 inside a triangle of three
+// others: every collapse of its edges would leave one at valence 3, and every flip too, so both
+// were refused.
+struct ObjCell {
+  TriMesh mesh;
+  double radius = 0;
+};
+
+ObjCell readObjCell(const std::string& path) {
+  std::ifstream in(path);
+  EXPECT_TRUE(in) << path;
+  ObjCell cell;
+  std::vector<Vec3> xs;
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream ss(line);
+    std::string k;
+    ss >> k;
+    if (k == "#") {
+      std::string w;
+      if (ss >> w && w == "radius_um") ss >> cell.radius;
+    } else if (k == "v") {
+      Vec3 x;
+      ss >> x[0] >> x[1] >> x[2];
+      xs.push_back(x);
+    } else if (k == "f") {
+      Tri f;
+      ss >> f[0] >> f[1] >> f[2];
+      for (int& q : f) --q;
+      cell.mesh.tri.push_back(f);
+    }
   }
+  cell.mesh.x.resize(3, static_cast<Eigen::Index>(xs.size()));
+  for (std::size_t i = 0; i < xs.size(); ++i) cell.mesh.x.col(static_cast<Eigen::Index>(i)) = xs[i];
+  cell.mesh.v = Eigen::Matrix3Xd::Zero(3, cell.mesh.x.cols());
+  return cell;
+}
+
+// As Simulation::remeshCells sets them for a cell of this radius.
+RemeshParams simulationParams(double radius, bool rescue) {
+  const double a_ref = 4 * M_PI * radius * radius / 320;
+  RemeshParams p;
+  p.min_area = a_ref / 3;
+  p.max_area = 3 * a_ref;
+  p.smooth_min_angle_deg = 15;
+  p.on_surface = true;
+  p.rescue = rescue;
+  return p;
+}
+
+TEST(Remesh, ALockedCellIsRepairedByTheRescue) {
+  const ObjCell cell = readObjCell(std::string(ENGINE_TEST_DATA) + "/locked-cell.obj");
+  const TriMesh& locked = cell.mesh;
+  ASSERT_GT(cell.radius, 0);
+  ASSERT_EQ(checkClosedManifold(locked), "");
+  const double amin = simulationParams(cell.radius, false).min_area;
+  ASSERT_LT(areaRange(locked).first, 1e-3 * amin);
+
+  // Without the rescue: every collapse is refused, nothing changes, the sliver stays.
+  TriMesh kept = locked;
+  const RemeshStats refused = remesh(kept, simulationParams(cell.radius, false));
+  EXPECT_GT(refused.refused_collapses, 0);
+  EXPECT_EQ(refused.operations(), 0);
+  EXPECT_EQ(refused.rescues, 0);
+  EXPECT_LT(areaRange(kept).first, 1e-3 * amin);
+
+  // With it: the collapses go through, and no triangle is left below the policy's trigger (half
+  // of A_m); the mesh stays closed and oriented, of the same volume.
+  TriMesh freed = locked;
+  std::vector<int> old_to_new;
+  const RemeshStats st = remesh(freed, simulationParams(cell.radius, true), old_to_new);
+  EXPECT_EQ(st.rescues, 1);
+  EXPECT_GT(st.collapses, 0);
+  EXPECT_EQ(checkClosedManifold(freed), "");
+  EXPECT_GE(minValence(freed), 3);
+  EXPECT_GE(areaRange(freed).first, 0.5 * amin);
+  EXPECT_NEAR(meshVolume(freed), meshVolume(locked), 1e-12 * meshVolume(locked));  // on_surface
+  EXPECT_EQ(freed.numVertices(), locked.numVertices() - st.collapses);
+  ASSERT_EQ(static_cast<int>(old_to_new.size()), locked.numVertices());
+  for (int i = 0; i < locked.numVertices(); ++i) {
+    ASSERT_GE(old_to_new[i], 0);
+    ASSERT_LT(old_to_new[i], freed.numVertices());
+  }
+}
+
+// A remesh that leaves no triangle below half of A_m runs no rescue: with it on, the mesh comes
+// out bit for bit as without it (so runs that never lock keep their bits).
+TEST(Remesh, TheRescueChangesNothingWhereNoTriangleIsLeftSmall) {
+  int rescued = 0;
+  for (unsigned seed : {1u, 2u, 3u, 4u, 5u}) {
+    TriMesh a = sphere();
+    perturbOnSphere(a, 0.8, seed);
+    TriMesh b = a;
+    const RemeshStats sa = remesh(a, simulationParams(kRadius, false));
+    const RemeshStats sb = remesh(b, simulationParams(kRadius, true));
+    rescued += sb.rescues;
+    if (sb.rescues) continue;
+    EXPECT_GT(sa.operations(), 0) << seed;
+    EXPECT_EQ(a.tri, b.tri) << seed;
+    EXPECT_EQ(a.x, b.x) << seed;
+  }
+  EXPECT_LT(rescued, 5);  // else this test compared nothing
 }
 
 TEST(Remesh, FlipsRestoreDelaunayUnlessGuarded) {
@@ -324,6 +441,38 @@ TEST(Remesh, RandomStress) {
   RecordProperty("refused_collapses", total.refused_collapses);
   RecordProperty("refused_flips", total.refused_flips);
   RecordProperty("worst_rel_dV_e15", static_cast<int>(worstDv * 1e15));
+}
+
+// The simulation's settings with the rescue, on a cell jostled for 200 rounds: every remesh
+// leaves a closed manifold (valence ≥ 3) of the same volume with no triangle below the trigger.
+TEST(Remesh, RandomStressWithTheRescueKeepsTheMeshValid) {
+  TriMesh m = sphere();
+  const RemeshParams p = simulationParams(kRadius, true);
+  int rescues = 0;
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n01;
+  int collapses = 0;
+  for (int round = 0; round < 200; ++round) {
+    Vec3 c = Vec3::Zero();
+    for (int i = 0; i < m.numVertices(); ++i) c += m.x.col(i);
+    c /= m.numVertices();
+    for (int i = 0; i < m.numVertices(); ++i) {
+      const Vec3 nrm = (m.x.col(i) - c).normalized();
+      Vec3 d(n01(rng), n01(rng), n01(rng));
+      const Vec3 radial = d.dot(nrm) * nrm;
+      m.x.col(i) += 0.15 * (d - radial) + 0.02 * radial;  // µm
+    }
+    const double v0 = meshVolume(m);
+    const RemeshStats st = remesh(m, p);
+    collapses += st.collapses;
+    rescues += st.rescues;
+    ASSERT_EQ(checkClosedManifold(m), "") << "round " << round;
+    ASSERT_GE(minValence(m), 3) << "round " << round;
+    ASSERT_NEAR(meshVolume(m), v0, 1e-10 * v0) << "round " << round;
+    ASSERT_GE(areaRange(m).first, p.min_area / 2) << "round " << round;
+  }
+  EXPECT_GT(collapses, 0);
+  RecordProperty("rescues", rescues);
 }
 
 TEST(Remesh, VelocitiesAveraged) {

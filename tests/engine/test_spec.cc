@@ -738,6 +738,22 @@ TEST(SpecFields, ThePrismsOverlapOnlyIsOffByDefaultAndNeedsThePrisms) {
       << specFingerprint(s);
 }
 
+// numerics.remesh_rescue changes the remeshing of locked cells: off by default (the same bits as
+// before it), out of the fingerprint then, in it when on (the preparation keeps it off:
+// test_fusion_scene.cc).
+TEST(SpecFields, TheRemeshRescueIsOffByDefaultAndInTheFingerprintWhenOn) {
+  SceneSpec s = resolve(SceneSpec{});
+  EXPECT_FALSE(s.numerics.remesh_rescue);
+  EXPECT_EQ(specFingerprint(s).find("rescue"), std::string::npos);
+  ASSERT_EQ(setField(s, "numerics.remesh_rescue", true), std::nullopt);
+  EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+  EXPECT_NE(specFingerprint(s).find("numerics.remesh_rescue=1;"), std::string::npos)
+      << specFingerprint(s);
+  const auto error = setField(s, "numerics.remesh_rescue", 3.0);
+  ASSERT_TRUE(error.has_value());
+  EXPECT_NE(error->message.find("true or false"), std::string::npos) << error->message;
+}
+
 }  // namespace
 }  // namespace activefoam
 

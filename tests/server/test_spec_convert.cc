@@ -221,6 +221,22 @@ TEST(SpecConvert, ThePolarityFromThePreparationTravelsAndIsTheFusionsOnly) {
   EXPECT_EQ(r.errors[0].field, "scene.polarity_from_preparation");
 }
 
+// numerics.remesh_rescue (proto field 23) reaches the engine from the typed message and
+// from settings, in every scene (every scene remeshes).
+TEST(SpecConvert, TheRemeshRescueTravels) {
+  v1::SceneSpec typed;
+  typed.mutable_numerics()->set_remesh_rescue(true);
+  ConvertResult r = convertSpec(typed, "", {"scene=cell"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_TRUE(r.spec->numerics.remesh_rescue);
+  r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion", "numerics.remesh_rescue=true"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_TRUE(r.spec->numerics.remesh_rescue);
+  r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_FALSE(r.spec->numerics.remesh_rescue);
+}
+
 TEST(SpecConvert, MissingSceneNamesTheSceneKey) {
   ConvertResult r = convertSpec(v1::SceneSpec{});
   ASSERT_FALSE(r.ok());

@@ -29,6 +29,13 @@ struct RemeshParams {
   int min_vertices = 12;       // never collapse below this many vertices
   int max_vertices = 1 << 16;  // never split beyond this many (bounds a tiny max_area)
   bool flips = true;           // Delaunay flips on/off
+  // A collapse that would leave a neighbour of its edge with valence 3 is refused, which keeps
+  // the valence ≥ 4 but can lock a patch: a small triangle whose vertices are all of valence 4
+  // (three such vertices inside a triangle of three others, on a crumpled cell of a motile
+  // fusion) can be neither collapsed nor flipped, and flattens until it inverts. With rescue, a
+  // remesh that leaves a triangle below half of min_area runs its passes once more, allowing
+  // such collapses; a remesh that needs no rescue is the same as without it.
+  bool rescue = false;
   // Tangential smoothing of the vertices of triangles smaller than min_area or with an angle
   // below this (degrees; 0: off): what the collapse and flip guards refuse (see remesh.cc).
   // The simulation uses 15°.
@@ -48,6 +55,7 @@ struct RemeshStats {
   int collapses = 0;
   int flips = 0;
   int smooths = 0;            // vertices moved by tangential smoothing
+  int rescues = 0;            // 1 when the remesh ran the rescue (RemeshParams::rescue)
   double volume_offset = 0;   // on_surface: the cell's normal offset that restored its volume
   int refused_collapses = 0;  // candidates rejected by the manifold/orientation/valence guards
   int refused_flips = 0;      // Delaunay-violating edges kept by the flip guards
@@ -57,8 +65,9 @@ struct RemeshStats {
 };
 
 // Splits, collapses and Delaunay flips in place. Keeps the mesh closed, 2-manifold, oriented,
-// with vertex valence ≥ 4; keeps the enclosed volume (collapsed vertices are placed to preserve
-// it). Velocities are carried along (averaged on split/collapse) for the CG warm start.
+// with vertex valence ≥ 4 (≥ 3 after a rescue: RemeshParams::rescue); keeps the enclosed volume
+// (collapsed vertices are placed to preserve it). Velocities are carried along (averaged on
+// split/collapse) for the CG warm start.
 //
 // Passes: each pass runs split sweeps until none applies, then collapse sweeps, then flip sweeps
 // (each kind at most max_passes sweeps per pass); passes repeat until one changes nothing or

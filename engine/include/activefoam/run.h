@@ -47,6 +47,9 @@ struct RunSummary {
   double wall_s = 0;
   double cg_iters_mean = 0;
   std::int64_t remesh_ops = 0;  // splits + collapses + flips over the run
+  // Cell remeshes that ran the rescue (numerics.remesh_rescue): 0 means the bits of the run
+  // without the key.
+  std::int64_t remesh_rescues = 0;
   // Adaptive time step: tries undone and retried over the run, and the shortest step taken (on
   // failure: the shortest tried).
   std::int64_t steps_rejected = 0;

@@ -94,6 +94,9 @@ class Simulation {
   // the cost — see docs/benchmarks.md for the measurement that chose it.
   static constexpr double kCandidateSkinUm = 0.4;
   std::int64_t remeshOps() const { return remesh_ops_; }
+  // Cell remeshes that ran the rescue (numerics.remesh_rescue) over the run: while it is 0 the
+  // run has the bits it would have without the key.
+  std::int64_t remeshRescues() const { return remesh_rescues_; }
   // The force terms built for this spec, in evaluation order (terms whose parameters vanish are
   // not built).
   std::vector<std::string_view> termNames() const {
@@ -178,12 +181,14 @@ class Simulation {
   Eigen::Matrix3Xd f_;
   Eigen::VectorXd v_;
   std::int64_t remesh_ops_ = 0;
+  std::int64_t remesh_rescues_ = 0;
   std::int64_t steps_rejected_ = 0;
   PhaseTimes times_;
   PenetrationScratch penetration_;  // scratch of interpenetration()
   struct Saved {
     CellSet cells;
     std::int64_t remesh_ops = 0;
+    std::int64_t remesh_rescues = 0;
   } saved_;
 };
 

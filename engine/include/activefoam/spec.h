@@ -70,6 +70,11 @@ struct NumericsParams {
   // moving the vertex along its normal, by up to half an edge, which at a contact pushed it into
   // the neighbouring cell (the interpenetration guard stopped runs; earlier versions' behaviour).
   bool remesh_on_surface = true;
+  // A cell's remesh that leaves a triangle below half of A_m runs again, allowing collapses that
+  // leave a vertex of valence 3 (remesh.h, RemeshParams::rescue). false: such collapses are
+  // always refused, which can lock a small triangle among vertices of valence 4 until it
+  // inverts (earlier versions' behaviour).
+  bool remesh_rescue = false;
   ContactQuadrature contact_quadrature = ContactQuadrature::Exact;
   double max_volume_error = 0.05;  // |V − V*|/V* beyond this stops the run as failed
   // Interpenetration of two cells (the area-weighted mean gap over their contact pairs) beyond

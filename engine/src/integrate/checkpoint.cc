@@ -94,6 +94,8 @@ std::string specFingerprint(const SceneSpec& spec) {
     // Added later, default true; false is the remeshing of earlier versions, whose checkpoints
     // and prepared spheroids stay valid when a spec asks for it.
     if (f.key == "numerics.remesh_on_surface" && !spec.numerics.remesh_on_surface) continue;
+    // Added later; false is the remeshing of earlier versions.
+    if (f.key == "numerics.remesh_rescue" && !spec.numerics.remesh_rescue) continue;
     // Added later; at 0 the pressure grows without bound, as in earlier versions.
     if (f.key == "numerics.contact_max_overlap_um" && spec.numerics.contact_max_overlap_um == 0)
       continue;
@@ -116,6 +118,9 @@ std::string Simulation::saveState(const std::string& extra) const {
   w.str(specFingerprint(spec_));
   w.pod(stepper_.state());
   w.pod(remesh_ops_);
+  // Only with the key (so that the checkpoints of runs without it are those of earlier versions;
+  // the key is in the fingerprint, so the reader knows).
+  if (spec_.numerics.remesh_rescue) w.pod(remesh_rescues_);
   w.pod(steps_rejected_);
   std::vector<std::int64_t> counts;
   for (const auto& g : guards_) counts.push_back(g->count());
@@ -135,6 +140,7 @@ std::string Simulation::loadState(const std::string& bytes) {
     throw std::invalid_argument("checkpoint: written by a run of a different spec");
   const auto schedule = r.pod<TimeStepper::State>();
   const auto remesh_ops = r.pod<std::int64_t>();
+  const auto rescues = spec_.numerics.remesh_rescue ? r.pod<std::int64_t>() : 0;
   const auto rejected = r.pod<std::int64_t>();
   const auto counts = r.vec<std::int64_t>();
   CellSet c = readCells(r, true, "checkpoint");
@@ -146,6 +152,7 @@ std::string Simulation::loadState(const std::string& bytes) {
   cells_ = std::move(c);
   stepper_.setState(schedule);
   remesh_ops_ = remesh_ops;
+  remesh_rescues_ = rescues;
   steps_rejected_ = rejected;
   for (std::size_t k = 0; k < counts.size(); ++k) guards_[k]->setCount(counts[k]);
   updateTopology(cells_, topo_);

@@ -108,12 +108,14 @@ void Simulation::resetGuardCounts() {
 void Simulation::saveRollback() {
   saved_.cells = cells_;  // copy-assignment: reuses the buffers of the last step
   saved_.remesh_ops = remesh_ops_;
+  saved_.remesh_rescues = remesh_rescues_;
 }
 
 void Simulation::rollback() {
   const std::uint64_t tried_version = cells_.topology_version;
   cells_ = saved_.cells;
   remesh_ops_ = saved_.remesh_ops;
+  remesh_rescues_ = saved_.remesh_rescues;
   if (cells_.topology_version != tried_version) {
     // The try remeshed: a version number that nothing has seen, so that the edge list, Γ's
     // pattern and the broad phase's lists are rebuilt rather than taken for the tried meshes'.
@@ -248,6 +250,7 @@ StepReport Simulation::remeshCells(const std::vector<char>& which) {
     rp.max_area = spec_.numerics.remesh_max_area_factor * a_ref;
     rp.smooth_min_angle_deg = 15;
     rp.on_surface = spec_.numerics.remesh_on_surface;
+    rp.rescue = spec_.numerics.remesh_rescue;
     stats[c] = remesh(meshes[c], rp);
   }
   int ops = 0;
@@ -255,6 +258,7 @@ StepReport Simulation::remeshCells(const std::vector<char>& which) {
     if (!which[c]) continue;
     const RemeshStats& st = stats[c];
     ops += st.operations();
+    remesh_rescues_ += st.rescues;
     if (st.volume_before > 0)
       rep.remesh_volume_jump = std::max(
           rep.remesh_volume_jump, std::abs(st.volume_after - st.volume_before) / st.volume_before);

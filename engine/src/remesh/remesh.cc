@@ -56,6 +56,22 @@ class Remesher {
   }
 
   void run() {
+    passes();
+    // The rescue: only a remesh that leaves a triangle below half of A_m (the policy's trigger:
+    // the cell would be due again at the next step, as locked as now) runs its passes again,
+    // with collapses allowed to leave a vertex of valence 3. Every other remesh is the same as
+    // without it, bit for bit.
+    if (p_.rescue && p_.min_area > 0) {
+      computeAreas();
+      if (anyArea([&](double a) { return a < 0.5 * p_.min_area; })) {
+        relaxed_ = true;
+        ++st_.rescues;
+        passes();
+      }
+    }
+  }
+
+  void passes() {
     const bool split_on = p_.max_area > 0, collapse_on = p_.min_area > 0;
     for (int pass = 0; pass < std::max(1, p_.max_passes); ++pass) {
       int changed = 0;
@@ -255,7 +271,11 @@ class Remesher {
   // Collapse edge a→b of triangle t (= (a,b,c)), with u = (b,a,d), into a. False if refused.
   bool tryCollapse(int t, int u, int a, int b, int c, int d) {
     if (alive_ - 1 < p_.min_vertices) return false;
-    if (valence(a) + valence(b) - 4 < 4 || valence(c) - 1 < 4 || valence(d) - 1 < 4) return false;
+    // In the rescue c or d may drop to 3 (never lower: a collapse next to a vertex of valence 3
+    // is refused either way).
+    const int least = relaxed_ ? 3 : 4;
+    if (valence(a) + valence(b) - 4 < 4 || valence(c) - 1 < least || valence(d) - 1 < least)
+      return false;
     // Link condition: the common neighbours of a and b are exactly c and d.
     const int sa = ++stampId_, sb = ++stampId_;
     for (int q = incStart_[a]; q < incStart_[a + 1]; ++q)
@@ -618,6 +638,7 @@ class Remesher {
   std::vector<int> rep_;
   std::vector<char> dead_;
   int alive_ = 0;
+  bool relaxed_ = false;  // the rescue's passes
   double vol_ = 0;
   double v0_ = 0;  // on_surface: the volume to restore
   std::vector<double> area_;

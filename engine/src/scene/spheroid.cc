@@ -142,6 +142,9 @@ SceneSpec spheroidPrepSpec(const SceneSpec& spec, std::int64_t n_cells, std::uin
   p.numerics.contact_max_overlap_um = d.contact_max_overlap_um;
   p.numerics.contact_within_prisms = d.contact_within_prisms;
   p.numerics.contact_prisms_overlap_only = d.contact_prisms_overlap_only;
+  // Likewise the remesher's rescue: a run with it starts from the same prepared spheroids as its
+  // reference run without it.
+  p.numerics.remesh_rescue = d.remesh_rescue;
   p.numerics.dt_min_s.reset();  // resolve() derives it from the preparation's Δt
   p.duration_s = spec.scene_params.prep_max_s;
   p.sample_every_s = kWindowS;

@@ -171,6 +171,12 @@ const std::vector<Entry>& entries() {
                          "by moving the smoothed vertex along its normal (earlier versions), "
                          "which can push it into a neighbouring cell"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.remesh_on_surface; }});
+    t.push_back({boolean("numerics.remesh_rescue",
+                         "a cell's remesh that leaves a triangle below half of the collapse area "
+                         "runs again, allowing collapses that leave a vertex of valence 3; false: "
+                         "such collapses are always refused (earlier versions), which can lock a "
+                         "shrinking triangle among vertices of valence 4 until it inverts"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.remesh_rescue; }});
     t.push_back({choice("numerics.contact_quadrature", {"exact", "dunavant7", "centroid"},
                         "integration of the contact pressure over the overlap polygon"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.contact_quadrature; }});
