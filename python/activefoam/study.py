@@ -473,12 +473,53 @@ def _share_of(study: Study, run: Run) -> Optional[Share]:
     return next((sh for sh in study.shares if sh.covers(run.point)), None)
 
 
+def _share_base_verified(study: Study, sh: Share, own_specs: List[Tuple[Run, Dict]]) -> bool:
+    """Whether this study's own jobs show that its base gives the keys only the other study's
+    point sets (sh.that, not sh.this) the values set there: False while no job shows them yet;
+    an error naming the key when one differs (the two are not one run)."""
+    for key in (k for k in sh.that if k not in sh.this):
+        base = [_resolved_value(spec, key) for r, spec in own_specs if key not in r.point]
+        base = [v for v in base if v is not None]
+        if not base:
+            return False
+        if not _same(base[0], sh.that[key]):
+            raise StudyError(
+                f"{study.path}: share[{sh.index}]: {key} is {base[0]} in this study's "
+                f"runs (its base) but {sh.that[key]} at the shared point of "
+                f"{sh.other.name}: not one run")
+    return True
+
+
+def _owner_of_shared_run(study: Study, client: Any, run: Run
+                         ) -> Optional[Tuple[Study, Run, int]]:
+    """For a shared run that must be submitted: the study that owns it (the other study of its
+    [[share]]), its run there and that run's jobs so far — so that it is submitted as the owner
+    would submit it, and the owner finds it as its own rather than running it again. None when
+    the run is not shared, or this study's own jobs cannot show yet that the two are one run."""
+    sh = _share_of(study, run)
+    if sh is None:
+        return None
+    own, _ = _jobs_by_run(study, client._list(tag=study.tag))
+    own_specs = [(study.runs()[i], json.loads(j.spec_json) if j.spec_json else {})
+                 for i, js in own.items() for j in js]
+    if not _share_base_verified(study, sh, own_specs):
+        return None
+    other_runs = sh.other.runs()
+    k = next((k for k, r in enumerate(other_runs)
+              if r.seed == run.seed and _same_point(r.point, sh.that)), None)
+    if k is None:
+        return None
+    other_jobs, _ = _jobs_by_run(sh.other, client._list(tag=sh.other.tag))
+    return sh.other, other_runs[k], len(other_jobs.get(k, []))
+
+
 def _shared_jobs(study: Study, client: Any, own: Dict[int, List[Any]]) -> Dict[int, List[Any]]:
     """Run index → the other study's jobs of that run, for the shared runs that have no job of
     their own. A job is taken only when its resolved spec shows it is this run: this study's
     keys (the point, the seed, [spec]) have their values in it, and the keys only the other
     point sets have, in this study's own jobs, the values the base gives them. Until this study
-    has a job of its own to read the base from, nothing is shared (the run is submitted). A run
+    has a job of its own to read the base from, nothing is shared (the run is submitted as this
+    study's own). A run with no job anywhere is submitted as the other study's (submit_missing). A run
     whose own jobs were all cancelled (say, submitted while the other study's were being
     resubmitted) takes the other study's jobs like a run with none."""
     from activefoam.client import _state_name
@@ -502,22 +543,7 @@ def _shared_jobs(study: Study, client: Any, own: Dict[int, List[Any]]) -> Dict[i
             k_other = next((k for k, r in enumerate(other_runs)
                             if r.seed == run.seed and _same_point(r.point, sh.that)), None)
             jobs = other_jobs.get(k_other, []) if k_other is not None else []
-            if not jobs:
-                continue
-            verified = True
-            for key in (k for k in sh.that if k not in sh.this):
-                base = [_resolved_value(spec, key) for r, spec in own_specs
-                        if key not in r.point]
-                base = [v for v in base if v is not None]
-                if not base:
-                    verified = False  # no job of this study shows the base's value yet
-                    break
-                if not _same(base[0], sh.that[key]):
-                    raise StudyError(
-                        f"{study.path}: share[{sh.index}]: {key} is {base[0]} in this study's "
-                        f"runs (its base) but {sh.that[key]} at the shared point of "
-                        f"{sh.other.name}: not one run")
-            if not verified:
+            if not jobs or not _share_base_verified(study, sh, own_specs):
                 continue
             for j in jobs:
                 spec = json.loads(j.spec_json) if j.spec_json else {}
@@ -708,13 +734,22 @@ def submit_missing(study: Study, client: Any, retry_failed: bool = False,
                   "submitted again", file=out)
             held += 1
             continue
-        settings = [_setting(k, v) for k, v in study.settings(run).items()]
+        # A shared run is submitted as its owner's run (the same base, [spec] and preset, by
+        # the share's rules), whichever study is submitted first: then the owner finds it as
+        # its own, and the idempotency key is the one the owner would use.
+        owner, owner_run, attempts = study, run, len(have)
+        owned = _owner_of_shared_run(study, client, run)
+        if owned is not None:
+            owner, owner_run, attempts = owned
+            print(f"study {study.name}: {run.label()} is {owner.name}'s run "
+                  f"{owner_run.label()} (shared): submitted as {owner.name}'s", file=out)
+        settings = [_setting(k, v) for k, v in owner.settings(owner_run).items()]
         # The scene first, as the client does: its table's defaults apply before the others.
         settings.sort(key=lambda s: not s.startswith("scene="))
         req = service_pb2.SubmitJobRequest(
-            spec_text=study.base_text, settings=settings, tag=study.tag,
-            priority=study.priority,
-            idempotency_key=f"{study.tag}:{study.run_id(run)}:{len(have)}")
+            spec_text=owner.base_text, settings=settings, tag=owner.tag,
+            priority=owner.priority,
+            idempotency_key=f"{owner.tag}:{owner.run_id(owner_run)}:{attempts}")
         try:
             resp = client._call("SubmitJob", req, f"submit {run.label()}")
         except ValueError as e:

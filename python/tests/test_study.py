@@ -558,6 +558,8 @@ class _FakeFoamd:
         jid = f"j-{len(self.submitted):04d}"
         self.add(req.tag, _FakeJob(jid, spec["seed"], spec, state="QUEUED"))
         self.submitted.append(dict(s.split("=", 1) for s in req.settings))
+        self.submitted[-1]["tag"] = req.tag
+        self.submitted[-1]["key"] = req.idempotency_key
 
         class R:
             created, job_id = True, jid
@@ -614,14 +616,40 @@ def test_a_shared_point_takes_the_other_studys_job_and_is_not_run_again(tmp_path
     assert st.submit_missing(taup, foamd) == (0, 4)
 
 
-def test_a_shared_run_whose_job_was_cancelled_runs_on_its_own(tmp_path):
+def test_a_shared_run_whose_job_was_cancelled_is_submitted_as_the_other_studys(tmp_path):
     taup = _shared_studies(tmp_path)
     foamd = _FakeFoamd({"alpha": 0.4375, "tau_p_s": 600})
     _alpha_jobs(foamd, states=("SUCCEEDED", "CANCELLED"))
     n, _ = st.submit_missing(taup, foamd)
     assert n == 3
-    assert sorted((s["cells.tau_p_s"], s["seed"]) for s in foamd.submitted) == [
-        ("150", "1"), ("150", "2"), ("600", "2")]
+    # τ_p = 150 as this study's; τ_p = 600 of seed 2 is α's run, its second attempt.
+    assert sorted((s["tag"], s.get("cells.tau_p_s"), s.get("cells.alpha"), s["seed"])
+                  for s in foamd.submitted) == [
+        ("study:alpha", None, "0.4375", "2"),
+        ("study:taup", "150", None, "1"), ("study:taup", "150", None, "2")]
+    assert next(s["key"] for s in foamd.submitted if s["tag"] == "study:alpha").endswith(":1")
+    found, source, _ = st._run_jobs(taup, foamd)
+    shared = [i for i, r in enumerate(taup.runs()) if r.point["cells.tau_p_s"] == 600]
+    assert all(source[i] == "alpha" for i in shared)
+
+
+def test_a_shared_run_submitted_before_its_owner_is_the_owners_and_runs_once(tmp_path):
+    # The borrowing study is submitted first, the α study not yet at all: the shared runs go in
+    # as α's runs, and the α study then submits only what else it has (α = 0.6).
+    taup = _shared_studies(tmp_path)
+    alpha = st.load(tmp_path / "alpha.toml")
+    foamd = _FakeFoamd({"alpha": 0.4375, "tau_p_s": 600})
+    assert st.submit_missing(taup, foamd) == (4, 0)
+    assert sorted((s["tag"], s["seed"]) for s in foamd.submitted) == [
+        ("study:alpha", "1"), ("study:alpha", "2"), ("study:taup", "1"), ("study:taup", "2")]
+    assert st.submit_missing(alpha, foamd) == (2, 2)
+    assert sorted(s["cells.alpha"] for s in foamd.submitted[4:]) == ["0.6", "0.6"]
+    # Each study sees every one of its runs once, and nothing more is submitted.
+    for study in (taup, alpha):
+        found, _, stale = st._run_jobs(study, foamd)
+        assert sorted(found) == list(range(len(study.runs()))) and not stale
+        assert all(len(js) == 1 for js in found.values())
+        assert st.submit_missing(study, foamd) == (0, 4)
 
 
 def test_a_shared_run_whose_own_job_was_cancelled_takes_the_other_studys_job(tmp_path):
