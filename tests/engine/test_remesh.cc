@@ -398,6 +398,25 @@ TEST(Remesh, FlipsWithoutCorrectionChangeVolumeByBoundedAmount) {
             st.flips * p.flip_max_volume * st.volume_before * (1 + 1e-9));
 }
 
+namespace {
+
+// Moves every vertex by Gaussian steps (σ = tangential µm along the surface, 0.02 µm across it,
+// relative to the mesh's centroid): a cell jostled between remeshes.
+void jostle(TriMesh& m, std::mt19937& rng, std::normal_distribution<double>& n01,
+            double tangential) {
+  Vec3 c = Vec3::Zero();
+  for (int i = 0; i < m.numVertices(); ++i) c += m.x.col(i);
+  c /= m.numVertices();
+  for (int i = 0; i < m.numVertices(); ++i) {
+    const Vec3 nrm = (m.x.col(i) - c).normalized();
+    Vec3 d(n01(rng), n01(rng), n01(rng));
+    const Vec3 radial = d.dot(nrm) * nrm;
+    m.x.col(i) += tangential * (d - radial) + 0.02 * radial;  // µm
+  }
+}
+
+}  // namespace
+
 TEST(Remesh, RandomStress) {
   TriMesh m = sphere();
   const RemeshParams p = defaultParams();
@@ -406,15 +425,7 @@ TEST(Remesh, RandomStress) {
   RemeshStats total;
   double worstDv = 0;
   for (int round = 0; round < 200; ++round) {
-    Vec3 c = Vec3::Zero();
-    for (int i = 0; i < m.numVertices(); ++i) c += m.x.col(i);
-    c /= m.numVertices();
-    for (int i = 0; i < m.numVertices(); ++i) {
-      const Vec3 nrm = (m.x.col(i) - c).normalized();
-      Vec3 d(n01(rng), n01(rng), n01(rng));
-      const Vec3 radial = d.dot(nrm) * nrm;
-      m.x.col(i) += 0.1 * (d - radial) + 0.02 * radial;  // µm
-    }
+    jostle(m, rng, n01, 0.1);
     const RemeshStats st = remesh(m, p);
     total.splits += st.splits;
     total.collapses += st.collapses;
@@ -443,8 +454,9 @@ TEST(Remesh, RandomStress) {
   RecordProperty("worst_rel_dV_e15", static_cast<int>(worstDv * 1e15));
 }
 
-// The simulation's settings with the rescue, on a cell jostled for 200 rounds: every remesh
-// leaves a closed manifold (valence ≥ 3) of the same volume with no triangle below the trigger.
+// The simulation's settings with the rescue, on a cell jostled hard (0.5 µm a round) for 200
+// rounds: every remesh, rescued or not, leaves a closed manifold (valence ≥ 3) of the same volume
+// with no triangle below the trigger.
 TEST(Remesh, RandomStressWithTheRescueKeepsTheMeshValid) {
   TriMesh m = sphere();
   const RemeshParams p = simulationParams(kRadius, true);
@@ -453,15 +465,7 @@ TEST(Remesh, RandomStressWithTheRescueKeepsTheMeshValid) {
   std::normal_distribution<double> n01;
   int collapses = 0;
   for (int round = 0; round < 200; ++round) {
-    Vec3 c = Vec3::Zero();
-    for (int i = 0; i < m.numVertices(); ++i) c += m.x.col(i);
-    c /= m.numVertices();
-    for (int i = 0; i < m.numVertices(); ++i) {
-      const Vec3 nrm = (m.x.col(i) - c).normalized();
-      Vec3 d(n01(rng), n01(rng), n01(rng));
-      const Vec3 radial = d.dot(nrm) * nrm;
-      m.x.col(i) += 0.15 * (d - radial) + 0.02 * radial;  // µm
-    }
+    jostle(m, rng, n01, 0.5);
     const double v0 = meshVolume(m);
     const RemeshStats st = remesh(m, p);
     collapses += st.collapses;
@@ -472,6 +476,7 @@ TEST(Remesh, RandomStressWithTheRescueKeepsTheMeshValid) {
     ASSERT_GE(areaRange(m).first, p.min_area / 2) << "round " << round;
   }
   EXPECT_GT(collapses, 0);
+  EXPECT_GT(rescues, 0);  // jostled this hard, some remeshes need the rescue (8 of 200 measured)
   RecordProperty("rescues", rescues);
 }
 
