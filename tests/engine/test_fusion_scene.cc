@@ -438,6 +438,44 @@ TEST(Interpenetration, ADeepMeanGapWithNoVertexInsideIsNoOverlap) {
   EXPECT_NE(interpenetration(moved.cells(), moved.contacts(), 0.5, 0, scratch), "");
 }
 
+// The failure says how the deepest vertex's surface lies against the cell it is inside: two
+// membranes pressed into each other face each other; at p_a r/2γ = 1, α 0.3 one cell's sheet
+// slid through its neighbour's and faced the same way (docs/science/fig8-pa1-probe/), where the
+// contact has nothing to push it back with.
+TEST(Interpenetration, SaysWhetherTheMembranesCrossedOrWerePressedIn) {
+  SceneSpec s = activefoam::testing::cellSpec(1.0, 320);
+  s.scene = SceneKind::Doublet;
+  s = resolve(s);
+  const double r = s.cells.radius_mean_um;
+  const auto cosineIn = [](const std::string& why) {
+    const auto at = why.find("(cosine ");
+    return at == std::string::npos ? 0.0 : std::stod(why.substr(at + 8));
+  };
+  PenetrationScratch scratch;
+  Simulation pressed(s, sphereDoublet(r, 1.6));
+  const std::string in = interpenetration(pressed.cells(), pressed.contacts(), 0.5, 0, scratch);
+  EXPECT_NE(in.find(": pressed in"), std::string::npos) << in;
+  EXPECT_LT(cosineIn(in), -0.9) << in;
+
+  // A larger cell B whose sphere holds most of A: B's membrane crosses A's along a circle where
+  // their outward normals agree (no facing pair there), and A's far side lies 7 µm inside B,
+  // facing the way B's surface does. A contact pair is given by hand so that the guard looks.
+  CellSet crossed;
+  crossed.addCell(ellipsoidCell(r, 1.0, 320, Vec3::Zero()), r);
+  crossed.addCell(ellipsoidCell(1.35 * r, 1.0, 320, Vec3(-0.45 * r, 0, 0)), 1.35 * r);
+  ContactList faked;
+  ContactPair pair{};
+  pair.ta = crossed.cell_tri_begin[0];
+  pair.tb = crossed.cell_tri_begin[1];
+  pair.c.mean_gap = -3.0;
+  pair.c.area = 1.0;
+  faked.pairs.push_back(pair);
+  const std::string through = interpenetration(crossed, faked, 0.5, 0, scratch);
+  EXPECT_NE(through.find("vertex"), std::string::npos) << through;
+  EXPECT_NE(through.find(": the membranes have crossed"), std::string::npos) << through;
+  EXPECT_GT(cosineIn(through), 0.9) << through;
+}
+
 // With the step's start (adaptive stepping keeps it) the guard fails a step only if it deepened
 // an overlap beyond the limit: an overlap the step began with, and made no deeper, is not the
 // step's doing, and halving the step could not take it out.

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <iomanip>
 #include <limits>
 #include <sstream>
 #include <utility>
@@ -209,6 +210,37 @@ PairDepth deepestBetween(const CellSet& cells, int a, int b, PenetrationScratch&
   return da >= db ? PairDepth{da, va, a} : PairDepth{db, vb, b};
 }
 
+// How the deepest vertex's surface lies against the cell it is inside: the cosine between its
+// one-ring's area vector and the outward normal of that cell's nearest triangle. Two membranes
+// pressed into each other read near −1; a sheet that has slid through the other's membrane (at
+// p_a r/2γ = 1, α 0.3 every interpenetration read so, +0.06 … +0.95:
+// docs/science/fig8-pa1-probe/) faces the same way, > 0, and the contact, which pushes facing
+// triangles apart, has nothing to push it back with.
+double facingCosine(const CellSet& cells, int vertex, int inside_of) {
+  const int c = cells.vertex_cell[vertex];
+  Vec3 ring = Vec3::Zero();
+  for (int t = cells.cell_tri_begin[c]; t < cells.cell_tri_begin[c + 1]; ++t) {
+    const Tri& tr = cells.tri[t];
+    if (tr[0] != vertex && tr[1] != vertex && tr[2] != vertex) continue;
+    ring +=
+        (cells.x.col(tr[1]) - cells.x.col(tr[0])).cross(cells.x.col(tr[2]) - cells.x.col(tr[0]));
+  }
+  const Vec3 p = cells.x.col(vertex);
+  double d2 = std::numeric_limits<double>::infinity();
+  Vec3 normal = Vec3::Zero();
+  for (int t = cells.cell_tri_begin[inside_of]; t < cells.cell_tri_begin[inside_of + 1]; ++t) {
+    const Tri& tr = cells.tri[t];
+    const Vec3 a = cells.x.col(tr[0]), b = cells.x.col(tr[1]), e = cells.x.col(tr[2]);
+    const double q2 = (closestOnTriangle(p, a, b, e) - p).squaredNorm();
+    if (q2 < d2) {
+      d2 = q2;
+      normal = (b - a).cross(e - a);
+    }
+  }
+  const double n = ring.norm() * normal.norm();
+  return n > 0 ? ring.dot(normal) / n : 0.0;
+}
+
 }  // namespace
 
 double windingNumber(const CellSet& cells, int c, const Vec3& p) {
@@ -279,6 +311,12 @@ std::string interpenetration(const CellSet& cells, const ContactList& contacts, 
         << " > numerics.max_penetration_um = " << limit << " µm";
     if (at_start >= 0) why << " (" << at_start << " µm at the step's start)";
     why << " (their contact's mean gap: " << gs / area << " µm)" << at(t);
+    const int other = d.inside == a ? b : a;
+    const double cosine = facingCosine(cells, d.vertex, other);
+    why << "; its surface " << (cosine > 0 ? "faces the way of" : "faces") << " cell " << other
+        << "'s there (cosine " << std::showpos << std::setprecision(2) << cosine << std::noshowpos
+        << std::setprecision(6) << ")"
+        << (cosine > 0 ? ": the membranes have crossed" : ": pressed in");
     // Whether the remesher moved them: a collapse places its merged vertex to keep the cell's
     // volume, which the remesher does without looking at the neighbours.
     if (remeshed != nullptr)
