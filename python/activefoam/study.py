@@ -387,6 +387,7 @@ KEYS_ADDED_LATER = {"numerics.contact_max_facing_deg": 90.0,
                     "numerics.contact_prisms_overlap_only": False,
                     "numerics.remesh_on_surface": False,
                     "numerics.remesh_rescue": False,
+                    "numerics.remesh_rebuild": False,
                     "scene.polarity_from_preparation": False}
 
 

@@ -16,8 +16,10 @@
 #include "activefoam/cellset.h"
 #include "activefoam/geometry.h"
 #include "activefoam/remesh.h"
+#include "activefoam/simulation.h"
 #include "activefoam/spec.h"
 #include "activefoam/step_guards.h"
+#include "test_support.h"
 
 using namespace activefoam;
 
@@ -345,6 +347,126 @@ TEST(Remesh, TheRescueChangesNothingWhereNoTriangleIsLeftSmall) {
     EXPECT_EQ(a.x, b.x) << seed;
   }
   EXPECT_LT(rescued, 5);  // else this test compared nothing
+}
+
+// A cell the rescue could not repair (tests/engine/data/locked-cell-rescue-refused.obj): crumpled,
+// 122 of its 162 vertices left, its rescued collapses refused in turn while its smallest triangle
+// flattened to 9e-4 of A_m. With the rebuild the remesh lays a fresh icosphere on it: closed,
+// oriented, of the icosphere's count, of the same volume, its vertices on the old surface (to the
+// volume's rescaling), no triangle below the policy's trigger; its velocities interpolated.
+TEST(Remesh, ACellTheRescueCannotRepairIsRebuilt) {
+  const ObjCell cell =
+      readObjCell(std::string(ENGINE_TEST_DATA) + "/locked-cell-rescue-refused.obj");
+  ASSERT_GT(cell.radius, 0);
+  TriMesh locked = cell.mesh;
+  ASSERT_EQ(checkClosedManifold(locked), "");
+  // A velocity field linear in x, which interpolation on the surface keeps exactly.
+  const Eigen::Matrix3d grad =
+      (Eigen::Matrix3d() << 0.1, 0.02, 0, -0.03, 0.05, 0.01, 0, 0.04, -0.02).finished();
+  locked.v = grad * locked.x;
+  RemeshParams p = simulationParams(cell.radius, true);
+  const double amin = p.min_area;
+
+  TriMesh rescued = locked;
+  const RemeshStats only = remesh(rescued, p);
+  EXPECT_EQ(only.rescues, 1);
+  EXPECT_EQ(only.rebuilds, 0);
+  EXPECT_LT(areaRange(rescued).first, 0.5 * amin);  // what the rebuild is for
+
+  p.rebuild_triangles = 320;
+  TriMesh rebuilt = locked;
+  std::vector<int> old_to_new;
+  const RemeshStats st = remesh(rebuilt, p, old_to_new);
+  EXPECT_EQ(st.rescues, 1);
+  EXPECT_EQ(st.rebuilds, 1);
+  EXPECT_EQ(checkClosedManifold(rebuilt), "");
+  EXPECT_EQ(rebuilt.numTriangles(), 320);
+  EXPECT_GE(minValence(rebuilt), 5);
+  EXPECT_GE(areaRange(rebuilt).first, 0.5 * amin);
+  EXPECT_NEAR(meshVolume(rebuilt), meshVolume(locked), 1e-12 * meshVolume(locked));
+  EXPECT_NEAR(st.volume_after, st.volume_before, 1e-12 * st.volume_before);
+  double off = 0;
+  for (int i = 0; i < rebuilt.numVertices(); ++i) {
+    double d2 = std::numeric_limits<double>::infinity();
+    const Vec3 x = rebuilt.x.col(i);
+    for (const Tri& f : locked.tri)
+      d2 = std::min(
+          d2, (closestOnTriangle(x, locked.x.col(f[0]), locked.x.col(f[1]), locked.x.col(f[2])) - x)
+                  .squaredNorm());
+    off = std::max(off, std::sqrt(d2));
+  }
+  EXPECT_LT(off, 0.05 * cell.radius);  // the rescaling moves them, by well under an edge
+  // The interpolated velocities: those of the linear field where each vertex was laid, before
+  // the rescaling moved it by at most `off`.
+  for (int i = 0; i < rebuilt.numVertices(); ++i)
+    EXPECT_LT((rebuilt.v.col(i) - grad * rebuilt.x.col(i)).norm(), grad.norm() * (off + 1e-9)) << i;
+  ASSERT_EQ(static_cast<int>(old_to_new.size()), locked.numVertices());
+  for (const int k : old_to_new) {
+    ASSERT_GE(k, 0);
+    ASSERT_LT(k, rebuilt.numVertices());
+  }
+}
+
+// A remesh that leaves no triangle below half of A_m is the same with the rebuild as without it;
+// and a mesh that is not star-shaped from its centroid is refused, unchanged.
+TEST(Remesh, TheRebuildChangesNothingWhereNoTriangleIsLeftSmall) {
+  for (unsigned seed : {1u, 2u, 3u}) {
+    TriMesh a = sphere();
+    perturbOnSphere(a, 0.8, seed);
+    TriMesh b = a;
+    RemeshParams pa = simulationParams(kRadius, true), pb = pa;
+    pb.rebuild_triangles = 320;
+    const RemeshStats sa = remesh(a, pa);
+    const RemeshStats sb = remesh(b, pb);
+    ASSERT_GE(areaRange(a).first, 0.5 * pa.min_area) << seed;
+    EXPECT_GT(sa.operations(), 0) << seed;
+    EXPECT_EQ(sb.rebuilds, 0) << seed;
+    EXPECT_EQ(a.tri, b.tri) << seed;
+    EXPECT_EQ(a.x, b.x) << seed;
+  }
+  // A sphere with a dimple pushed in past its centre: its centroid lies in the dent, where the
+  // rays leave through the opening without meeting the surface.
+  TriMesh dented = sphere();
+  for (int i = 0; i < dented.numVertices(); ++i) {
+    Vec3 x = dented.x.col(i);
+    if (x[0] > 0.3 * kRadius) x[0] = 0.3 * kRadius - 1.6 * (x[0] - 0.3 * kRadius);
+    dented.x.col(i) = x;
+  }
+  const TriMesh before = dented;
+  EXPECT_FALSE(rebuildRadially(dented, 320));
+  EXPECT_EQ(dented.x, before.x);
+  EXPECT_EQ(dented.tri, before.tri);
+}
+
+// The simulation counts a rebuild (numerics.remesh_rebuild) over the run, and a checkpoint of a
+// run with the key carries the count, the key being in its fingerprint; with the key off the same
+// cell keeps its mesh.
+TEST(Remesh, TheSimulationCountsARebuildAndItsCheckpointKeepsIt) {
+  const ObjCell cell =
+      readObjCell(std::string(ENGINE_TEST_DATA) + "/locked-cell-rescue-refused.obj");
+  SceneSpec s = activefoam::testing::cellSpec(1.0, 320);
+  s.numerics.remesh_rescue = true;
+  s = resolve(s);
+  CellSet cells;
+  cells.addCell(cell.mesh, cell.radius);
+  for (const bool key : {false, true}) {
+    SceneSpec k = s;
+    k.numerics.remesh_rebuild = key;
+    Simulation sim(k, cells);
+    sim.remeshAll();
+    EXPECT_EQ(sim.remeshRescues(), 1) << key;
+    EXPECT_EQ(sim.remeshRebuilds(), key ? 1 : 0);
+    EXPECT_EQ(sim.cells().numTriangles() == 320, key) << sim.cells().numTriangles();
+    if (!key) continue;
+    const std::string state = sim.saveState();
+    Simulation back(k, cells);
+    back.loadState(state);
+    EXPECT_EQ(back.remeshRebuilds(), 1);
+    EXPECT_EQ(back.cells().x, sim.cells().x);
+    SceneSpec off = s;
+    Simulation other(off, cells);
+    EXPECT_THROW(other.loadState(state), std::invalid_argument);
+  }
 }
 
 TEST(Remesh, FlipsRestoreDelaunayUnlessGuarded) {

@@ -754,6 +754,19 @@ TEST(SpecFields, TheRemeshRescueIsOffByDefaultAndInTheFingerprintWhenOn) {
   EXPECT_NE(error->message.find("true or false"), std::string::npos) << error->message;
 }
 
+TEST(SpecFields, TheRemeshRebuildIsOffByDefaultAndInTheFingerprintWhenOn) {
+  SceneSpec s = resolve(SceneSpec{});
+  EXPECT_FALSE(s.numerics.remesh_rebuild);
+  EXPECT_EQ(specFingerprint(s).find("rebuild"), std::string::npos);
+  ASSERT_EQ(setField(s, "numerics.remesh_rebuild", true), std::nullopt);
+  EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+  EXPECT_NE(specFingerprint(s).find("numerics.remesh_rebuild=1;"), std::string::npos)
+      << specFingerprint(s);
+  const auto error = setField(s, "numerics.remesh_rebuild", 3.0);
+  ASSERT_TRUE(error.has_value());
+  EXPECT_NE(error->message.find("true or false"), std::string::npos) << error->message;
+}
+
 }  // namespace
 }  // namespace activefoam
 

@@ -237,6 +237,21 @@ TEST(SpecConvert, TheRemeshRescueTravels) {
   EXPECT_FALSE(r.spec->numerics.remesh_rescue);
 }
 
+// numerics.remesh_rebuild (proto field 24) likewise.
+TEST(SpecConvert, TheRemeshRebuildTravels) {
+  v1::SceneSpec typed;
+  typed.mutable_numerics()->set_remesh_rebuild(true);
+  ConvertResult r = convertSpec(typed, "", {"scene=cell"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_TRUE(r.spec->numerics.remesh_rebuild);
+  r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion", "numerics.remesh_rebuild=true"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_TRUE(r.spec->numerics.remesh_rebuild);
+  r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_FALSE(r.spec->numerics.remesh_rebuild);
+}
+
 TEST(SpecConvert, MissingSceneNamesTheSceneKey) {
   ConvertResult r = convertSpec(v1::SceneSpec{});
   ASSERT_FALSE(r.ok());

@@ -36,6 +36,15 @@ struct RemeshParams {
   // remesh that leaves a triangle below half of min_area runs its passes once more, allowing
   // such collapses; a remesh that needs no rescue is the same as without it.
   bool rescue = false;
+  // With rebuild_triangles > 0 (80, 320 or 1280), a remesh that still leaves a triangle below
+  // half of min_area (after the rescue, when that is on) replaces the cell's mesh by a fresh
+  // icosphere of that many triangles laid on the surface it had (rebuildRadially), when that
+  // succeeds and leaves its smallest triangle larger. The rescue's collapses can be refused in
+  // turn in a crumpled cell that has lost a quarter of its vertices (a cell of a motile fusion at
+  // p_a r/2γ = 1 and Δt 0.5 s, its smallest triangle flattening from 0.4 to 9e-4 of min_area over
+  // 25 remeshes until it inverted; docs/numerics.md). A remesh that leaves no such triangle is
+  // the same as without it.
+  int rebuild_triangles = 0;
   // Tangential smoothing of the vertices of triangles smaller than min_area or with an angle
   // below this (degrees; 0: off): what the collapse and flip guards refuse (see remesh.cc).
   // The simulation uses 15°.
@@ -56,12 +65,13 @@ struct RemeshStats {
   int flips = 0;
   int smooths = 0;            // vertices moved by tangential smoothing
   int rescues = 0;            // 1 when the remesh ran the rescue (RemeshParams::rescue)
+  int rebuilds = 0;           // 1 when it rebuilt the mesh (RemeshParams::rebuild_triangles)
   double volume_offset = 0;   // on_surface: the cell's normal offset that restored its volume
   int refused_collapses = 0;  // candidates rejected by the manifold/orientation/valence guards
   int refused_flips = 0;      // Delaunay-violating edges kept by the flip guards
   double volume_before = 0;
   double volume_after = 0;
-  int operations() const { return splits + collapses + flips + smooths; }
+  int operations() const { return splits + collapses + flips + smooths + rebuilds; }
 };
 
 // Splits, collapses and Delaunay flips in place. Keeps the mesh closed, 2-manifold, oriented,
@@ -86,7 +96,17 @@ RemeshStats remesh(TriMesh& mesh, const RemeshParams& params);
 
 // Same, and reports the renumbering: old_to_new has one entry per vertex of the input mesh, the
 // index in the output mesh of the vertex it became (a collapsed vertex maps to the vertex it was
-// merged into). Vertices created by splits are the ones no input vertex maps to.
+// merged into). Vertices created by splits are the ones no input vertex maps to. After a rebuild
+// (RemeshStats::rebuilds) each input vertex maps to the new vertex nearest to it.
 RemeshStats remesh(TriMesh& mesh, const RemeshParams& params, std::vector<int>& old_to_new);
+
+// Replaces a closed cell mesh by the unit icosphere of `triangles` triangles (80, 320 or 1280)
+// laid on it: each icosphere vertex goes, along its direction from the cell's volume centroid, to
+// the outermost crossing of that ray with the old surface (a fold the ray crosses three times is
+// covered from outside), takes the velocity interpolated there, and the new mesh is then scaled
+// about the centroid to the old volume. Refuses (returns false, mesh unchanged) when a ray misses
+// the surface or a new triangle does not face away from the centroid: a cell that is not
+// star-shaped enough from its centroid.
+bool rebuildRadially(TriMesh& mesh, int triangles);
 
 }  // namespace activefoam

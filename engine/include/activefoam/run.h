@@ -50,6 +50,8 @@ struct RunSummary {
   // Cell remeshes that ran the rescue (numerics.remesh_rescue): 0 means the bits of the run
   // without the key.
   std::int64_t remesh_rescues = 0;
+  // Cell meshes rebuilt (numerics.remesh_rebuild): 0 means the bits of the run without the key.
+  std::int64_t remesh_rebuilds = 0;
   // Adaptive time step: tries undone and retried over the run, and the shortest step taken (on
   // failure: the shortest tried).
   std::int64_t steps_rejected = 0;

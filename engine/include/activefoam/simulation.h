@@ -97,6 +97,9 @@ class Simulation {
   // Cell remeshes that ran the rescue (numerics.remesh_rescue) over the run: while it is 0 the
   // run has the bits it would have without the key.
   std::int64_t remeshRescues() const { return remesh_rescues_; }
+  // Cell meshes rebuilt (numerics.remesh_rebuild) over the run: while it is 0 the run has the
+  // bits it would have without the key.
+  std::int64_t remeshRebuilds() const { return remesh_rebuilds_; }
   // The force terms built for this spec, in evaluation order (terms whose parameters vanish are
   // not built).
   std::vector<std::string_view> termNames() const {
@@ -182,6 +185,7 @@ class Simulation {
   Eigen::VectorXd v_;
   std::int64_t remesh_ops_ = 0;
   std::int64_t remesh_rescues_ = 0;
+  std::int64_t remesh_rebuilds_ = 0;
   std::int64_t steps_rejected_ = 0;
   PhaseTimes times_;
   PenetrationScratch penetration_;  // scratch of interpenetration()
@@ -189,6 +193,7 @@ class Simulation {
     CellSet cells;
     std::int64_t remesh_ops = 0;
     std::int64_t remesh_rescues = 0;
+    std::int64_t remesh_rebuilds = 0;
   } saved_;
 };
 

@@ -75,6 +75,11 @@ struct NumericsParams {
   // always refused, which can lock a small triangle among vertices of valence 4 until it
   // inverts (earlier versions' behaviour).
   bool remesh_rescue = false;
+  // A cell's remesh that still leaves a triangle below half of A_m (after the rescue, when that
+  // is on) rebuilds the cell's mesh: a fresh icosphere of triangles_per_cell laid on its surface
+  // from its centroid (remesh.h, rebuildRadially). false: the cell keeps its mesh, and a sliver
+  // the remesher cannot remove can flatten until it inverts (earlier versions' behaviour).
+  bool remesh_rebuild = false;
   ContactQuadrature contact_quadrature = ContactQuadrature::Exact;
   double max_volume_error = 0.05;  // |V − V*|/V* beyond this stops the run as failed
   // Interpenetration of two cells (the area-weighted mean gap over their contact pairs) beyond

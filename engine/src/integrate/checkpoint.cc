@@ -96,6 +96,7 @@ std::string specFingerprint(const SceneSpec& spec) {
     if (f.key == "numerics.remesh_on_surface" && !spec.numerics.remesh_on_surface) continue;
     // Added later; false is the remeshing of earlier versions.
     if (f.key == "numerics.remesh_rescue" && !spec.numerics.remesh_rescue) continue;
+    if (f.key == "numerics.remesh_rebuild" && !spec.numerics.remesh_rebuild) continue;
     // Added later; at 0 the pressure grows without bound, as in earlier versions.
     if (f.key == "numerics.contact_max_overlap_um" && spec.numerics.contact_max_overlap_um == 0)
       continue;
@@ -121,6 +122,7 @@ std::string Simulation::saveState(const std::string& extra) const {
   // Only with the key (so that the checkpoints of runs without it are those of earlier versions;
   // the key is in the fingerprint, so the reader knows).
   if (spec_.numerics.remesh_rescue) w.pod(remesh_rescues_);
+  if (spec_.numerics.remesh_rebuild) w.pod(remesh_rebuilds_);
   w.pod(steps_rejected_);
   std::vector<std::int64_t> counts;
   for (const auto& g : guards_) counts.push_back(g->count());
@@ -141,6 +143,7 @@ std::string Simulation::loadState(const std::string& bytes) {
   const auto schedule = r.pod<TimeStepper::State>();
   const auto remesh_ops = r.pod<std::int64_t>();
   const auto rescues = spec_.numerics.remesh_rescue ? r.pod<std::int64_t>() : 0;
+  const auto rebuilds = spec_.numerics.remesh_rebuild ? r.pod<std::int64_t>() : 0;
   const auto rejected = r.pod<std::int64_t>();
   const auto counts = r.vec<std::int64_t>();
   CellSet c = readCells(r, true, "checkpoint");
@@ -153,6 +156,7 @@ std::string Simulation::loadState(const std::string& bytes) {
   stepper_.setState(schedule);
   remesh_ops_ = remesh_ops;
   remesh_rescues_ = rescues;
+  remesh_rebuilds_ = rebuilds;
   steps_rejected_ = rejected;
   for (std::size_t k = 0; k < counts.size(); ++k) guards_[k]->setCount(counts[k]);
   updateTopology(cells_, topo_);

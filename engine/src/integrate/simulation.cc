@@ -109,6 +109,7 @@ void Simulation::saveRollback() {
   saved_.cells = cells_;  // copy-assignment: reuses the buffers of the last step
   saved_.remesh_ops = remesh_ops_;
   saved_.remesh_rescues = remesh_rescues_;
+  saved_.remesh_rebuilds = remesh_rebuilds_;
 }
 
 void Simulation::rollback() {
@@ -116,6 +117,7 @@ void Simulation::rollback() {
   cells_ = saved_.cells;
   remesh_ops_ = saved_.remesh_ops;
   remesh_rescues_ = saved_.remesh_rescues;
+  remesh_rebuilds_ = saved_.remesh_rebuilds;
   if (cells_.topology_version != tried_version) {
     // The try remeshed: a version number that nothing has seen, so that the edge list, Γ's
     // pattern and the broad phase's lists are rebuilt rather than taken for the tried meshes'.
@@ -251,6 +253,7 @@ StepReport Simulation::remeshCells(const std::vector<char>& which) {
     rp.smooth_min_angle_deg = 15;
     rp.on_surface = spec_.numerics.remesh_on_surface;
     rp.rescue = spec_.numerics.remesh_rescue;
+    rp.rebuild_triangles = spec_.numerics.remesh_rebuild ? tris : 0;
     stats[c] = remesh(meshes[c], rp);
   }
   int ops = 0;
@@ -259,6 +262,7 @@ StepReport Simulation::remeshCells(const std::vector<char>& which) {
     const RemeshStats& st = stats[c];
     ops += st.operations();
     remesh_rescues_ += st.rescues;
+    remesh_rebuilds_ += st.rebuilds;
     if (st.volume_before > 0)
       rep.remesh_volume_jump = std::max(
           rep.remesh_volume_jump, std::abs(st.volume_after - st.volume_before) / st.volume_before);

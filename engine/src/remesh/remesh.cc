@@ -9,6 +9,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
+#include <stdexcept>
 #include <utility>
 
 namespace activefoam {
@@ -647,6 +649,12 @@ class Remesher {
   std::vector<char> triTouched_, vertTouched_;
 };
 
+double smallestArea(const TriMesh& m) {
+  double a = std::numeric_limits<double>::infinity();
+  for (int t = 0; t < m.numTriangles(); ++t) a = std::min(a, triangleArea(m, t));
+  return a;
+}
+
 RemeshStats remeshImpl(TriMesh& mesh, const RemeshParams& params, std::vector<int>* old_to_new) {
   RemeshStats st;
   st.volume_before = meshVolume(mesh);
@@ -654,11 +662,97 @@ RemeshStats remeshImpl(TriMesh& mesh, const RemeshParams& params, std::vector<in
   r.run();
   r.restoreVolume();
   r.finish(old_to_new);
+  if (params.rebuild_triangles > 0 && params.min_area > 0) {
+    const double smallest = smallestArea(mesh);
+    if (smallest < 0.5 * params.min_area) {
+      TriMesh rebuilt = mesh;
+      if (rebuildRadially(rebuilt, params.rebuild_triangles) && smallestArea(rebuilt) > smallest) {
+        if (old_to_new) {
+          // Input vertex → the vertex it became → the new vertex nearest to that one.
+          for (int& k : *old_to_new) {
+            const Vec3 p = mesh.x.col(k);
+            int best = 0;
+            for (int j = 1; j < rebuilt.numVertices(); ++j)
+              if ((rebuilt.x.col(j) - p).squaredNorm() < (rebuilt.x.col(best) - p).squaredNorm())
+                best = j;
+            k = best;
+          }
+        }
+        mesh = std::move(rebuilt);
+        st.rebuilds = 1;
+      }
+    }
+  }
   st.volume_after = st.operations() ? meshVolume(mesh) : st.volume_before;
   return st;
 }
 
 }  // namespace
+
+bool rebuildRadially(TriMesh& mesh, int triangles) {
+  const int level = icosphereLevelForTriangles(triangles);
+  if (level < 0) throw std::invalid_argument("rebuildRadially: triangles must be 80, 320 or 1280");
+  const int nt = mesh.numTriangles();
+  // The volume centroid, about the vertices' mean (fewer digits lost than about the origin).
+  Vec3 mean = mesh.x.rowwise().mean();
+  double vol = 0;
+  Vec3 moment = Vec3::Zero();
+  for (const Tri& f : mesh.tri) {
+    const Vec3 a = mesh.x.col(f[0]) - mean, b = mesh.x.col(f[1]) - mean,
+               c = mesh.x.col(f[2]) - mean;
+    const double v = a.dot(b.cross(c)) / 6;
+    vol += v;
+    moment += v * (a + b + c) / 4;
+  }
+  if (!(vol > 0)) return false;
+  const Vec3 centre = mean + moment / vol;
+  const bool has_v = mesh.v.cols() == mesh.x.cols();
+
+  TriMesh out = icosphere(level);
+  out.v = Eigen::Matrix3Xd::Zero(3, out.x.cols());
+  for (int i = 0; i < out.numVertices(); ++i) {
+    const Vec3 d = out.x.col(i).normalized();
+    // Möller–Trumbore against every triangle; the outermost crossing wins.
+    double best = -1;
+    int tbest = -1;
+    double ubest = 0, vbest = 0;
+    for (int t = 0; t < nt; ++t) {
+      const Tri& f = mesh.tri[t];
+      const Vec3 a = mesh.x.col(f[0]), e1 = mesh.x.col(f[1]) - a, e2 = mesh.x.col(f[2]) - a;
+      const Vec3 p = d.cross(e2);
+      const double det = e1.dot(p);
+      if (std::abs(det) < 1e-300) continue;
+      const Vec3 s = centre - a;
+      const double u = s.dot(p) / det;
+      if (u < 0 || u > 1) continue;
+      const Vec3 q = s.cross(e1);
+      const double v = d.dot(q) / det;
+      if (v < 0 || u + v > 1) continue;
+      const double along = e2.dot(q) / det;
+      if (along > best) {
+        best = along;
+        tbest = t;
+        ubest = u;
+        vbest = v;
+      }
+    }
+    if (tbest < 0 || !(best > 0)) return false;
+    out.x.col(i) = centre + best * d;
+    if (has_v) {
+      const Tri& f = mesh.tri[tbest];
+      out.v.col(i) = (1 - ubest - vbest) * mesh.v.col(f[0]) + ubest * mesh.v.col(f[1]) +
+                     vbest * mesh.v.col(f[2]);
+    }
+  }
+  for (const Tri& f : out.tri) {
+    const Vec3 a = out.x.col(f[0]), b = out.x.col(f[1]), c = out.x.col(f[2]);
+    if (!((b - a).cross(c - a).dot((a + b + c) / 3 - centre) > 0)) return false;
+  }
+  const double scale = std::cbrt(meshVolume(mesh) / meshVolume(out));
+  out.x = ((out.x.colwise() - centre) * scale).colwise() + centre;
+  mesh = std::move(out);
+  return true;
+}
 
 RemeshStats remesh(TriMesh& mesh, const RemeshParams& params) {
   return remeshImpl(mesh, params, nullptr);

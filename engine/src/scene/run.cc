@@ -336,6 +336,7 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
   sum.cg_iters_mean = sim.steps() ? all_iters / sim.steps() : 0;
   sum.remesh_ops = sim.remeshOps();
   sum.remesh_rescues = sim.remeshRescues();
+  sum.remesh_rebuilds = sim.remeshRebuilds();
   sum.steps_rejected = sim.stepsRejected();
   sum.dt_min_s = acc.run_dt_min > 0 ? acc.run_dt_min : dt;
   sum.final_values = sceneObservables(sim, fusion ? &fs : nullptr);

@@ -177,6 +177,13 @@ const std::vector<Entry>& entries() {
                          "such collapses are always refused (earlier versions), which can lock a "
                          "shrinking triangle among vertices of valence 4 until it inverts"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.remesh_rescue; }});
+    t.push_back({boolean("numerics.remesh_rebuild",
+                         "a cell's remesh that still leaves a triangle below half of the collapse "
+                         "area rebuilds the cell's mesh: a fresh icosphere of triangles_per_cell "
+                         "laid on its surface from its centroid; false: the cell keeps its mesh "
+                         "(earlier versions), and a sliver the remesher cannot remove can flatten "
+                         "until it inverts"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.remesh_rebuild; }});
     t.push_back({choice("numerics.contact_quadrature", {"exact", "dunavant7", "centroid"},
                         "integration of the contact pressure over the overlap polygon"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.contact_quadrature; }});
