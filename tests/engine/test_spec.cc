@@ -738,33 +738,22 @@ TEST(SpecFields, ThePrismsOverlapOnlyIsOffByDefaultAndNeedsThePrisms) {
       << specFingerprint(s);
 }
 
-// numerics.remesh_rescue changes the remeshing of locked cells: off by default (the same bits as
-// before it), out of the fingerprint then, in it when on (the preparation keeps it off:
-// test_fusion_scene.cc).
-TEST(SpecFields, TheRemeshRescueIsOffByDefaultAndInTheFingerprintWhenOn) {
-  SceneSpec s = resolve(SceneSpec{});
-  EXPECT_FALSE(s.numerics.remesh_rescue);
-  EXPECT_EQ(specFingerprint(s).find("rescue"), std::string::npos);
-  ASSERT_EQ(setField(s, "numerics.remesh_rescue", true), std::nullopt);
-  EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
-  EXPECT_NE(specFingerprint(s).find("numerics.remesh_rescue=1;"), std::string::npos)
-      << specFingerprint(s);
-  const auto error = setField(s, "numerics.remesh_rescue", 3.0);
-  ASSERT_TRUE(error.has_value());
-  EXPECT_NE(error->message.find("true or false"), std::string::npos) << error->message;
-}
-
-TEST(SpecFields, TheRemeshRebuildIsOffByDefaultAndInTheFingerprintWhenOn) {
-  SceneSpec s = resolve(SceneSpec{});
-  EXPECT_FALSE(s.numerics.remesh_rebuild);
-  EXPECT_EQ(specFingerprint(s).find("rebuild"), std::string::npos);
-  ASSERT_EQ(setField(s, "numerics.remesh_rebuild", true), std::nullopt);
-  EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
-  EXPECT_NE(specFingerprint(s).find("numerics.remesh_rebuild=1;"), std::string::npos)
-      << specFingerprint(s);
-  const auto error = setField(s, "numerics.remesh_rebuild", 3.0);
-  ASSERT_TRUE(error.has_value());
-  EXPECT_NE(error->message.find("true or false"), std::string::npos) << error->message;
+// numerics.remesh_rescue and numerics.remesh_rebuild change the remeshing of locked cells: off
+// by default (the same bits as before them), out of the fingerprint then, in it when on (the
+// preparation keeps them off: test_fusion_scene.cc).
+TEST(SpecFields, TheRemeshersRescueAndRebuildAreOffByDefaultAndInTheFingerprintWhenOn) {
+  for (const std::string word : {"rescue", "rebuild"}) {
+    const std::string key = "numerics.remesh_" + word;
+    SceneSpec s = resolve(SceneSpec{});
+    EXPECT_FALSE(word == "rescue" ? s.numerics.remesh_rescue : s.numerics.remesh_rebuild);
+    EXPECT_EQ(specFingerprint(s).find(word), std::string::npos);
+    ASSERT_EQ(setField(s, key, true), std::nullopt) << key;
+    EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+    EXPECT_NE(specFingerprint(s).find(key + "=1;"), std::string::npos) << specFingerprint(s);
+    const auto error = setField(s, key, 3.0);
+    ASSERT_TRUE(error.has_value()) << key;
+    EXPECT_NE(error->message.find("true or false"), std::string::npos) << error->message;
+  }
 }
 
 }  // namespace

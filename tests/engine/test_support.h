@@ -3,6 +3,10 @@
 
 #include <gtest/gtest.h>
 #include <cstdint>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #include "activefoam/rng.h"
 #include "activefoam/run.h"
@@ -61,6 +65,43 @@ inline std::vector<std::vector<double>> physicsColumns(const std::vector<Sample>
     out.push_back(v);
   }
   return out;
+}
+
+// A cell mesh written as OBJ (tests/engine/data/*.obj), with its radius from a "# radius_um R"
+// line.
+struct ObjCell {
+  TriMesh mesh;
+  double radius = 0;
+};
+
+inline ObjCell readObjCell(const std::string& path) {
+  std::ifstream in(path);
+  EXPECT_TRUE(in) << path;
+  ObjCell cell;
+  std::vector<Vec3> xs;
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream ss(line);
+    std::string k;
+    ss >> k;
+    if (k == "#") {
+      std::string w;
+      if (ss >> w && w == "radius_um") ss >> cell.radius;
+    } else if (k == "v") {
+      Vec3 x;
+      ss >> x[0] >> x[1] >> x[2];
+      xs.push_back(x);
+    } else if (k == "f") {
+      Tri f;
+      ss >> f[0] >> f[1] >> f[2];
+      for (int& q : f) --q;
+      cell.mesh.tri.push_back(f);
+    }
+  }
+  cell.mesh.x.resize(3, static_cast<Eigen::Index>(xs.size()));
+  for (std::size_t i = 0; i < xs.size(); ++i) cell.mesh.x.col(static_cast<Eigen::Index>(i)) = xs[i];
+  cell.mesh.v = Eigen::Matrix3Xd::Zero(3, cell.mesh.x.cols());
+  return cell;
 }
 
 }  // namespace activefoam::testing

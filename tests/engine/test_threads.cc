@@ -208,6 +208,36 @@ TEST(Threads, KernelsGiveTheSameBitsAtTheProductionGrain) {
   expectSameKernels(s, cells, Grain{});
 }
 
+// The remesh of cells in parallel, with the rescue and the rebuild at work on one of them (the
+// cell the rescue cannot repair, tests/engine/data/locked-cell-rescue-refused.obj, among three
+// plain cells): the same meshes for any thread count.
+TEST(Threads, RemeshWithTheRescueAndTheRebuildIsBitIdenticalForAnyThreadCount) {
+  const auto locked = activefoam::testing::readObjCell(std::string(ENGINE_TEST_DATA) +
+                                                       "/locked-cell-rescue-refused.obj");
+  SceneSpec s = cellSpec(1.0, 320);
+  s.numerics.remesh_rescue = true;
+  s.numerics.remesh_rebuild = true;
+  s = resolve(s);
+  CellSet cells;
+  const double r = 8.88;
+  for (int k = 0; k < 3; ++k) {
+    TriMesh m = ellipsoidCell(r, 1.2, 320, Vec3(60.0 + 2.5 * r * k, 0, 0));
+    m.v = Eigen::Matrix3Xd::Zero(3, m.x.cols());
+    cells.addCell(m, r);
+    if (k == 1) cells.addCell(locked.mesh, locked.radius);
+  }
+  std::vector<Eigen::Matrix3Xd> xs;
+  for (const int n : {1, 2, 3}) {
+    Parallel p(n, kFine);
+    Simulation sim(s, cells);
+    sim.remeshAll();
+    EXPECT_EQ(sim.remeshRebuilds(), 1) << n;
+    xs.push_back(sim.cells().x);
+  }
+  EXPECT_TRUE(sameBits(xs[0], xs[1]));
+  EXPECT_TRUE(sameBits(xs[0], xs[2]));
+}
+
 TEST(Threads, FusionRunIsBitIdenticalForAnyThreadCount) {
   expectSameRuns(fusion2x4(), kFine);
 }

@@ -221,35 +221,29 @@ TEST(SpecConvert, ThePolarityFromThePreparationTravelsAndIsTheFusionsOnly) {
   EXPECT_EQ(r.errors[0].field, "scene.polarity_from_preparation");
 }
 
-// numerics.remesh_rescue (proto field 23) reaches the engine from the typed message and
-// from settings, in every scene (every scene remeshes).
-TEST(SpecConvert, TheRemeshRescueTravels) {
-  v1::SceneSpec typed;
-  typed.mutable_numerics()->set_remesh_rescue(true);
-  ConvertResult r = convertSpec(typed, "", {"scene=cell"});
-  ASSERT_TRUE(r.ok()) << errorText(r.errors);
-  EXPECT_TRUE(r.spec->numerics.remesh_rescue);
-  r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion", "numerics.remesh_rescue=true"});
-  ASSERT_TRUE(r.ok()) << errorText(r.errors);
-  EXPECT_TRUE(r.spec->numerics.remesh_rescue);
-  r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion"});
-  ASSERT_TRUE(r.ok()) << errorText(r.errors);
-  EXPECT_FALSE(r.spec->numerics.remesh_rescue);
-}
-
-// numerics.remesh_rebuild (proto field 24) likewise.
-TEST(SpecConvert, TheRemeshRebuildTravels) {
-  v1::SceneSpec typed;
-  typed.mutable_numerics()->set_remesh_rebuild(true);
-  ConvertResult r = convertSpec(typed, "", {"scene=cell"});
-  ASSERT_TRUE(r.ok()) << errorText(r.errors);
-  EXPECT_TRUE(r.spec->numerics.remesh_rebuild);
-  r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion", "numerics.remesh_rebuild=true"});
-  ASSERT_TRUE(r.ok()) << errorText(r.errors);
-  EXPECT_TRUE(r.spec->numerics.remesh_rebuild);
-  r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion"});
-  ASSERT_TRUE(r.ok()) << errorText(r.errors);
-  EXPECT_FALSE(r.spec->numerics.remesh_rebuild);
+// numerics.remesh_rescue and remesh_rebuild (proto fields 23, 24) reach the engine from the typed
+// message and from settings, in every scene (every scene remeshes).
+TEST(SpecConvert, TheRemeshersRescueAndRebuildTravel) {
+  for (const bool rebuild : {false, true}) {
+    const std::string key = rebuild ? "numerics.remesh_rebuild" : "numerics.remesh_rescue";
+    const auto on = [&](const ConvertResult& r) {
+      return rebuild ? r.spec->numerics.remesh_rebuild : r.spec->numerics.remesh_rescue;
+    };
+    v1::SceneSpec typed;
+    if (rebuild)
+      typed.mutable_numerics()->set_remesh_rebuild(true);
+    else
+      typed.mutable_numerics()->set_remesh_rescue(true);
+    ConvertResult r = convertSpec(typed, "", {"scene=cell"});
+    ASSERT_TRUE(r.ok()) << errorText(r.errors);
+    EXPECT_TRUE(on(r)) << key;
+    r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion", key + "=true"});
+    ASSERT_TRUE(r.ok()) << errorText(r.errors);
+    EXPECT_TRUE(on(r)) << key;
+    r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion"});
+    ASSERT_TRUE(r.ok()) << errorText(r.errors);
+    EXPECT_FALSE(on(r)) << key;
+  }
 }
 
 TEST(SpecConvert, MissingSceneNamesTheSceneKey) {
