@@ -210,6 +210,19 @@ PairDepth deepestBetween(const CellSet& cells, int a, int b, PenetrationScratch&
   return da >= db ? PairDepth{da, va, a} : PairDepth{db, vb, b};
 }
 
+// The squared distance from p to cell c's surface and the triangle that attains it (the first
+// of equals, in the cell's triangle order).
+std::pair<double, int> nearestTriangle(const CellSet& cells, int c, const Vec3& p) {
+  std::pair<double, int> best{std::numeric_limits<double>::infinity(), -1};
+  for (int t = cells.cell_tri_begin[c]; t < cells.cell_tri_begin[c + 1]; ++t) {
+    const Tri& tr = cells.tri[t];
+    const Vec3 q = closestOnTriangle(p, cells.x.col(tr[0]), cells.x.col(tr[1]), cells.x.col(tr[2]));
+    const double d2 = (q - p).squaredNorm();
+    if (d2 < best.first) best = {d2, t};
+  }
+  return best;
+}
+
 // How the deepest vertex's surface lies against the cell it is inside: the cosine between its
 // one-ring's area vector and the outward normal of that cell's nearest triangle. Two membranes
 // pressed into each other read near −1; a sheet that has slid through the other's membrane (at
@@ -225,18 +238,9 @@ double facingCosine(const CellSet& cells, int vertex, int inside_of) {
     ring +=
         (cells.x.col(tr[1]) - cells.x.col(tr[0])).cross(cells.x.col(tr[2]) - cells.x.col(tr[0]));
   }
-  const Vec3 p = cells.x.col(vertex);
-  double d2 = std::numeric_limits<double>::infinity();
-  Vec3 normal = Vec3::Zero();
-  for (int t = cells.cell_tri_begin[inside_of]; t < cells.cell_tri_begin[inside_of + 1]; ++t) {
-    const Tri& tr = cells.tri[t];
-    const Vec3 a = cells.x.col(tr[0]), b = cells.x.col(tr[1]), e = cells.x.col(tr[2]);
-    const double q2 = (closestOnTriangle(p, a, b, e) - p).squaredNorm();
-    if (q2 < d2) {
-      d2 = q2;
-      normal = (b - a).cross(e - a);
-    }
-  }
+  const Tri& near = cells.tri[nearestTriangle(cells, inside_of, cells.x.col(vertex)).second];
+  const Vec3 a = cells.x.col(near[0]);
+  const Vec3 normal = (cells.x.col(near[1]) - a).cross(cells.x.col(near[2]) - a);
   const double n = ring.norm() * normal.norm();
   return n > 0 ? ring.dot(normal) / n : 0.0;
 }
@@ -258,13 +262,7 @@ double windingNumber(const CellSet& cells, int c, const Vec3& p) {
 }
 
 double distanceToSurface(const CellSet& cells, int c, const Vec3& p) {
-  double d2 = std::numeric_limits<double>::infinity();
-  for (int t = cells.cell_tri_begin[c]; t < cells.cell_tri_begin[c + 1]; ++t) {
-    const Tri& tr = cells.tri[t];
-    const Vec3 q = closestOnTriangle(p, cells.x.col(tr[0]), cells.x.col(tr[1]), cells.x.col(tr[2]));
-    d2 = std::min(d2, (q - p).squaredNorm());
-  }
-  return std::sqrt(d2);
+  return std::sqrt(nearestTriangle(cells, c, p).first);
 }
 
 std::string interpenetration(const CellSet& cells, const ContactList& contacts, double limit,
