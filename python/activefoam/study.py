@@ -1287,8 +1287,9 @@ numerics fit 0.2 % of the time with 5 seeds (independent metrics; 7 % with 10, 6
 docs/science/power.md, "What the fitness rule can certify"). "Not fit" at these ensemble sizes
 is therefore no evidence of a difference by itself. The calibrated line is a permutation test of
 "the numerics change nothing": the runs are relabelled — each seed's two runs swapped or not
-when both settings ran the same seeds (a seed prepares the same spheroids for both), else every
-split of the pooled runs — each metric's difference of means is ranked among its
+when both settings ran the same seeds (a seed prepares the same spheroids for both), or within
+the seeds both ended when those pairs alone can reach p < 0.05 (a run without a partner left
+out), else every split of the pooled runs — each metric's difference of means is ranked among its
 relabellings, and the smallest rank over the metrics is compared with the same for every
 relabelling (min-p: the metrics' correlations kept, no distribution assumed). p < 0.05 says
 some metric differs more than relabelling the runs makes it; a larger p says no difference was
@@ -1306,6 +1307,27 @@ def _seeds(runs: Any) -> Optional[List[int]]:
     return [int(x) for x in runs["seed"]] if "seed" in runs else None
 
 
+def _calibration_runs(ref_ok: Any, cand_ok: Any, n_metrics: int) -> Tuple[Any, Any, bool]:
+    """The runs the calibrated test relabels, and whether it relabels within seed pairs.
+
+    Both sides on the same seeds: all of them, paired. Otherwise, where the seeds the two sides
+    share form enough pairs for the paired test to reach p < 0.05 at all (its least p is about
+    2m/2ⁿ with m metrics: n ≥ 9 for eight), those pairs only: a seed's two runs start from the
+    same prepared spheroids, and a run whose seed has no partner (a reference that failed, a
+    candidate seed the reference lacks) is left out rather than the pairing given up
+    (docs/science/presets.md, session 35). Fewer shared seeds: every split of all the runs."""
+    rs, cs = _seeds(ref_ok), _seeds(cand_ok)
+    if rs is None or cs is None or trends.is_paired(rs, cs):
+        return ref_ok, cand_ok, rs is not None and cs is not None and trends.is_paired(rs, cs)
+    if len(set(rs)) != len(rs) or len(set(cs)) != len(cs):
+        return ref_ok, cand_ok, False
+    common = sorted(set(rs) & set(cs))
+    if 2 * max(1, n_metrics) / 2 ** len(common) >= 0.05:
+        return ref_ok, cand_ok, False
+    keep = lambda r: r[r["seed"].astype(int).isin(common)]  # noqa: E731
+    return keep(ref_ok), keep(cand_ok), True
+
+
 def fitness_calibration(study: Study, runs: Any) -> Any:
     """Per candidate: the permutation test of "the numerics change nothing" over relabellings of
     the candidate's and its reference's runs (within each seed's pair when both ran the same
@@ -1319,10 +1341,13 @@ def fitness_calibration(study: Study, runs: Any) -> Any:
         if len(ref_ok) < trends.MIN_SEEDS or len(cand_ok) < trends.MIN_SEEDS:
             rows.append({"candidate": label, "n_ref": len(ref_ok), "n": len(cand_ok)})
             continue
+        n_ref_all, n_all = len(ref_ok), len(cand_ok)
+        ref_ok, cand_ok, _ = _calibration_runs(ref_ok, cand_ok, len(metrics))
         null = trends.fitness_permutation(
             ref_ok[metrics].to_numpy(dtype=float), cand_ok[metrics].to_numpy(dtype=float),
             ref_seeds=_seeds(ref_ok), cand_seeds=_seeds(cand_ok))
-        row = {"candidate": label, "n_ref": len(ref_ok), "n": len(cand_ok),
+        row = {"candidate": label, "n_ref": n_ref_all, "n": n_all,
+               "n_relabelled_ref": len(ref_ok), "n_relabelled": len(cand_ok),
                "paired": null.paired, "relabellings": null.splits, "exact": null.exact,
                "p_value": null.p_value, "smallest_p": null.smallest_p,
                "most_different": metrics[null.most_metric] if null.most_metric >= 0 else "",
@@ -1380,8 +1405,9 @@ def fitness_paired(study: Study, runs: Any) -> Any:
         if "seed" not in ref_runs or "seed" not in cand_runs:
             continue
         rs, cs = [int(x) for x in ref_runs["seed"]], [int(x) for x in cand_runs["seed"]]
-        calibrated_in_pairs = trends.is_paired(_seeds(_with_results(ref_runs, f["metrics"])),
-                                               _seeds(_with_results(cand_runs, f["metrics"])))
+        calibrated_in_pairs = _calibration_runs(_with_results(ref_runs, f["metrics"]),
+                                                _with_results(cand_runs, f["metrics"]),
+                                                len(f["metrics"]))[2]
         for m in f["metrics"]:
             d = trends.paired_difference(ref_runs[m], cand_runs[m], rs, cs)
             if d.n < trends.MIN_SEEDS:
@@ -1417,6 +1443,34 @@ the least p is about 2·8/2ⁿ), empty where the two sides' seeds differ and the
 runs freely. Its SD comes from the same few pairs (±25 % with 10, more with fewer): a "no
 difference found" rules out shifts of about that size, not smaller ones.
 """
+
+
+def _fitness_failures(study: Study, runs: Any) -> List[str]:
+    """One line per reference and candidate point with runs that failed in the simulation: the
+    seed, the failure's kind and the simulated time it ended at."""
+    if "state" not in runs:
+        return []
+    f = study.fitness or {}
+    import pandas as pd
+    lines: List[str] = []
+    points = []
+    for cand, ref_runs, own in _fitness_pairs(study, runs):
+        points += [("reference", f"{f['key']} = {f['reference']}", ref_runs),
+                   ("candidate", _point_label(cand, f["key"]), own)]
+    for role, label, r in points:
+        bad = r[r["state"] == "failed"]
+        if not len(bad):
+            continue
+        what = []
+        for _, b in bad.sort_values("seed").iterrows() if "seed" in bad else bad.iterrows():
+            kind = b.get("failure_kind") or "failed"
+            t = b.get("t_end_s")
+            at = f" at {t:,.0f} s".replace(",", " ") if pd.notna(t) else ""
+            what.append(f"seed {int(b['seed'])} ({kind}{at})" if "seed" in b else f"{kind}{at}")
+        line = f"- {role} `{label}`: {len(bad)} failed — " + ", ".join(what)
+        if line not in lines:
+            lines.append(line)
+    return lines
 
 
 def render_fitness(study: Study, data: Data, out: Path) -> List[Path]:
@@ -1457,6 +1511,11 @@ def render_fitness(study: Study, data: Data, out: Path) -> List[Path]:
                        "time: `found_80`, seed by seed below)")
         how = ("within each seed's pair" if c["paired"] else "splits of the pooled runs") + (
             "" if c["exact"] else ", a sample")
+        if c["paired"] and (c.get("n_relabelled", c["n"]) < c["n"]
+                            or c.get("n_relabelled_ref", c["n_ref"]) < c["n_ref"]):
+            how += (f": the {int(c['n_relabelled'])} seeds both sides ended, "
+                    f"{int(c['n_ref'] - c['n_relabelled_ref'])} reference and "
+                    f"{int(c['n'] - c['n_relabelled'])} candidate runs without a partner left out")
         lines.append(
             f"  - calibrated: p = {c['p_value']:.3g} over {int(c['relabellings'])} "
             f"relabellings ({how}; min-p over {int(c['metrics'])} metrics), the most different "
@@ -1464,6 +1523,12 @@ def render_fitness(study: Study, data: Data, out: Path) -> List[Path]:
             f"rule's worst ratio |Δ|/(IQR/2) is {c['worst_ratio']:.3g} ({c['worst_metric']}) "
             f"and it calls {100 * c['rule_pass_rate_equal']:.1f} % of the relabellings fit — "
             f"{reading}")
+    failed = _fitness_failures(study, data.runs)
+    if failed:
+        lines.append("\nRuns that failed in the simulation (a candidate's own failure disqualifies "
+                     "it; a reference's is a failure of the reference step, and the candidates "
+                     "are read against the references that ended):\n")
+        lines += failed
     show = table.drop(columns=["why"]) if len(table) else table
     paired = fitness_paired(study, data.runs)
     paired.to_csv(out / "fitness-paired.csv", index=False)

@@ -521,6 +521,78 @@ def test_fitness_judges_a_candidate_of_a_second_grid_against_the_first_grids_ref
     assert "## Seed by seed" in md
 
 
+def test_a_failed_reference_leaves_its_seed_out_and_the_rest_are_read_in_pairs(tmp_path):
+    """Step fitness's design (docs/science/presets.md, session 35): 10 seeds a side, the
+    reference of seed 6 failed in the simulation. The calibrated test relabels within the 9 seed
+    pairs both sides ended (2^9), the candidate's unpartnered seed 6 left out; the failure is
+    listed with its kind and time. With 5 shared seeds it splits all the runs, as before."""
+    f = tmp_path / "step.toml"
+    f.write_text(textwrap.dedent("""\
+        [study]
+        name = "step"
+        seeds = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]
+        x = "numerics.dt_s"
+        [spec]
+        scene = "fusion"
+        duration_s = 7200
+        [[grid]]
+        "numerics.dt_s" = [0.25, 1.0]
+        [fitness]
+        key = "numerics.dt_s"
+        reference = 0.25
+        metrics = ["theta_end_deg", "shape_index_end"]
+        """))
+
+    def write(d, ref_seeds, shift):
+        d.mkdir()
+        rows, samples, msrd = [], [], []
+        for dt in (0.25, 1.0):
+            for seed in range(1, 11):
+                if dt == 0.25 and seed not in ref_seeds:
+                    continue
+                jid = f"j-{dt}-{seed}"
+                failed = dt == 0.25 and seed == 6
+                rows.append({"run": len(rows), "numerics.dt_s": dt, "seed": seed, "job_id": jid,
+                             "state": "failed" if failed else "succeeded",
+                             "failure_kind": "volume-drift" if failed else "",
+                             "t_end_s": 5573.5 if failed else 7200.0, "eq1_ok": 0,
+                             "mixing_time_s": 7200})
+                # Seeds spread by 3° (i·3), far more than the step's shift: only pairs see it.
+                for t in range(0, 7201 if not failed else 5401, 600):
+                    theta = 40 + 5 * t / 3600 + 3.0 * seed + (shift * (1 + 0.01 * seed)
+                                                              if dt == 1.0 else 0.0)
+                    samples.append([jid, t, theta, 5.3 + 0.01 * seed, 1.0, 3.0, 0.002])
+                msrd += [[jid, lag, 40.0 * lag / 7200] for lag in (60, 600, 7200)]
+        _write_data(d, rows, samples, msrd)
+
+    write(tmp_path / "data", set(range(1, 11)), shift=1.0)
+    out = tmp_path / "out"
+    r = _run(["report", str(f), "--from-data", str(tmp_path / "data"), "--out", str(out)])
+    assert r.returncode == 0, r.stderr
+    cal = pd.read_csv(out / "fitness-calibration.csv").iloc[0]
+    assert cal["n_ref"] == 9 and cal["n"] == 10
+    assert cal["n_relabelled_ref"] == 9 and cal["n_relabelled"] == 9
+    assert bool(cal["paired"]) and cal["relabellings"] == 2 ** 9
+    # Every pair moved θ up by about 1°, against a 3° spread a seed: found within pairs only.
+    # The shape index is the same on both sides: θ alone, its extreme labelling and the mirror.
+    assert cal["p_value"] == pytest.approx(2 / 512)
+    md = (out / "fitness.md").read_text()
+    assert "the 9 seeds both sides ended, 0 reference and 1 candidate runs without a partner" in md
+    assert "- reference `numerics.dt_s = 0.25`: 1 failed — seed 6 (volume-drift at 5 574 s)" in md
+    paired = pd.read_csv(out / "fitness-paired.csv")
+    assert set(paired["pairs"]) == {9} and paired["found_80"].notna().all()
+
+    # References of seeds 1–5 and 6 only (6 failed): 5 shared seeds cannot reach p < 0.05 in
+    # pairs, so all 15 runs are split (C(15, 5)), the earlier reading.
+    write(tmp_path / "five", {1, 2, 3, 4, 5, 6}, shift=1.0)
+    out5 = tmp_path / "out5"
+    r = _run(["report", str(f), "--from-data", str(tmp_path / "five"), "--out", str(out5)])
+    assert r.returncode == 0, r.stderr
+    cal = pd.read_csv(out5 / "fitness-calibration.csv").iloc[0]
+    assert not bool(cal["paired"]) and cal["relabellings"] == math.comb(15, 5)
+    assert cal["n_relabelled_ref"] == 5 and cal["n_relabelled"] == 10
+
+
 # ---- shared runs: a point two studies have in common runs once --------------------------------
 
 class _FakeJob:
@@ -852,10 +924,18 @@ def test_found_80_scales_the_pairs_sd_and_is_left_out_when_the_test_did_not_pair
     assert t.loc["theta_end_deg", "sd_diff"] == pytest.approx(sd)
     assert t.loc["theta_end_deg", "found_80"] == pytest.approx(1.5 * sd)
     assert t.loc["tau_f_s", "found_80"] == pytest.approx(0.0)
-    # Seed 10's candidate has no results: the calibrated test splits the runs freely (9 against
-    # 10 seeds), so no paired shift is claimed for it, though the 9 pairs are still shown.
+    # Seed 10's candidate has no results: the calibrated test relabels within the 9 pairs both
+    # sides ended (with two metrics, 7 pairs or more can reach p < 0.05), so the shift is claimed.
     runs.loc[(runs["seed"] == 10) & (runs["numerics.dt_s"] == 0.5),
              ["theta_end_deg", "tau_f_s"]] = math.nan
     t = st.fitness_paired(study, runs).set_index("metric")
-    assert t.loc["theta_end_deg", "pairs"] == 9
+    assert t.loc["theta_end_deg", "pairs"] == 9 and calls[-1] == (9, 2)
+    assert t.loc["theta_end_deg", "found_80"] == pytest.approx(1.5 * t.loc["theta_end_deg",
+                                                                            "sd_diff"])
+    # Seeds 7–10 lack the candidate: 6 pairs cannot reach p < 0.05 on two metrics (4/2⁶), so the
+    # test splits the 16 runs freely and no paired shift is claimed, though the pairs are shown.
+    runs.loc[(runs["seed"] >= 7) & (runs["numerics.dt_s"] == 0.5),
+             ["theta_end_deg", "tau_f_s"]] = math.nan
+    t = st.fitness_paired(study, runs).set_index("metric")
+    assert t.loc["theta_end_deg", "pairs"] == 6
     assert math.isnan(t.loc["theta_end_deg", "found_80"])
