@@ -28,6 +28,7 @@ verdict "not run yet".
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import tomllib
@@ -137,12 +138,51 @@ def load(path: os.PathLike) -> List[TrendSpec]:
     return out
 
 
-def _values(runs: Any, point: Dict[str, Any], metric: str) -> List[float]:
+def _select(runs: Any, point: Dict[str, Any]) -> Any:
     sel = runs
     for k, v in point.items():
         if k not in sel:
-            return []
+            return runs.iloc[0:0]
         sel = sel[[st._same(x, v) for x in sel[k]]]
+    return sel
+
+
+def _numerics(runs: Any, point: Dict[str, Any]) -> Dict[str, set]:
+    """The numerics.* keys the runs at this point were given (their `settings`), each with the
+    set of values it took: a trend read across points of different steps (a study that gives some
+    points their own step) says so."""
+    out: Dict[str, set] = {}
+    sel = _select(runs, point)
+    if "settings" not in sel:
+        return out
+    for text in sel["settings"]:
+        try:
+            d = json.loads(text) if isinstance(text, str) else {}
+        except ValueError:
+            continue
+        for k, v in d.items():
+            if k.startswith("numerics."):
+                out.setdefault(k, set()).add(json.dumps(v))
+    return out
+
+
+def numerics_differ(runs: Any, low: Dict[str, Any], high: Dict[str, Any]) -> str:
+    """'' when both ensembles ran the same numerics, else the keys that differ, low → high."""
+    a, b = _numerics(runs, low), _numerics(runs, high)
+    if not a or not b:
+        return ""
+    parts = []
+    for k in sorted(set(a) | set(b)):
+        va, vb = a.get(k, {"(default)"}), b.get(k, {"(default)"})
+        if va != vb:
+            parts.append(f"{k} {'/'.join(sorted(va))} → {'/'.join(sorted(vb))}")
+    return "; ".join(parts)
+
+
+def _values(runs: Any, point: Dict[str, Any], metric: str) -> List[float]:
+    sel = _select(runs, point)
+    if not len(sel):
+        return []
     if metric == "failed":
         ended = sel[sel["state"].isin(["succeeded", "failed"])]
         return [1.0 if (s == "failed" and f in st.SIMULATION_FAILURES) else 0.0
@@ -198,7 +238,9 @@ def evaluate(items: List[TrendSpec], data_root: os.PathLike) -> Any:
                 continue
             xl, xh = _values(runs, low, t.metric), _values(runs, high, t.metric)
             row.update(n_low=len(xl), n_high=len(xh), median_low=trends.median(xl),
-                       median_high=trends.median(xh))
+                       median_high=trends.median(xh),
+                       numerics_differ=numerics_differ(runs, low, high)
+                       if t.expect not in ("below", "above") else "")
             if t.expect in ("below", "above"):
                 m = _median_interval(xh)
                 row.update(effect=m.diff, lo=m.lo, hi=m.hi, value=t.value)
@@ -243,6 +285,9 @@ def markdown(table: Any) -> str:
         verdict = r["verdict"]
         if verdict in ("agrees", "disagrees"):
             verdict = f"**{verdict}**"
+        differ = r.get("numerics_differ")
+        if isinstance(differ, str) and differ:
+            verdict += f" (the two ensembles ran different numerics: {differ})"
         lines.append("| " + " | ".join([
             r["figure"], r["statement"] + src, r["at"] or "—", r["metric"], cmp,
             f"{_fmt(r.get('median_low'))} ({int(r.get('n_low', 0) or 0)})"

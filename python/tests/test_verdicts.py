@@ -1,5 +1,6 @@
 """The verdict table (activefoam.verdicts) on synthetic study data with known answers."""
 
+import json
 import subprocess
 import sys
 import textwrap
@@ -26,9 +27,9 @@ duration_s = 3600
 """
 
 
-def _data(root: Path, theta, failed=()):
+def _data(root: Path, theta, failed=(), settings=None):
     """The study's data folder: θ at the end = theta(τ_p, α, seed); runs in `failed` (τ_p, α,
-    seed, kind) failed."""
+    seed, kind) failed; settings(τ_p, α, seed): the keys the run was given (runs.csv's JSON)."""
     d = root / "syn" / "data"
     d.mkdir(parents=True)
     rows, samples, msrd = [], [], []
@@ -42,6 +43,8 @@ def _data(root: Path, theta, failed=()):
                              "seed": seed, "job_id": jid,
                              "state": "failed" if kind else "succeeded", "failure_kind": kind,
                              "eq1_ok": 0, "mixing_time_s": 3600})
+                if settings is not None:
+                    rows[-1]["settings"] = json.dumps(settings(tau, a, seed))
                 for t in (0, 1800, 3600):
                     samples.append([jid, t, theta(tau, a, seed), 5.4, 1.0, 3.0, 0.002])
                 msrd.append([jid, 3600, 40.0])
@@ -101,6 +104,25 @@ def test_a_flat_effect_within_the_band_agrees_with_no_change(tmp_path):
     _data(tmp_path / "data", lambda tau, a, s: 80 + noise[s] * (1 if tau == 150 else -1))
     t = vd.evaluate(vd.load(f), tmp_path / "data")
     assert list(t["verdict"]) == ["agrees", "agrees"]
+
+
+def test_a_trend_across_points_of_different_steps_says_so(tmp_path):
+    """A study may give some points their own step (the p_a r/2γ = 1 points of the figure
+    studies): the row of a trend read across them names the keys that differ, low → high."""
+    f = _table(tmp_path, RISE.format(expect="increase"))
+
+    def settings(tau, a, seed):
+        dt = 0.25 if (a == 0.3 and tau == 2400) else 1.0
+        return {"cells.tau_p_s": tau, "cells.alpha": a, "seed": seed, "numerics.dt_s": dt,
+                "numerics.cg_tol": 0.01}
+
+    _data(tmp_path / "data", lambda tau, a, s: 80 + (10 if tau == 2400 else 0) + s,
+          settings=settings)
+    t = vd.evaluate(vd.load(f), tmp_path / "data")
+    assert list(t["numerics_differ"]) == ["numerics.dt_s 1.0 → 0.25", ""]
+    md = vd.markdown(t)
+    assert "**agrees** (the two ensembles ran different numerics: numerics.dt_s 1.0 → 0.25)" in md
+    assert md.count("different numerics") == 1
 
 
 def test_too_few_runs_give_no_verdict(tmp_path):
