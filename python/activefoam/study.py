@@ -1317,8 +1317,10 @@ def _calibration_runs(ref_ok: Any, cand_ok: Any, n_metrics: int) -> Tuple[Any, A
     candidate seed the reference lacks) is left out rather than the pairing given up
     (docs/science/presets.md, session 35). Fewer shared seeds: every split of all the runs."""
     rs, cs = _seeds(ref_ok), _seeds(cand_ok)
-    if rs is None or cs is None or trends.is_paired(rs, cs):
-        return ref_ok, cand_ok, rs is not None and cs is not None and trends.is_paired(rs, cs)
+    if rs is None or cs is None:
+        return ref_ok, cand_ok, False
+    if trends.is_paired(rs, cs):
+        return ref_ok, cand_ok, True
     if len(set(rs)) != len(rs) or len(set(cs)) != len(cs):
         return ref_ok, cand_ok, False
     common = sorted(set(rs) & set(cs))
@@ -1458,7 +1460,8 @@ def _fitness_failures(study: Study, runs: Any) -> List[str]:
         points += [("reference", f"{f['key']} = {f['reference']}", ref_runs),
                    ("candidate", _point_label(cand, f["key"]), own)]
     for role, label, r in points:
-        bad = r[r["state"] == "failed"]
+        bad = r[(r["state"] == "failed")
+                & r.get("failure_kind", pd.Series("", index=r.index)).isin(SIMULATION_FAILURES)]
         if not len(bad):
             continue
         what = []
