@@ -179,6 +179,41 @@ def numerics_differ(runs: Any, low: Dict[str, Any], high: Dict[str, Any]) -> str
     return "; ".join(parts)
 
 
+def numerics_by_study(items: List[TrendSpec], data_root: os.PathLike) -> List[str]:
+    """Per study with data, the numerics.* settings its runs were given, each value with its
+    count of runs: which step and contact law a verdict rests on (studies may give some points
+    a step of their own). A key set alike in every run shows one value."""
+    out = []
+    seen = set()
+    for t in items:
+        if t.study.name in seen:
+            continue
+        seen.add(t.study.name)
+        d = Path(data_root) / t.study.name / "data"
+        if not (d / "runs.csv").is_file():
+            continue
+        runs = st.load_data(t.study, d).runs
+        if "settings" not in runs:
+            continue
+        if "state" in runs:
+            runs = runs[runs["state"].isin(["succeeded", "failed"])]
+        counts: Dict[str, Dict[str, int]] = {}
+        for text in runs["settings"]:
+            try:
+                dd = json.loads(text) if isinstance(text, str) else {}
+            except ValueError:
+                continue
+            for k, v in dd.items():
+                if k.startswith("numerics."):
+                    c = counts.setdefault(k, {})
+                    c[json.dumps(v)] = c.get(json.dumps(v), 0) + 1
+        if counts:
+            out.append(f"- {t.study.name} ({len(runs)} runs): " + "; ".join(
+                f"{k} " + ", ".join(f"{v} ({n})" for v, n in sorted(c.items()))
+                for k, c in sorted(counts.items())))
+    return out
+
+
 def _values(runs: Any, point: Dict[str, Any], metric: str) -> List[float]:
     sel = _select(runs, point)
     if not len(sel):
@@ -297,6 +332,15 @@ def markdown(table: Any) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _numerics_section(items: List[TrendSpec], data_root: os.PathLike) -> str:
+    lines = numerics_by_study(items, data_root)
+    if not lines:
+        return ""
+    return ("\n## The numerics each study ran\n\nThe `numerics.*` settings of each study's ended "
+            "runs, each value with its number of runs (docs/science/presets.md says why):\n\n"
+            + "\n".join(lines) + "\n")
+
+
 def write(items: List[TrendSpec], data_root: os.PathLike, out: os.PathLike) -> List[Path]:
     table = evaluate(items, data_root)
     o = Path(out)
@@ -314,5 +358,5 @@ def write(items: List[TrendSpec], data_root: os.PathLike, out: os.PathLike) -> L
         "resolved* otherwise; no verdict from fewer than 3 runs a side. Source: *caption* — "
         "stated in the supplement's figure caption; *implied* — follows from a stated "
         "result (named in the statement); *none* — drawn, no trend stated.\n\n"
-        + markdown(table))
+        + markdown(table) + _numerics_section(items, data_root))
     return [o / "verdicts.md", o / "verdicts.csv"]

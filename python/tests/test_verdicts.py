@@ -125,6 +125,34 @@ def test_a_trend_across_points_of_different_steps_says_so(tmp_path):
     assert md.count("different numerics") == 1
 
 
+def test_the_table_says_which_numerics_each_study_ran(tmp_path):
+    """The verdicts rest on the step each study ran: the table lists its numerics.* settings
+    with the runs of each value, ended runs only."""
+    f = _table(tmp_path, RISE.format(expect="increase"))
+
+    def settings(tau, a, seed):
+        one = not (a == 0.3 and tau == 2400)
+        return {"cells.tau_p_s": tau, "cells.alpha": a, "seed": seed,
+                "numerics.dt_s": 1.0 if one else 0.25,
+                "numerics.contact_within_prisms": one, "numerics.cg_tol": 0.01}
+
+    _data(tmp_path / "data", lambda tau, a, s: 80 + s, settings=settings)
+    items = vd.load(f)
+    lines = vd.numerics_by_study(items, tmp_path / "data")
+    assert lines == ["- syn (12 runs): numerics.cg_tol 0.01 (12); "
+                     "numerics.contact_within_prisms false (3), true (9); "
+                     "numerics.dt_s 0.25 (3), 1.0 (9)"]
+    vd.write(items, tmp_path / "data", tmp_path / "out")
+    md = (tmp_path / "out" / "verdicts.md").read_text()
+    assert "## The numerics each study ran" in md and lines[0] in md
+    # A run still queued is not counted: it has run nothing yet.
+    runs_csv = tmp_path / "data" / "syn" / "data" / "runs.csv"
+    r = pd.read_csv(runs_csv)
+    r.loc[0, "state"] = "queued"
+    r.to_csv(runs_csv, index=False)
+    assert vd.numerics_by_study(items, tmp_path / "data")[0].startswith("- syn (11 runs)")
+
+
 def test_too_few_runs_give_no_verdict(tmp_path):
     f = _table(tmp_path, RISE.format(expect="increase"))
     _data(tmp_path / "data", lambda tau, a, s: 80 + (10 if tau == 2400 else 0),
