@@ -4,8 +4,11 @@
 Every (configuration, seed) runs at once, one thread each, pinned to its own core, so the host's
 drift falls on all alike. Each run goes until DURATION simulated seconds or DEADLINE wall
 seconds, whichever comes first. The runs are compared over the simulated window [0, T] that all
-of them reached (T: the smallest last sample time): the cost is samples.csv's wall_s at T (one
-pinned thread, so wall ≈ CPU; the rusage CPU of the whole run is kept beside it as a check).
+of them reached (T: the smallest last sample time): the cost is samples.csv's wall_s at T less
+its wall_s at t = 0 (the spheroids' loading or preparation; one pinned thread, so wall ≈ CPU;
+the rusage CPU of the whole run is kept beside it as a check).
+A configuration whose settings begin with --foam-run=PATH runs that binary (an older engine
+built in a worktree, say) instead of FOAM_RUN.
 
   bench/step_cost_window.py FOAM_RUN SPEC CACHE OUT --seeds 1,2,3,4 --duration 1800 \
       --deadline 420 'NAME|--set K=V ...' ...
@@ -43,8 +46,12 @@ def main():
     cfgs = []
     for c in a.configs:
         name, _, sets = c.partition("|")
-        cfgs.append((name, shlex.split(sets)))
-    runs = [(n, s, sets) for n, sets in cfgs for s in seeds]
+        words = shlex.split(sets)
+        exe = a.foam_run
+        if words and words[0].startswith("--foam-run="):
+            exe = words.pop(0).split("=", 1)[1]
+        cfgs.append((name, exe, words))
+    runs = [(n, exe, s, sets) for n, exe, sets in cfgs for s in seeds]
     try:
         cores = sorted(os.sched_getaffinity(0))
     except AttributeError:
@@ -54,9 +61,9 @@ def main():
     os.makedirs(a.out, exist_ok=True)
 
     procs = {}
-    for i, (name, seed, sets) in enumerate(runs):
+    for i, (name, exe, seed, sets) in enumerate(runs):
         d = os.path.join(a.out, f"{''.join(ch if ch.isalnum() or ch == '.' else '_' for ch in name)}-s{seed}")
-        cmd = [a.foam_run, a.spec, "--out", d, "--force", "--spheroid-cache", a.cache,
+        cmd = [exe, a.spec, "--out", d, "--force", "--spheroid-cache", a.cache,
                "--threads", "1", "-q", "--checkpoint-every", "0",
                "--set", f"duration_s={a.duration}", "--set", "snapshot_every_s=0",
                "--set", f"seed={seed}"] + sets
@@ -86,8 +93,10 @@ def main():
 
     def samples(d):
         with open(os.path.join(d, "samples.csv")) as f:
-            return [(float(r["t_s"]), float(r["wall_s"]), int(float(r["steps"])))
+            rows = [(float(r["t_s"]), float(r["wall_s"]), int(float(r["steps"])))
                     for r in csv.DictReader(f)]
+        w0 = rows[0][1] if rows and rows[0][0] == 0 else 0.0
+        return [(t, w - w0, st) for t, w, st in rows]
 
     curves = {}
     for pid, (p, name, seed, d) in procs.items():
@@ -115,7 +124,7 @@ def main():
     base = {r["seed"]: r["wall_at_window_s"] for r in rows if r["name"] == cfgs[0][0]}
     print(f"{'configuration':<22} {'CPU s/sim. h (median, range)':>30} {'steps':>7}"
           f" {'ratio (median, range over seeds)':>34}")
-    for name, _ in cfgs:
+    for name, _, _ in cfgs:
         mine = [r for r in rows if r["name"] == name]
         per_h = [r["wall_at_window_s"] / t_window * 3600 for r in mine]
         ratios = [base[r["seed"]] / r["wall_at_window_s"] for r in mine]
