@@ -260,6 +260,26 @@ TEST(Threads, Ros2MotileDoubletRunIsBitIdenticalForAnyThreadCount) {
   expectSameRuns(s, kFine);
 }
 
+// The figure studies' step (since 2026-11-28): the one-stage consistent stiffness at Δt 1 s with
+// ε_CG 1e-2 and the contact's overlapping part kept within the triangles' prisms.
+SceneSpec studiesStep(SceneSpec s) {
+  s.numerics.integrator = IntegratorKind::ContactImplicitConsistent;
+  s.numerics.dt_s = 1.0;
+  s.numerics.cg_tol = 1e-2;
+  s.numerics.contact_within_prisms = true;
+  s.numerics.contact_prisms_overlap_only = true;
+  EXPECT_TRUE(validate(s).empty());
+  return resolve(s);
+}
+
+TEST(Threads, StudiesStepFusionRunIsBitIdenticalForAnyThreadCount) {
+  expectSameRuns(studiesStep(fusion2x4()), kFine);
+}
+
+TEST(Threads, StudiesStepMotileDoubletRunIsBitIdenticalForAnyThreadCount) {
+  expectSameRuns(studiesStep(motileDoublet()), kFine);
+}
+
 // The adaptive time step at work (rejected tries, rollback, halved and regrown steps): the
 // semi-implicit doublet at Δt = 0.1 s oscillates from t ≈ 28 s and is retried at 0.05 s.
 TEST(Threads, AdaptiveRunWithRejectedStepsIsBitIdenticalForAnyThreadCount) {
