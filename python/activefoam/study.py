@@ -49,7 +49,10 @@ SIMULATION_FAILURES = {"non-finite", "cg-not-converged", "inverted-triangle", "v
                        "interpenetration", "contact-oscillation", "preparation-failed",
                        "step-error"}
 MAX_RUNS = 2000          # runs (points × seeds) one study may hold
-MAX_ATTEMPTS = 5         # jobs per run before a run counts as failed for good
+# Failed jobs per run before a run counts as failed for good. Cancelled jobs are no failed
+# attempts: a study moved to another step, or a queue reordered, cancels queued jobs, and the
+# run must still be submitted again (each job keeps its own idempotency key).
+MAX_ATTEMPTS = 5
 
 STUDY_KEYS = {"name", "title", "base", "preset", "seeds", "x", "x_label", "x_log", "by",
               "by_label", "priority", "scale"}
@@ -707,7 +710,7 @@ def submit_missing(study: Study, client: Any, retry_failed: bool = False,
     (a failed one is submitted again with retry_failed). A spec foamd refuses stops the
     submission and cancels what this call submitted (a study is submitted whole or not at all),
     then raises StudyError."""
-    from activefoam.client import _setting
+    from activefoam.client import _setting, _state_name
     runs = study.runs()
     submitted: List[str] = []
     held = 0
@@ -730,8 +733,9 @@ def submit_missing(study: Study, client: Any, retry_failed: bool = False,
                 retry_failed and carried.rows[i]["state"] == "failed"):
             held += 1
             continue
-        if len(have) >= MAX_ATTEMPTS:
-            print(f"study {study.name}: {run.label()}: {len(have)} attempts failed; not "
+        failed = sum(1 for j in have if _state_name(j.state) == "failed")
+        if failed >= MAX_ATTEMPTS:
+            print(f"study {study.name}: {run.label()}: {failed} attempts failed; not "
                   "submitted again", file=out)
             held += 1
             continue

@@ -1,6 +1,7 @@
 """Studies as files (activefoam.study) through a real foamd: run, interrupt, rerun, report; and
 bad study files."""
 
+import io
 import json
 import math
 import os
@@ -703,6 +704,27 @@ def test_a_shared_run_whose_job_was_cancelled_is_submitted_as_the_other_studys(t
     found, source, _ = st._run_jobs(taup, foamd)
     shared = [i for i, r in enumerate(taup.runs()) if r.point["cells.tau_p_s"] == 600]
     assert all(source[i] == "alpha" for i in shared)
+
+
+def test_cancelled_jobs_are_no_failed_attempts(tmp_path):
+    """A run whose jobs were cancelled five times (a study moved to another step, a queue
+    reordered) is submitted again with a fresh key; one whose jobs failed five times is not."""
+    _shared_studies(tmp_path)
+    alpha = st.load(tmp_path / "alpha.toml")
+    foamd = _FakeFoamd({"alpha": 0.4375, "tau_p_s": 600})
+    for seed in (1, 2):
+        for a, state, kind in ((0.4375, "CANCELLED", ""), (0.6, "FAILED", "engine-error")):
+            spec = {"seed": seed, "duration_s": 240, "cells": {"alpha": a, "tau_p_s": 600},
+                    "numerics": {"remesh_on_surface": True}}
+            for k in range(st.MAX_ATTEMPTS):
+                foamd.add("study:alpha", _FakeJob(f"j-{a}-{seed}-{k}", seed, spec, state=state,
+                                                  failure_kind=kind))
+    out = io.StringIO()
+    assert st.submit_missing(alpha, foamd, out=out) == (2, 2)
+    assert sorted((s["cells.alpha"], s["seed"]) for s in foamd.submitted) == [
+        ("0.4375", "1"), ("0.4375", "2")]
+    assert all(s["key"].endswith(f":{st.MAX_ATTEMPTS}") for s in foamd.submitted)
+    assert out.getvalue().count(f"{st.MAX_ATTEMPTS} attempts failed; not submitted again") == 2
 
 
 def test_a_shared_run_submitted_before_its_owner_is_the_owners_and_runs_once(tmp_path):
