@@ -147,23 +147,29 @@ def _select(runs: Any, point: Dict[str, Any]) -> Any:
     return sel
 
 
-def _numerics(runs: Any, point: Dict[str, Any]) -> Dict[str, set]:
-    """The numerics.* keys the runs at this point were given (their `settings`), each with the
-    set of values it took: a trend read across points of different steps (a study that gives some
-    points their own step) says so."""
-    out: Dict[str, set] = {}
-    sel = _select(runs, point)
-    if "settings" not in sel:
+def _numerics_counts(runs: Any) -> Dict[str, Dict[str, int]]:
+    """The numerics.* keys these runs were given (their `settings`), each value (as JSON) with
+    its number of runs."""
+    out: Dict[str, Dict[str, int]] = {}
+    if "settings" not in runs:
         return out
-    for text in sel["settings"]:
+    for text in runs["settings"]:
         try:
             d = json.loads(text) if isinstance(text, str) else {}
         except ValueError:
             continue
         for k, v in d.items():
             if k.startswith("numerics."):
-                out.setdefault(k, set()).add(json.dumps(v))
+                c = out.setdefault(k, {})
+                c[json.dumps(v)] = c.get(json.dumps(v), 0) + 1
     return out
+
+
+def _numerics(runs: Any, point: Dict[str, Any]) -> Dict[str, set]:
+    """The numerics.* keys the runs at this point were given, each with the set of values it
+    took: a trend read across points of different steps (a study that gives some points their
+    own step) says so."""
+    return {k: set(c) for k, c in _numerics_counts(_select(runs, point)).items()}
 
 
 def numerics_differ(runs: Any, low: Dict[str, Any], high: Dict[str, Any]) -> str:
@@ -193,20 +199,9 @@ def numerics_by_study(items: List[TrendSpec], data_root: os.PathLike) -> List[st
         if not (d / "runs.csv").is_file():
             continue
         runs = st.load_data(t.study, d).runs
-        if "settings" not in runs:
-            continue
         if "state" in runs:
             runs = runs[runs["state"].isin(["succeeded", "failed"])]
-        counts: Dict[str, Dict[str, int]] = {}
-        for text in runs["settings"]:
-            try:
-                dd = json.loads(text) if isinstance(text, str) else {}
-            except ValueError:
-                continue
-            for k, v in dd.items():
-                if k.startswith("numerics."):
-                    c = counts.setdefault(k, {})
-                    c[json.dumps(v)] = c.get(json.dumps(v), 0) + 1
+        counts = _numerics_counts(runs)
         if counts:
             out.append(f"- {t.study.name} ({len(runs)} runs): " + "; ".join(
                 f"{k} " + ", ".join(f"{v} ({n})" for v, n in sorted(c.items()))

@@ -99,15 +99,8 @@ TEST(Checkpoint, RejectsForeignOrDamagedState) {
 // The figure studies' step (the consistent stiffness at Δt 1 s, ε_CG 1e-2, the overlap within
 // prisms) on a motile fusion: cut mid-run and resumed, the same samples as straight through.
 TEST(Checkpoint, StudiesStepFusionResumesWithTheSameSamples) {
-  SceneSpec s = activefoam::testing::smallFusionSpec(/*seed=*/11, 4, 4, /*duration_s=*/30,
-                                                     /*sample_every_s=*/2);
-  s.numerics.integrator = IntegratorKind::ContactImplicitConsistent;
-  s.numerics.dt_s = 1.0;
-  s.numerics.cg_tol = 1e-2;
-  s.numerics.contact_within_prisms = true;
-  s.numerics.contact_prisms_overlap_only = true;
-  ASSERT_TRUE(validate(s).empty());
-  s = resolve(s);
+  const SceneSpec s = activefoam::testing::studiesStep(activefoam::testing::smallFusionSpec(
+      /*seed=*/11, 4, 4, /*duration_s=*/30, /*sample_every_s=*/2));
 
   std::vector<Sample> straight, first, second;
   RunObserver o1;

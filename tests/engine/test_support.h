@@ -48,6 +48,18 @@ inline SceneSpec smallFusionSpec(std::uint64_t seed = 5, int n_cells_a = 3, int 
   return resolve(s);
 }
 
+// The figure studies' step (since 2026-11-28): the one-stage consistent stiffness at Δt 1 s with
+// ε_CG 1e-2 and the contact's overlapping part kept within the triangles' prisms.
+inline SceneSpec studiesStep(SceneSpec s) {
+  s.numerics.integrator = IntegratorKind::ContactImplicitConsistent;
+  s.numerics.dt_s = 1.0;
+  s.numerics.cg_tol = 1e-2;
+  s.numerics.contact_within_prisms = true;
+  s.numerics.contact_prisms_overlap_only = true;
+  EXPECT_TRUE(validate(s).empty());
+  return resolve(s);
+}
+
 // Moves every vertex by a random vector of the given size (seeded): a generic, non-symmetric
 // configuration for force tests.
 inline void jiggle(CellSet& cells, double size, std::uint64_t seed) {

@@ -20,6 +20,7 @@ using namespace activefoam;
 using activefoam::testing::cellSpec;
 using activefoam::testing::jiggle;
 using activefoam::testing::physicsColumns;
+using activefoam::testing::studiesStep;
 
 namespace {
 
@@ -258,18 +259,6 @@ TEST(Threads, Ros2MotileDoubletRunIsBitIdenticalForAnyThreadCount) {
   SceneSpec s = motileDoublet();
   s.numerics.integrator = IntegratorKind::Ros2;
   expectSameRuns(s, kFine);
-}
-
-// The figure studies' step (since 2026-11-28): the one-stage consistent stiffness at Δt 1 s with
-// ε_CG 1e-2 and the contact's overlapping part kept within the triangles' prisms.
-SceneSpec studiesStep(SceneSpec s) {
-  s.numerics.integrator = IntegratorKind::ContactImplicitConsistent;
-  s.numerics.dt_s = 1.0;
-  s.numerics.cg_tol = 1e-2;
-  s.numerics.contact_within_prisms = true;
-  s.numerics.contact_prisms_overlap_only = true;
-  EXPECT_TRUE(validate(s).empty());
-  return resolve(s);
 }
 
 TEST(Threads, StudiesStepFusionRunIsBitIdenticalForAnyThreadCount) {
