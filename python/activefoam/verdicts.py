@@ -185,25 +185,33 @@ def numerics_differ(runs: Any, low: Dict[str, Any], high: Dict[str, Any]) -> str
     return "; ".join(parts)
 
 
-def numerics_by_study(items: List[TrendSpec], data_root: os.PathLike) -> List[str]:
+def _runs_by_study(items: List[TrendSpec], data_root: os.PathLike) -> Dict[str, Any]:
+    """Each study's runs (runs.csv of its report's data), None where it has none yet."""
+    out: Dict[str, Any] = {}
+    for t in items:
+        if t.study.name not in out:
+            d = Path(data_root) / t.study.name / "data"
+            out[t.study.name] = st.load_data(t.study, d).runs if (d / "runs.csv").is_file() \
+                else None
+    return out
+
+
+def numerics_by_study(items: List[TrendSpec], data_root: os.PathLike,
+                      runs_by_study: Optional[Dict[str, Any]] = None) -> List[str]:
     """Per study with data, the numerics.* settings its runs were given, each value with its
     count of runs: which step and contact law a verdict rests on (studies may give some points
     a step of their own). A key set alike in every run shows one value."""
     out = []
-    seen = set()
-    for t in items:
-        if t.study.name in seen:
+    if runs_by_study is None:
+        runs_by_study = _runs_by_study(items, data_root)
+    for name, runs in runs_by_study.items():
+        if runs is None:
             continue
-        seen.add(t.study.name)
-        d = Path(data_root) / t.study.name / "data"
-        if not (d / "runs.csv").is_file():
-            continue
-        runs = st.load_data(t.study, d).runs
         if "state" in runs:
             runs = runs[runs["state"].isin(["succeeded", "failed"])]
         counts = _numerics_counts(runs)
         if counts:
-            out.append(f"- {t.study.name} ({len(runs)} runs): " + "; ".join(
+            out.append(f"- {name} ({len(runs)} runs): " + "; ".join(
                 f"{k} " + ", ".join(f"{v} ({n})" for v, n in sorted(c.items()))
                 for k, c in sorted(counts.items())))
     return out
@@ -235,18 +243,16 @@ def _fmt(v: float) -> str:
     return f"{v:.3g}"
 
 
-def evaluate(items: List[TrendSpec], data_root: os.PathLike) -> Any:
+def evaluate(items: List[TrendSpec], data_root: os.PathLike,
+             runs_by_study: Optional[Dict[str, Any]] = None) -> Any:
     """One row per statement (and value of `per`): the two ensembles' medians and counts, the
     effect with its 95 % interval, and the verdict."""
     import pandas as pd
     rows = []
-    cache: Dict[str, Any] = {}
+    if runs_by_study is None:
+        runs_by_study = _runs_by_study(items, data_root)
     for t in items:
-        d = Path(data_root) / t.study.name / "data"
-        if t.study.name not in cache:
-            cache[t.study.name] = st.load_data(t.study, d).runs if (d / "runs.csv").is_file() \
-                else None
-        runs = cache[t.study.name]
+        runs = runs_by_study[t.study.name]
         pers: List[Any] = [None]
         if t.per:
             pers = []
@@ -327,8 +333,9 @@ def markdown(table: Any) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _numerics_section(items: List[TrendSpec], data_root: os.PathLike) -> str:
-    lines = numerics_by_study(items, data_root)
+def _numerics_section(items: List[TrendSpec], data_root: os.PathLike,
+                      runs_by_study: Dict[str, Any]) -> str:
+    lines = numerics_by_study(items, data_root, runs_by_study)
     if not lines:
         return ""
     return ("\n## The numerics each study ran\n\nThe `numerics.*` settings of each study's ended "
@@ -337,7 +344,8 @@ def _numerics_section(items: List[TrendSpec], data_root: os.PathLike) -> str:
 
 
 def write(items: List[TrendSpec], data_root: os.PathLike, out: os.PathLike) -> List[Path]:
-    table = evaluate(items, data_root)
+    runs_by_study = _runs_by_study(items, data_root)
+    table = evaluate(items, data_root, runs_by_study)
     o = Path(out)
     o.mkdir(parents=True, exist_ok=True)
     table.to_csv(o / "verdicts.csv", index=False)
@@ -353,5 +361,5 @@ def write(items: List[TrendSpec], data_root: os.PathLike, out: os.PathLike) -> L
         "resolved* otherwise; no verdict from fewer than 3 runs a side. Source: *caption* — "
         "stated in the supplement's figure caption; *implied* — follows from a stated "
         "result (named in the statement); *none* — drawn, no trend stated.\n\n"
-        + markdown(table) + _numerics_section(items, data_root))
+        + markdown(table) + _numerics_section(items, data_root, runs_by_study))
     return [o / "verdicts.md", o / "verdicts.csv"]
