@@ -117,6 +117,7 @@ nlohmann::json summaryToJson(const RunSummary& summary, const SceneSpec& resolve
   j["remesh_ops"] = summary.remesh_ops;
   j["remesh_rescues"] = summary.remesh_rescues;
   j["remesh_rebuilds"] = summary.remesh_rebuilds;
+  j["remesh_kept_out"] = summary.remesh_kept_out;
   j["steps_rejected"] = summary.steps_rejected;
   j["dt_min_s"] = number(summary.dt_min_s);
   nlohmann::json final_values = nlohmann::json::object();
@@ -185,6 +186,7 @@ FlatResults flattenSummary(const nlohmann::json& j) {
   results.emplace_back("remesh_ops", num(j.value("remesh_ops", nlohmann::json())));
   results.emplace_back("remesh_rescues", num(j.value("remesh_rescues", nlohmann::json())));
   results.emplace_back("remesh_rebuilds", num(j.value("remesh_rebuilds", nlohmann::json())));
+  results.emplace_back("remesh_kept_out", num(j.value("remesh_kept_out", nlohmann::json())));
   results.emplace_back("steps_rejected", num(j.value("steps_rejected", nlohmann::json())));
   results.emplace_back("dt_min_s", num(j.value("dt_min_s", nlohmann::json())));
   const nlohmann::json& fits = j.contains("fits") ? j["fits"] : none;

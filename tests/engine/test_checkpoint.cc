@@ -43,41 +43,55 @@ TEST(Checkpoint, SimulationStateRoundTripsBitExactly) {
 // With numerics.remesh_rescue the checkpoint carries the count of rescued remeshes (the summary's
 // proof that a run without any has the bits of a run without the key), and the resumed run goes
 // on bit for bit; a state saved without the key is another spec's. (A doublet needs no rescue:
-// the count is 0 here; the rescue itself is Remesh.ALockedCellIsRepairedByTheRescue's.)
-TEST(Checkpoint, TheRemeshRescuesCountRoundTrips) {
+// the count is 0 here; the rescue itself is Remesh.ALockedCellIsRepairedByTheRescue's.) Likewise
+// numerics.remesh_keep_out and its count of refused collapses (Remesh.KeepOutRefuses…).
+namespace {
+
+void expectCountRoundTrips(bool NumericsParams::*key, std::int64_t (Simulation::*count)() const) {
   SceneSpec s = doublet();
-  s.numerics.remesh_rescue = true;
+  s.numerics.*key = true;
   Simulation a(s);
   for (int k = 0; k < 200; ++k) ASSERT_TRUE(a.step().ok());
   const std::string state = a.saveState();
   {
     SceneSpec plain = s;
-    plain.numerics.remesh_rescue = false;
+    plain.numerics.*key = false;
     Simulation p(plain);
     for (int k = 0; k < 200; ++k) ASSERT_TRUE(p.step().ok());
     EXPECT_EQ(p.saveState().size() + sizeof(std::int64_t),
               state.size() - (specFingerprint(s).size() - specFingerprint(plain).size()))
         << "the key adds its count, and nothing else, to the checkpoint";
+    ASSERT_EQ((a.*count)(), 0);
     EXPECT_EQ(
         std::memcmp(a.cells().x.data(), p.cells().x.data(), sizeof(double) * a.cells().x.size()), 0)
-        << "no rescue ran: the same bits as without the key";
+        << "the key did nothing: the same bits as without it";
   }
   Simulation b(s);
   b.loadState(state);
-  EXPECT_EQ(b.remeshRescues(), a.remeshRescues());
+  EXPECT_EQ((b.*count)(), (a.*count)());
   for (int k = 0; k < 100; ++k) {
     ASSERT_TRUE(a.step().ok());
     ASSERT_TRUE(b.step().ok());
   }
-  EXPECT_EQ(b.remeshRescues(), a.remeshRescues());
+  EXPECT_EQ((b.*count)(), (a.*count)());
   ASSERT_EQ(a.cells().x.size(), b.cells().x.size());
   EXPECT_EQ(
       std::memcmp(a.cells().x.data(), b.cells().x.data(), sizeof(double) * a.cells().x.size()), 0);
   SceneSpec without = s;
-  without.numerics.remesh_rescue = false;
+  without.numerics.*key = false;
   Simulation c(without);
   EXPECT_THROW(c.loadState(state), std::invalid_argument);
   EXPECT_THROW(b.loadState(c.saveState()), std::invalid_argument);
+}
+
+}  // namespace
+
+TEST(Checkpoint, TheRemeshRescuesCountRoundTrips) {
+  expectCountRoundTrips(&NumericsParams::remesh_rescue, &Simulation::remeshRescues);
+}
+
+TEST(Checkpoint, TheRemeshKeptOutCountRoundTrips) {
+  expectCountRoundTrips(&NumericsParams::remesh_keep_out, &Simulation::remeshKeptOut);
 }
 
 TEST(Checkpoint, RejectsForeignOrDamagedState) {

@@ -161,6 +161,10 @@ TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
   other.numerics.remesh_rebuild = true;
   EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
   EXPECT_FALSE(spheroidPrepSpec(other, 3, 11).numerics.remesh_rebuild);
+  // Nor the collapses' keep-out.
+  other.numerics.remesh_keep_out = true;
+  EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
+  EXPECT_FALSE(spheroidPrepSpec(other, 3, 11).numerics.remesh_keep_out);
   // The preparation's preconditioner is its own, Jacobi, whatever the run's and the presets'
   // (block-Jacobi since 2026-11-24): caches prepared before that stay valid.
   EXPECT_EQ(prep.numerics.preconditioner, PreconditionerKind::Jacobi);

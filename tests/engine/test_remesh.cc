@@ -1,6 +1,7 @@
 // Remeshing (DESIGN.md §5): invariants and physics, never hard-coded outputs.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -790,4 +791,77 @@ TEST(Remesh, OnTheSurfaceNoVertexLeavesItOrCrossesTheContactPlane) {
   }
   EXPECT_GT(local_outside, tenth);
   EXPECT_GT(local_past, tenth);
+}
+
+namespace {
+
+// How deep the deepest vertex of `a` lies inside `b` (generalised winding number > 1/2; depth =
+// distance to b's surface), as the interpenetration guard measures it.
+double deepestInside(const TriMesh& a, const TriMesh& b, double rb) {
+  CellSet two;
+  two.addCell(b, rb);
+  double deepest = 0;
+  for (int i = 0; i < a.numVertices(); ++i) {
+    const Vec3 x = a.x.col(i);
+    if (windingNumber(two, 0, x) > 0.5) deepest = std::max(deepest, distanceToSurface(two, 0, x));
+  }
+  return deepest;
+}
+
+}  // namespace
+
+// A cell pressed against its neighbour (tests/engine/data/pressed-pair-A.obj against -B.obj, a
+// fig9 run's state before the remesh that failed it): collapses place the merged vertex to keep
+// the volume, moving it along its ring's normal by up to half an edge, and two chained collapses
+// merge three vertices into one more than 1 µm inside the neighbour, past the interpenetration
+// guard, whatever the step. With keep_out that collapse is refused: no vertex deeper than the
+// keep-out depth, the mesh closed and oriented, its volume kept and no sliver left; a keep_out
+// that refuses nothing leaves the remesh bit for bit what it is without one.
+TEST(Remesh, KeepOutRefusesTheCollapseThatPushesAVertexIntoTheNeighbour) {
+  const ObjCell a = readObjCell(std::string(ENGINE_TEST_DATA) + "/pressed-pair-A.obj");
+  const ObjCell b = readObjCell(std::string(ENGINE_TEST_DATA) + "/pressed-pair-B.obj");
+  ASSERT_EQ(checkClosedManifold(a.mesh), "");
+  ASSERT_EQ(checkClosedManifold(b.mesh), "");
+  const double limit = NumericsParams{}.max_penetration_um;
+  ASSERT_LT(deepestInside(a.mesh, b.mesh, b.radius), 0.01);
+  ASSERT_LT(deepestInside(b.mesh, a.mesh, a.radius), 0.01);
+  RemeshParams p = simulationParams(a.radius, true);
+  p.rebuild_triangles = 320;
+
+  TriMesh plain = a.mesh;
+  const RemeshStats free = remesh(plain, p);
+  EXPECT_GE(free.collapses, 2);
+  EXPECT_GT(deepestInside(plain, b.mesh, b.radius), limit);  // what keep_out is for
+
+  CellSet two;
+  two.addCell(b.mesh, b.radius);
+  RemeshParams kp = p;
+  kp.keep_out_um = limit / 4;
+  kp.keep_out = [&two](const Vec3& x) {
+    return windingNumber(two, 0, x) > 0.5 ? distanceToSurface(two, 0, x) : 0.0;
+  };
+  TriMesh kept = a.mesh;
+  const RemeshStats st = remesh(kept, kp);
+  EXPECT_GE(st.kept_out, 1);
+  EXPECT_GE(st.refused_collapses, st.kept_out);
+  EXPECT_EQ(checkClosedManifold(kept), "");
+  EXPECT_GE(minValence(kept), 3);
+  EXPECT_LE(deepestInside(kept, b.mesh, b.radius), kp.keep_out_um);
+  EXPECT_NEAR(meshVolume(kept), meshVolume(a.mesh), 1e-9 * meshVolume(a.mesh));
+  EXPECT_GE(areaRange(kept).first, 0.5 * p.min_area);
+  std::cout << "pressed cell: deepest vertex in the neighbour "
+            << deepestInside(plain, b.mesh, b.radius) << " µm after the remesh, "
+            << deepestInside(kept, b.mesh, b.radius) << " µm with keep_out (" << st.kept_out
+            << " collapse refused)\n";
+
+  // A keep_out that refuses nothing: the same bits as none.
+  RemeshParams zero = p;
+  zero.keep_out_um = limit / 4;
+  zero.keep_out = [](const Vec3&) { return 0.0; };
+  TriMesh same = a.mesh;
+  const RemeshStats sz = remesh(same, zero);
+  EXPECT_EQ(sz.kept_out, 0);
+  EXPECT_EQ(same.tri, plain.tri);
+  ASSERT_EQ(same.x.cols(), plain.x.cols());
+  EXPECT_EQ(0, std::memcmp(same.x.data(), plain.x.data(), sizeof(double) * plain.x.size()));
 }

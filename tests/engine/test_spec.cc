@@ -738,14 +738,17 @@ TEST(SpecFields, ThePrismsOverlapOnlyIsOffByDefaultAndNeedsThePrisms) {
       << specFingerprint(s);
 }
 
-// numerics.remesh_rescue and numerics.remesh_rebuild change the remeshing of locked cells: off
-// by default (the same bits as before them), out of the fingerprint then, in it when on (the
-// preparation keeps them off: test_fusion_scene.cc).
-TEST(SpecFields, TheRemeshersRescueAndRebuildAreOffByDefaultAndInTheFingerprintWhenOn) {
-  for (const std::string word : {"rescue", "rebuild"}) {
+// numerics.remesh_rescue and numerics.remesh_rebuild change the remeshing of locked cells,
+// numerics.remesh_keep_out that of cells pressed against a neighbour: off by default (the same
+// bits as before them), out of the fingerprint then, in it when on (the preparation keeps them
+// off: test_fusion_scene.cc).
+TEST(SpecFields, TheRemeshersRescueRebuildAndKeepOutAreOffByDefaultAndInTheFingerprintWhenOn) {
+  for (const std::string word : {"rescue", "rebuild", "keep_out"}) {
     const std::string key = "numerics.remesh_" + word;
     SceneSpec s = resolve(SceneSpec{});
-    EXPECT_FALSE(word == "rescue" ? s.numerics.remesh_rescue : s.numerics.remesh_rebuild);
+    EXPECT_FALSE(word == "rescue"    ? s.numerics.remesh_rescue
+                 : word == "rebuild" ? s.numerics.remesh_rebuild
+                                     : s.numerics.remesh_keep_out);
     EXPECT_EQ(specFingerprint(s).find(word), std::string::npos);
     ASSERT_EQ(setField(s, key, true), std::nullopt) << key;
     EXPECT_TRUE(validate(s).empty()) << joined(validate(s));

@@ -13,6 +13,7 @@
 #include "activefoam/rng.h"
 #include "activefoam/run.h"
 #include "activefoam/spheroid.h"
+#include "activefoam/step_guards.h"
 #include "activefoam/threads.h"
 #include "test_support.h"
 
@@ -233,6 +234,50 @@ TEST(Threads, RemeshWithTheRescueAndTheRebuildIsBitIdenticalForAnyThreadCount) {
     Simulation sim(s, cells);
     sim.remeshAll();
     EXPECT_EQ(sim.remeshRebuilds(), 1) << n;
+    xs.push_back(sim.cells().x);
+  }
+  EXPECT_TRUE(sameBits(xs[0], xs[1]));
+  EXPECT_TRUE(sameBits(xs[0], xs[2]));
+}
+
+// A cell pressed against its neighbour (tests/engine/data/pressed-pair-*.obj, a fig9 run's state
+// before the remesh that failed it), with two plain cells: the simulation's remesh without
+// numerics.remesh_keep_out puts a vertex past the interpenetration guard, with it no pair is
+// beyond the guard and a collapse was refused; the same meshes for any thread count.
+TEST(Threads, RemeshWithKeepOutKeepsThePressedCellOutAndIsBitIdenticalForAnyThreadCount) {
+  const std::string data = ENGINE_TEST_DATA;
+  const auto a = activefoam::testing::readObjCell(data + "/pressed-pair-A.obj");
+  const auto b = activefoam::testing::readObjCell(data + "/pressed-pair-B.obj");
+  SceneSpec s = fusion2x4();
+  s.numerics.triangles_per_cell = 320;  // the run's (A_m and A_M scale with it)
+  s.numerics.remesh_rescue = true;
+  s.numerics.remesh_rebuild = true;
+  CellSet cells;
+  cells.addCell(a.mesh, a.radius);
+  cells.addCell(b.mesh, b.radius);
+  const double r = 8.88;
+  for (int k = 0; k < 2; ++k) {
+    TriMesh m = ellipsoidCell(r, 1.2, 320, Vec3(120.0 + 2.5 * r * k, 0, 0));
+    m.v = Eigen::Matrix3Xd::Zero(3, m.x.cols());
+    cells.addCell(m, r);
+  }
+  const double limit = s.numerics.max_penetration_um;
+  PenetrationScratch scratch;
+  {
+    Simulation sim(s, cells);
+    ASSERT_EQ(interpenetration(sim.cells(), sim.contacts(), limit, 0, scratch), "");
+    sim.remeshAll();
+    EXPECT_NE(interpenetration(sim.cells(), sim.contacts(), limit, 0, scratch), "")
+        << "the remesh without keep_out pushes a vertex past the guard";
+  }
+  s.numerics.remesh_keep_out = true;
+  std::vector<Eigen::Matrix3Xd> xs;
+  for (const int n : {1, 2, 3}) {
+    Parallel p(n, kFine);
+    Simulation sim(s, cells);
+    sim.remeshAll();
+    EXPECT_GE(sim.remeshKeptOut(), 1) << n;
+    EXPECT_EQ(interpenetration(sim.cells(), sim.contacts(), limit, 0, scratch), "") << n;
     xs.push_back(sim.cells().x);
   }
   EXPECT_TRUE(sameBits(xs[0], xs[1]));

@@ -246,6 +246,21 @@ TEST(SpecConvert, TheRemeshersRescueAndRebuildTravel) {
   }
 }
 
+// numerics.remesh_keep_out (proto field 25) likewise.
+TEST(SpecConvert, TheRemeshKeepOutTravels) {
+  v1::SceneSpec typed;
+  typed.mutable_numerics()->set_remesh_keep_out(true);
+  ConvertResult r = convertSpec(typed, "", {"scene=cell"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_TRUE(r.spec->numerics.remesh_keep_out);
+  r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion", "numerics.remesh_keep_out=true"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_TRUE(r.spec->numerics.remesh_keep_out);
+  r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_FALSE(r.spec->numerics.remesh_keep_out);
+}
+
 TEST(SpecConvert, MissingSceneNamesTheSceneKey) {
   ConvertResult r = convertSpec(v1::SceneSpec{});
   ASSERT_FALSE(r.ok());

@@ -1,6 +1,7 @@
 // Brakke-style remeshing of one closed cell surface (DESIGN.md §5).
 #pragma once
 
+#include <functional>
 #include <vector>
 
 #include "activefoam/mesh.h"
@@ -57,6 +58,16 @@ struct RemeshParams {
   // cell (a smoothed vertex 1.0 µm into its neighbour on 80-triangle cells). Collapses and
   // flips keep their local volume placement either way (see remesh.cc).
   bool on_surface = false;
+  // With keep_out set (a function of a point: how deep it lies inside the other cells near this
+  // one, 0 outside), a collapse whose merged vertex would lie deeper than keep_out_um inside
+  // another cell, and deeper than both vertices it merges, is refused. The volume-preserving
+  // placement moves the merged vertex along its ring's normal by up to half the edge, and
+  // chained collapses add up: on a cell pressed against its neighbour (fig9, τ_p = 40 min) two
+  // collapses merged three vertices into one 1.28 µm inside the neighbour, a remesh that failed
+  // the step at every Δt down to the floor (docs/numerics.md). Unset: every such collapse is
+  // done (earlier versions).
+  std::function<double(const Vec3&)> keep_out;
+  double keep_out_um = 0;
 };
 
 struct RemeshStats {
@@ -69,6 +80,7 @@ struct RemeshStats {
   double volume_offset = 0;   // on_surface: the cell's normal offset that restored its volume
   int refused_collapses = 0;  // candidates rejected by the manifold/orientation/valence guards
   int refused_flips = 0;      // Delaunay-violating edges kept by the flip guards
+  int kept_out = 0;  // collapses refused by RemeshParams::keep_out (also refused_collapses)
   double volume_before = 0;
   double volume_after = 0;
   int operations() const { return splits + collapses + flips + smooths + rebuilds; }

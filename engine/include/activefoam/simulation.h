@@ -100,6 +100,9 @@ class Simulation {
   // Cell meshes rebuilt (numerics.remesh_rebuild) over the run: while it is 0 the run has the
   // bits it would have without the key.
   std::int64_t remeshRebuilds() const { return remesh_rebuilds_; }
+  // Collapses refused for entering a neighbour (numerics.remesh_keep_out) over the run: while it
+  // is 0 the run has the bits it would have without the key.
+  std::int64_t remeshKeptOut() const { return remesh_kept_out_; }
   // The force terms built for this spec, in evaluation order (terms whose parameters vanish are
   // not built).
   std::vector<std::string_view> termNames() const {
@@ -186,6 +189,7 @@ class Simulation {
   std::int64_t remesh_ops_ = 0;
   std::int64_t remesh_rescues_ = 0;
   std::int64_t remesh_rebuilds_ = 0;
+  std::int64_t remesh_kept_out_ = 0;
   std::int64_t steps_rejected_ = 0;
   PhaseTimes times_;
   PenetrationScratch penetration_;  // scratch of interpenetration()
@@ -194,6 +198,7 @@ class Simulation {
     std::int64_t remesh_ops = 0;
     std::int64_t remesh_rescues = 0;
     std::int64_t remesh_rebuilds = 0;
+    std::int64_t remesh_kept_out = 0;
   } saved_;
 };
 

@@ -110,6 +110,7 @@ void Simulation::saveRollback() {
   saved_.remesh_ops = remesh_ops_;
   saved_.remesh_rescues = remesh_rescues_;
   saved_.remesh_rebuilds = remesh_rebuilds_;
+  saved_.remesh_kept_out = remesh_kept_out_;
 }
 
 void Simulation::rollback() {
@@ -118,6 +119,7 @@ void Simulation::rollback() {
   remesh_ops_ = saved_.remesh_ops;
   remesh_rescues_ = saved_.remesh_rescues;
   remesh_rebuilds_ = saved_.remesh_rebuilds;
+  remesh_kept_out_ = saved_.remesh_kept_out;
   if (cells_.topology_version != tried_version) {
     // The try remeshed: a version number that nothing has seen, so that the edge list, Γ's
     // pattern and the broad phase's lists are rebuilt rather than taken for the tried meshes'.
@@ -240,8 +242,25 @@ StepReport Simulation::remeshCells(const std::vector<char>& which) {
   std::vector<TriMesh> meshes(n);
   std::vector<RemeshStats> stats(n);
   for (int c = 0; c < n; ++c) meshes[c] = cells_.cellMesh(c);
-    // Each cell's remesh is independent (remesh() keeps no shared state); the totals are taken in
-    // cell order afterwards, so the result does not depend on the thread count.
+  // numerics.remesh_keep_out: the cells each cell touches (its contacts at the step's start),
+  // whose surfaces before this remesh its collapses must not enter. Read-only during the loop,
+  // so the result does not depend on the thread count.
+  std::vector<std::vector<int>> touching;
+  if (spec_.numerics.remesh_keep_out) {
+    touching.resize(n);
+    for (const ContactPair& p : contacts_.pairs) {
+      const int a = cells_.tri_cell[p.ta], b = cells_.tri_cell[p.tb];
+      if (a == b) continue;
+      touching[a].push_back(b);
+      touching[b].push_back(a);
+    }
+    for (auto& list : touching) {
+      std::sort(list.begin(), list.end());
+      list.erase(std::unique(list.begin(), list.end()), list.end());
+    }
+  }
+  // Each cell's remesh is independent (remesh() keeps no shared state); the totals are taken in
+  // cell order afterwards, so the result does not depend on the thread count.
 #pragma omp parallel for schedule(dynamic) if (cells_.numTriangles() > grain().min_items)
   for (int c = 0; c < n; ++c) {
     if (!which[c]) continue;
@@ -254,6 +273,16 @@ StepReport Simulation::remeshCells(const std::vector<char>& which) {
     rp.on_surface = spec_.numerics.remesh_on_surface;
     rp.rescue = spec_.numerics.remesh_rescue;
     rp.rebuild_triangles = spec_.numerics.remesh_rebuild ? tris : 0;
+    if (spec_.numerics.remesh_keep_out && !touching[c].empty()) {
+      rp.keep_out_um = spec_.numerics.max_penetration_um / 4;
+      rp.keep_out = [this, &others = touching[c]](const Vec3& p) {
+        double depth = 0;
+        for (int o : others)
+          if (windingNumber(cells_, o, p) > 0.5)
+            depth = std::max(depth, distanceToSurface(cells_, o, p));
+        return depth;
+      };
+    }
     stats[c] = remesh(meshes[c], rp);
   }
   int ops = 0;
@@ -263,6 +292,7 @@ StepReport Simulation::remeshCells(const std::vector<char>& which) {
     ops += st.operations();
     remesh_rescues_ += st.rescues;
     remesh_rebuilds_ += st.rebuilds;
+    remesh_kept_out_ += st.kept_out;
     if (st.volume_before > 0)
       rep.remesh_volume_jump = std::max(
           rep.remesh_volume_jump, std::abs(st.volume_after - st.volume_before) / st.volume_before);

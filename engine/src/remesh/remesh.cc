@@ -329,6 +329,13 @@ class Remesher {
     // and the passive spheroid's contact angle fell 1.5–2.5° below arccos α (0.6° with this), the
     // motile spheroid's 1.5–3° further (docs/numerics.md).
     if (std::abs(pr.dot(g) - lold) > p_.collapse_max_volume * std::abs(vol_)) return false;
+    if (p_.keep_out) {
+      const double depth = p_.keep_out(o + pr);
+      if (depth > p_.keep_out_um && depth > p_.keep_out(x_[a]) && depth > p_.keep_out(x_[b])) {
+        ++st_.kept_out;
+        return false;
+      }
+    }
 
     // Orientation/degeneracy guard on every surviving triangle of the two rings.
     const Vec3 pnew = o + pr;

@@ -337,6 +337,7 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
   sum.remesh_ops = sim.remeshOps();
   sum.remesh_rescues = sim.remeshRescues();
   sum.remesh_rebuilds = sim.remeshRebuilds();
+  sum.remesh_kept_out = sim.remeshKeptOut();
   sum.steps_rejected = sim.stepsRejected();
   sum.dt_min_s = acc.run_dt_min > 0 ? acc.run_dt_min : dt;
   sum.final_values = sceneObservables(sim, fusion ? &fs : nullptr);
