@@ -15,7 +15,10 @@ engine error, a lost worker). A run that failed in the simulation (non-finite, v
 interpenetration, ...) is a result — the supplement's hatched cells — and is not run again unless
 `--retry-failed`. A job of the study that is no run of the file as it is now (an earlier
 version's [spec], grid or seeds) is named when it is queued or running, and cancelled with
-`--cancel-stale`. Exit codes: 0 done, 1 some runs failed, 2 bad study file or spec, 3 foamd
+`--cancel-stale`. A run that failed in the simulation is rerun once per [[diagnose]] table of
+the file that names its failure kind, with that table's keys changed (tag `diag:NAME`): the
+report says whether the rerun ran past the failure (then the failure is those numerics', not
+the point's, and the verdict table's `failed` leaves it out). Exit codes: 0 done, 1 some runs failed, 2 bad study file or spec, 3 foamd
 unreachable, 4 token refused, 130 interrupted (the jobs go on in foamd; rerun to follow them).
 """
 
@@ -57,7 +60,8 @@ MAX_ATTEMPTS = 5
 STUDY_KEYS = {"name", "title", "base", "preset", "seeds", "x", "x_label", "x_log", "by",
               "by_label", "priority", "scale"}
 FITNESS_KEYS = {"key", "reference", "metrics"}
-TOP_KEYS = {"study", "spec", "grid", "fitness", "share"}
+TOP_KEYS = {"study", "spec", "grid", "fitness", "share", "diagnose"}
+DIAGNOSE_KEYS = {"name", "title", "spec", "kinds"}
 SHARE_KEYS = {"file", "this", "that"}
 PRESETS = {"draft", "standard", "reference"}
 
@@ -137,6 +141,17 @@ class Share:
         return _same_point(point, self.this)
 
 
+@dataclass
+class Diagnosis:
+    """[[diagnose]]: a run that failed in the simulation with one of `kinds` is rerun once with
+    `spec`'s keys set on top of its own (a reference step, a remesher fix): a rerun that runs
+    to the end says the failure was those numerics', not the point's."""
+    name: str
+    spec: Dict[str, Any]
+    kinds: List[str]
+    title: str = ""
+
+
 def _same_point(a: Dict[str, Any], b: Dict[str, Any]) -> bool:
     return set(a) == set(b) and all(_same(a[k], b[k]) for k in a)
 
@@ -161,10 +176,19 @@ class Study:
     scale: str = ""
     fitness: Optional[Dict[str, Any]] = None
     shares: List["Share"] = field(default_factory=list)
+    diagnoses: List[Diagnosis] = field(default_factory=list)
 
     @property
     def tag(self) -> str:
         return f"study:{self.name}"
+
+    @property
+    def diag_tag(self) -> str:
+        return f"diag:{self.name}"
+
+    def diag_settings(self, run: Run, d: Diagnosis) -> Dict[str, Any]:
+        """A diagnosis rerun's keys: the run's, with the diagnosis's on top."""
+        return {**self.settings(run), **d.spec}
 
     def points(self) -> List[Dict[str, Any]]:
         """The union of the grids' cartesian products, in file order, without repeats."""
@@ -313,6 +337,11 @@ def load(path: os.PathLike, _shares: bool = True) -> Study:
                              + (f"; unknown {bad[0]!r}{_closest(bad[0], list(METRICS))}"
                                 if bad else ""))
         study.fitness = {"key": f["key"], "reference": f["reference"], "metrics": metrics}
+    diagnoses = doc.get("diagnose", [])
+    if not isinstance(diagnoses, list):
+        raise StudyError("diagnose: [[diagnose]] tables (name, spec, kinds)")
+    for i, d in enumerate(diagnoses):
+        study.diagnoses.append(_load_diagnosis(study, i, d))
     shares = doc.get("share", [])
     if not isinstance(shares, list):
         raise StudyError("share: [[share]] tables (file, this, that)")
@@ -320,6 +349,35 @@ def load(path: os.PathLike, _shares: bool = True) -> Study:
         for i, sh in enumerate(shares):
             study.shares.append(_load_share(study, i, sh))
     return study
+
+
+def _load_diagnosis(study: Study, i: int, d: Any) -> Diagnosis:
+    where = f"diagnose[{i}]"
+    if not isinstance(d, dict):
+        raise StudyError(f"{where}: a table (name, spec, kinds), got {d!r}")
+    _unknown(d, DIAGNOSE_KEYS, f"{where}.")
+    name = d.get("name")
+    if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9._-]{1,32}", name):
+        raise StudyError(f"{where}.name: 1 to 32 characters of A-Z a-z 0-9 . _ -, got {name!r}")
+    if any(x.name == name for x in study.diagnoses):
+        raise StudyError(f"{where}.name: {name!r} names an earlier [[diagnose]] too")
+    spec = d.get("spec")
+    if not isinstance(spec, dict) or not spec:
+        raise StudyError(f"{where}.spec: a non-empty table of the spec keys the rerun changes")
+    flat = {k: _scalar(f"{where}.spec.{k}", v) for k, v in _flatten(spec).items()}
+    for k in flat:
+        if not k.startswith("numerics."):
+            raise StudyError(f"{where}.spec.{k}: a diagnosis reruns the same point and seed "
+                             "with other numerics: numerics.* keys only")
+    kinds = d.get("kinds", sorted(SIMULATION_FAILURES))
+    if (not isinstance(kinds, list) or not kinds or
+            not all(isinstance(k, str) and k in SIMULATION_FAILURES for k in kinds)):
+        raise StudyError(f"{where}.kinds: failure kinds among "
+                         f"{', '.join(sorted(SIMULATION_FAILURES))}, got {kinds!r}")
+    title = d.get("title", "")
+    if not isinstance(title, str):
+        raise StudyError(f"{where}.title: a string, got {title!r}")
+    return Diagnosis(name=name, spec=flat, kinds=list(kinds), title=title)
 
 
 def _load_share(study: Study, i: int, sh: Any) -> Share:
@@ -436,8 +494,12 @@ def _base_keys(study: Study) -> set:
     return set(_flatten(doc)) if isinstance(doc, dict) else set()
 
 
-def _matches(study: Study, run: Run, spec: Dict[str, Any]) -> bool:
-    settings = study.settings(run)
+def _matches(study: Study, run: Run, spec: Dict[str, Any],
+             settings: Optional[Dict[str, Any]] = None) -> bool:
+    """Whether a job's resolved spec is this run's (or, with `settings`, the run with those
+    keys: a diagnosis rerun)."""
+    if settings is None:
+        settings = study.settings(run)
     for k, v in settings.items():
         got = _resolved_value(spec, k)
         if got is None:
@@ -590,6 +652,122 @@ def _needs_job(jobs: List[Any], retry_failed: bool) -> bool:
     if state == "failed":
         return retry_failed or last.failure_kind not in SIMULATION_FAILURES
     return False
+
+
+# ---- diagnoses: reruns of failed runs with some keys changed ------------------------------------
+
+def _diag_jobs(study: Study, client: Any) -> Dict[int, Dict[str, List[Any]]]:
+    """Run index → diagnosis name → its reruns (tag diag:NAME), oldest first."""
+    out: Dict[int, Dict[str, List[Any]]] = {}
+    if not study.diagnoses:
+        return out
+    runs = study.runs()
+    by_seed: Dict[int, List[int]] = {}
+    for i, r in enumerate(runs):
+        by_seed.setdefault(r.seed, []).append(i)
+    for j in sorted(client._list(tag=study.diag_tag), key=lambda j: (j.created_utc, j.id)):
+        spec = json.loads(j.spec_json) if j.spec_json else {}
+        for i in by_seed.get(int(j.seed), []):
+            d = next((d for d in study.diagnoses
+                      if _matches(study, runs[i], spec, study.diag_settings(runs[i], d))), None)
+            if d is not None:
+                out.setdefault(i, {}).setdefault(d.name, []).append(j)
+                break
+    return out
+
+
+def _diag_of_runs(study: Study, client: Any, source: Dict[int, str]
+                  ) -> Tuple[Dict[int, Dict[str, List[Any]]], Dict[int, Study]]:
+    """Run index → diagnosis name → reruns, with a shared run's taken from the study that owns
+    it (the one whose job it is: its [[diagnose]] tables apply); and run index → that study."""
+    own = _diag_jobs(study, client)
+    out = {i: ds for i, ds in own.items() if i not in source}
+    owner: Dict[int, Study] = {}
+    cache: Dict[str, Dict[int, Dict[str, List[Any]]]] = {}
+    for i, run in enumerate(study.runs()):
+        if i not in source:
+            continue
+        sh = _share_of(study, run)
+        if sh is None:
+            continue
+        owner[i] = sh.other
+        if sh.other.name not in cache:
+            cache[sh.other.name] = _diag_jobs(sh.other, client)
+        k = next((k for k, r in enumerate(sh.other.runs())
+                  if r.seed == run.seed and _same_point(r.point, sh.that)), None)
+        if k is not None and k in cache[sh.other.name]:
+            out[i] = cache[sh.other.name][k]
+    return out, owner
+
+
+def _diag_needed(jobs: List[Any]) -> bool:
+    """A diagnosis is run once: a rerun queued, running, ended or cancelled (by hand: a
+    decision) stands; one that failed outside the simulation (an engine error, a lost worker) is
+    submitted again."""
+    from activefoam.client import _state_name
+    if not jobs:
+        return True
+    last = jobs[-1]
+    return _state_name(last.state) == "failed" and last.failure_kind not in SIMULATION_FAILURES
+
+
+def submit_diagnoses(study: Study, client: Any, out=sys.stderr) -> int:
+    """Submits the diagnosis reruns of the study's own runs that failed in the simulation with a
+    kind a [[diagnose]] table names and have no rerun yet; returns how many."""
+    from activefoam.client import _setting, _state_name
+    from activefoam.v1 import service_pb2
+    if not study.diagnoses:
+        return 0
+    found, source, _ = _run_jobs(study, client)
+    diag = _diag_jobs(study, client)
+    runs = study.runs()
+    n = 0
+    for i, run in enumerate(runs):
+        have = found.get(i, [])
+        if i in source or not have:
+            continue  # a shared run is diagnosed by the study that owns it
+        last = have[-1]
+        if _state_name(last.state) != "failed" or last.failure_kind not in SIMULATION_FAILURES:
+            continue
+        for d in study.diagnoses:
+            if last.failure_kind not in d.kinds:
+                continue
+            jobs = diag.get(i, {}).get(d.name, [])
+            if not _diag_needed(jobs):
+                continue
+            settings = [_setting(k, v) for k, v in study.diag_settings(run, d).items()]
+            settings.sort(key=lambda x: not x.startswith("scene="))
+            req = service_pb2.SubmitJobRequest(
+                spec_text=study.base_text, settings=settings, tag=study.diag_tag,
+                priority=study.priority - 1,  # after the study's own runs
+                idempotency_key=f"{study.diag_tag}:{d.name}:{study.run_id(run)}:{len(jobs)}")
+            try:
+                resp = client._call("SubmitJob", req, f"diagnose {run.label()} ({d.name})")
+            except ValueError as e:
+                raise StudyError(f"{study.path}: diagnose {d.name!r} of {run.label()}: {e}"
+                                 ) from None
+            if resp.created:
+                n += 1
+                print(f"study {study.name}: {run.label()} failed ({last.failure_kind}): "
+                      f"diagnosis {d.name!r} submitted", file=out)
+    return n
+
+
+def _diag_outcome(job: Any, failed_at_s: float) -> Tuple[str, bool]:
+    """A diagnosis rerun's outcome in words, and whether it ran past the failure."""
+    from activefoam.client import _state_name
+    state = _state_name(job.state)
+    t = float(getattr(job, "t_s", 0.0) or 0.0)
+    if state == "succeeded":
+        return "ran to the end", True
+    if state == "failed" and job.failure_kind in SIMULATION_FAILURES:
+        when = "later" if t > failed_at_s + 1e-9 else "too"
+        return f"failed {when}: {job.failure_kind} at {t:.0f} s", False
+    if state == "failed":
+        return f"did not run ({job.failure_kind})", False
+    if state in ("queued", "running"):
+        return f"{state} ({100 * float(job.progress):.0f} %)", False
+    return state, False
 
 
 # ---- runs of an earlier store: a report's committed data -----------------------------------------
@@ -865,6 +1043,7 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     found, source, stale = _run_jobs(study, client)
+    diag, _ = _diag_of_runs(study, client, source)
     rows, samples, curves = [], [], []
     n_carried = 0
     for i, run in enumerate(study.runs()):
@@ -891,6 +1070,15 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
             row["shared_from"] = source[i]
         row.update(job_id=j.id, state=_state_name(j.state), failure_kind=j.failure_kind,
                    reason=j.reason, outcome=j.outcome, attempts=len(have), t_end_s=j.t_s)
+        if row["state"] == "failed" and diag.get(i):
+            # Each diagnosis's last rerun: "NAME: outcome (job)"; the failure is the point's
+            # unless one ran past it.
+            texts, past = [], False
+            for name, js in diag[i].items():
+                text, ran_past = _diag_outcome(js[-1], float(j.t_s or 0.0))
+                texts.append(f"{name}: {text} ({js[-1].id})")
+                past = past or ran_past
+            row.update(diagnoses="; ".join(texts), diag_ran_past=past)
         if row["state"] in ("succeeded", "failed"):
             job = client.job(j.id)
             r = job._results(True)
@@ -1029,6 +1217,8 @@ def summary_table(study: Study, runs: Any, metrics: Sequence[str] = tuple(METRIC
         row["failed"] = len(failed)
         row["failures"] = ",".join(sorted(set(failed.get("failure_kind", pd.Series(dtype=str))
                                               .dropna().astype(str))))
+        # Failures a diagnosis rerun ran past: those numerics', not the point's.
+        row["failed_ran_past"] = int(_ran_past(failed).sum())
         row["missing"] = int(sel["state"].isin(["missing", "queued", "running",
                                                 "cancelled"]).sum())
         # The runs' numerical health: steps the engine redid at a shorter step (an inverted
@@ -1048,6 +1238,43 @@ def summary_table(study: Study, runs: Any, metrics: Sequence[str] = tuple(METRIC
     return pd.DataFrame(out, columns=list(out[0].keys()) if out else keys)
 
 
+def _ran_past(runs: Any) -> Any:
+    """Per run: whether a diagnosis rerun of it ran past its failure (False without the column:
+    data collected before diagnoses)."""
+    import pandas as pd
+    if "diag_ran_past" not in runs:
+        return pd.Series(False, index=runs.index)
+    return runs["diag_ran_past"].map(lambda v: v is True or str(v).lower() == "true")
+
+
+def failed_runs_markdown(study: Study, runs: Any) -> str:
+    """The failed runs, each with its failure and its diagnoses' outcomes; empty if none."""
+    if "state" not in runs:
+        return ""
+    failed = runs[runs["state"] == "failed"]
+    if not len(failed):
+        return ""
+    keys = study.swept_keys()
+    lines = ["## Failed runs", "",
+             "A failure the simulation reached (its kind, the time, the job); a diagnosis "
+             "reruns the run with some keys changed (the study file's [[diagnose]] tables"
+             + (": " + "; ".join(f"{d.name} sets " + ", ".join(f"{k} = {v}"
+                                                              for k, v in d.spec.items())
+                                 + (f" ({d.title})" if d.title else "")
+                                 for d in study.diagnoses) if study.diagnoses else "")
+             + "). A rerun that ran to the end says the failure was those numerics', not the "
+             "point's: the verdict table's `failed` leaves it out.", ""]
+    for _, r in failed.iterrows():
+        point = ", ".join(f"{k} = {_cell(r.get(k))}" for k in keys)
+        t = r.get("t_end_s")
+        when = f" at {float(t):.0f} s" if t == t and t is not None else ""
+        diag = r.get("diagnoses")
+        diag = diag if isinstance(diag, str) and diag else "no diagnosis"
+        lines.append(f"- {point}, seed {r['seed']}: {_cell(r.get('failure_kind'))}{when} "
+                     f"({_cell(r.get('job_id'))}); {diag}")
+    return "\n".join(lines) + "\n"
+
+
 def _cell(v: Any) -> str:
     """A key's value in a table; a point of another grid leaves it unset."""
     return "—" if v is None or (isinstance(v, float) and v != v) else str(v)
@@ -1062,8 +1289,11 @@ def summary_markdown(study: Study, table: Any) -> str:
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for _, r in table.iterrows():
         cells = [_cell(r.get(k)) for k in keys]
+        past = int(r.get("failed_ran_past", 0) or 0)
         cells += [str(r["runs"]), str(r["succeeded"]),
-                  f"{r['failed']}" + (f" ({r['failures']})" if r["failed"] else "")]
+                  f"{r['failed']}" + (f" ({r['failures']}" + (f"; {past} ran past on a "
+                                                               "diagnosis rerun" if past else "")
+                                      + ")" if r["failed"] else "")]
         for m in METRICS:
             med = r[f"{m}_median"]
             cells.append("—" if math.isnan(med) else
@@ -1155,7 +1385,9 @@ def render(study: Study, data: Data, out_dir: os.PathLike) -> List[Path]:
     runs = data.runs
     table = summary_table(study, runs)
     table.to_csv(out / "summary.csv", index=False)
-    (out / "summary.md").write_text(summary_markdown(study, table))
+    failures = failed_runs_markdown(study, runs)
+    (out / "summary.md").write_text(summary_markdown(study, table)
+                                    + ("\n" + failures if failures else ""))
     written += [out / "summary.csv", out / "summary.md"]
 
     x = study.x or study.swept_keys()[0]
@@ -1696,6 +1928,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                 print(f"study {study.name}: {n_new} runs submitted, {n_held} already in the "
                       f"store{' or the data' if carried else ''} (tag {study.tag})",
                       file=sys.stderr)
+                submit_diagnoses(study, c)
                 if args.no_wait:
                     return 0
                 counts = wait(study, c, poll_s=args.poll, carried=carried)

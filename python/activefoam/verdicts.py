@@ -19,7 +19,8 @@ median(high) − median(low)), what the supplement says (`expect`) and where it 
 
 `below` / `above` judge one ensemble (`high`) against a level. `report` shows the effect with no
 verdict (the supplement draws it but states no trend). The metric `failed` is 1 for a run that
-failed in the simulation itself, 0 for one that succeeded (the supplement's hatched cells).
+failed in the simulation itself, 0 for one that succeeded (the supplement's hatched cells); a
+failure that a diagnosis rerun ran past (the study file's [[diagnose]]) is left out.
 
 The rules are activefoam.trends' (no verdict from fewer than 3 runs a side). A study whose data
 folder (DATA/NAME/data, written by `study report --out DATA/NAME`) is missing gives its rows the
@@ -222,7 +223,9 @@ def _values(runs: Any, point: Dict[str, Any], metric: str) -> List[float]:
     if not len(sel):
         return []
     if metric == "failed":
-        ended = sel[sel["state"].isin(["succeeded", "failed"])]
+        # A failure a diagnosis rerun ran past (study.py, [[diagnose]]) is those numerics', not
+        # the point's: left out, as a run that did not end.
+        ended = sel[sel["state"].isin(["succeeded", "failed"]) & ~st._ran_past(sel)]
         return [1.0 if (s == "failed" and f in st.SIMULATION_FAILURES) else 0.0
                 for s, f in zip(ended["state"], ended["failure_kind"].fillna(""))
                 if s == "succeeded" or f in st.SIMULATION_FAILURES]

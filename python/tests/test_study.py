@@ -144,6 +144,18 @@ BAD = [
     ("[study]\nname = 'x'\nseeds = [1]\n[[grid]]\n'cells.alpha' = [0.5]\n", "spec.scene"),
     ("[study\nname = 'x'\n", "not TOML"),
     ("[studdy]\n", "studdy: unknown key (did you mean 'study'?)"),
+    ("[study]\nname = 'x'\nseeds = [1]\n[spec]\nscene = 'fusion'\n[[grid]]\n"
+     "'cells.alpha' = [0.5]\n[[diagnose]]\nname = 'k'\n", "diagnose[0].spec"),
+    ("[study]\nname = 'x'\nseeds = [1]\n[spec]\nscene = 'fusion'\n[[grid]]\n"
+     "'cells.alpha' = [0.5]\n[[diagnose]]\nname = 'k'\nspec = { 'cells.alpha' = 0.6 }\n",
+     "diagnose[0].spec.cells.alpha: a diagnosis reruns the same point and seed with other "
+     "numerics"),
+    ("[study]\nname = 'x'\nseeds = [1]\n[spec]\nscene = 'fusion'\n[[grid]]\n"
+     "'cells.alpha' = [0.5]\n[[diagnose]]\nname = 'k'\nspec = { 'numerics.dt_s' = 0.25 }\n"
+     "kinds = ['volume-drfit']\n", "diagnose[0].kinds"),
+    ("[study]\nname = 'x'\nseeds = [1]\n[spec]\nscene = 'fusion'\n[[grid]]\n"
+     "'cells.alpha' = [0.5]\n[[diagnose]]\nname = 'k'\nspec = { 'numerics.dt_s' = 0.25 }\n"
+     "kind = ['volume-drift']\n", "diagnose[0].kind: unknown key (did you mean 'kinds'?)"),
 ]
 
 
@@ -627,7 +639,8 @@ class _FakeFoamd:
             *path, leaf = k.split(".")
             for p in path:
                 node = node.setdefault(p, {})
-            node[leaf] = json.loads(v) if v[0].isdigit() or v[0] == "-" else v
+            node[leaf] = (json.loads(v) if v[0].isdigit() or v[0] == "-" or v in ("true", "false")
+                          else v)
         jid = f"j-{len(self.submitted):04d}"
         self.add(req.tag, _FakeJob(jid, spec["seed"], spec, state="QUEUED"))
         self.submitted.append(dict(s.split("=", 1) for s in req.settings))
@@ -961,3 +974,124 @@ def test_found_80_scales_the_pairs_sd_and_is_left_out_when_the_test_did_not_pair
     t = st.fitness_paired(study, runs).set_index("metric")
     assert t.loc["theta_end_deg", "pairs"] == 6
     assert math.isnan(t.loc["theta_end_deg", "found_80"])
+
+
+# ---- diagnoses: a failed run rerun with some keys changed -------------------------------------
+
+def _diagnosed_study(tmp: Path):
+    (tmp / "base.toml").write_text('scene = "fusion"\n')
+    f = tmp / "alpha.toml"
+    f.write_text(textwrap.dedent("""\
+        [study]
+        name = "alpha"
+        base = "base.toml"
+        seeds = [1, 2]
+        [spec]
+        duration_s = 240
+        "numerics.dt_s" = 1.0
+        [[grid]]
+        "cells.alpha" = [0.4375, 0.6]
+        [[diagnose]]
+        name = "keep-out"
+        spec = { "numerics.remesh_keep_out" = true }
+        kinds = ["interpenetration"]
+        [[diagnose]]
+        name = "reference-step"
+        spec = { "numerics.dt_s" = 0.25 }
+        """))
+    return st.load(f)
+
+
+def _diagnosed_jobs(foamd):
+    """Seed 1 failed at both α (interpenetration at 0.4375, volume drift at 0.6); seed 2
+    succeeded."""
+    for seed in (1, 2):
+        for a in (0.4375, 0.6):
+            spec = {"seed": seed, "duration_s": 240, "cells": {"alpha": a},
+                    "numerics": {"remesh_on_surface": True, "dt_s": 1.0}}
+            kind = ("" if seed == 2 else "interpenetration" if a == 0.4375 else "volume-drift")
+            j = _FakeJob(f"j-{a}-{seed}", seed, spec, state="FAILED" if kind else "SUCCEEDED",
+                         failure_kind=kind)
+            j.reason, j.outcome, j.t_s = "", "", 100.0 if kind else 240.0
+            foamd.add("study:alpha", j)
+
+
+def test_a_run_that_failed_in_the_simulation_is_rerun_once_per_diagnosis_naming_its_kind(
+        tmp_path):
+    study = _diagnosed_study(tmp_path)
+    assert [d.name for d in study.diagnoses] == ["keep-out", "reference-step"]
+    assert study.diagnoses[1].kinds == sorted(st.SIMULATION_FAILURES)
+    foamd = _FakeFoamd({"alpha": 0.4375})
+    _diagnosed_jobs(foamd)
+    out = io.StringIO()
+    assert st.submit_missing(study, foamd) == (0, 4)  # failed runs are results
+    assert st.submit_diagnoses(study, foamd, out=out) == 3
+    # The keep-out only for the interpenetration; the reference step for both failures; each
+    # the failed run's keys with the diagnosis's on top, tagged diag:alpha.
+    got = sorted((s["cells.alpha"], s["numerics.dt_s"], s.get("numerics.remesh_keep_out"))
+                 for s in foamd.submitted)
+    assert got == [("0.4375", "0.25", None), ("0.4375", "1.0", "true"), ("0.6", "0.25", None)]
+    assert all(s["tag"] == "diag:alpha" and s["seed"] == "1" for s in foamd.submitted)
+    assert out.getvalue().count("submitted") == 3
+    # Each rerun matches its run and diagnosis; run again, nothing more.
+    diag = st._diag_jobs(study, foamd)
+    runs = study.runs()
+    assert {(runs[i].point["cells.alpha"], name) for i, ds in diag.items() for name in ds} == {
+        (0.4375, "keep-out"), (0.4375, "reference-step"), (0.6, "reference-step")}
+    assert st.submit_diagnoses(study, foamd) == 0
+    # Cancelled by hand: a decision, not submitted again; lost to an engine error: again.
+    from activefoam.v1 import job_pb2
+    for j in foamd.jobs["diag:alpha"]:
+        j.state = job_pb2.JobState.Value("JOB_STATE_CANCELLED" if "keep_out" in j.spec_json
+                                         else "JOB_STATE_FAILED")
+        j.failure_kind = "" if "keep_out" in j.spec_json else "engine-error"
+    assert st.submit_diagnoses(study, foamd) == 2
+    assert all(s["numerics.dt_s"] == "0.25" for s in foamd.submitted[3:])
+    assert all(s["key"].endswith(":1") for s in foamd.submitted[3:])
+    # A study with no [[diagnose]] submits none.
+    (tmp_path / "plain").mkdir()
+    assert st.submit_diagnoses(_alpha_study(tmp_path / "plain"), foamd) == 0
+
+
+class _NoResults:
+    results, columns, samples, curves = [], [], [], []
+
+
+def test_a_failure_a_diagnosis_ran_past_is_reported_and_left_out_of_the_failed_verdict(tmp_path):
+    from activefoam import verdicts
+    from activefoam.v1 import job_pb2
+    study = _diagnosed_study(tmp_path)
+    foamd = _FakeFoamd({"alpha": 0.4375})
+    _diagnosed_jobs(foamd)
+    st.submit_diagnoses(study, foamd)
+    # The keep-out rerun of α 0.4375 ran to the end; its reference-step rerun failed too, at
+    # 80 s; α 0.6's reference-step rerun is still running.
+    for j in foamd.jobs["diag:alpha"]:
+        spec = json.loads(j.spec_json)
+        j.reason, j.outcome, j.progress = "", "", 0.4
+        if spec["numerics"].get("remesh_keep_out") is True:
+            j.state, j.t_s = job_pb2.JobState.Value("JOB_STATE_SUCCEEDED"), 240.0
+        elif spec["cells"]["alpha"] == 0.4375:
+            j.state, j.t_s = job_pb2.JobState.Value("JOB_STATE_FAILED"), 80.0
+            j.failure_kind = "interpenetration"
+        else:
+            j.state, j.t_s = job_pb2.JobState.Value("JOB_STATE_RUNNING"), 96.0
+    foamd.job = lambda jid: type("J", (), {"_results": lambda self, _: _NoResults()})()
+    out = st.collect(study, foamd, tmp_path / "report" / "data")
+    runs = pd.read_csv(out / "runs.csv")
+    a, b = (runs[(runs["seed"] == 1) & (runs["cells.alpha"] == x)].iloc[0] for x in (0.4375, 0.6))
+    assert a["diag_ran_past"] and not b["diag_ran_past"]
+    assert "keep-out: ran to the end" in a["diagnoses"]
+    assert "reference-step: failed too: interpenetration at 80 s" in a["diagnoses"]
+    assert "reference-step: running (40 %)" in b["diagnoses"]
+    assert runs[runs["seed"] == 2]["diagnoses"].isna().all()
+    table = st.summary_table(study, runs)
+    assert list(table["failed"]) == [1, 1] and list(table["failed_ran_past"]) == [1, 0]
+    md = st.summary_markdown(study, table) + st.failed_runs_markdown(study, runs)
+    assert "1 (interpenetration; 1 ran past on a diagnosis rerun)" in md
+    assert "1 (volume-drift)" in md
+    assert "## Failed runs" in md and "keep-out sets numerics.remesh_keep_out = True" in md
+    # The verdict's `failed`: α 0.4375 keeps only its success (the failure was the remesher's),
+    # α 0.6 its failure and its success.
+    assert verdicts._values(runs, {"cells.alpha": 0.4375}, "failed") == [0.0]
+    assert sorted(verdicts._values(runs, {"cells.alpha": 0.6}, "failed")) == [0.0, 1.0]
