@@ -1247,6 +1247,10 @@ def _ran_past(runs: Any) -> Any:
     return runs["diag_ran_past"].map(lambda v: v is True or str(v).lower() == "true")
 
 
+def _toml(v: Any) -> str:
+    return ("true" if v else "false") if isinstance(v, bool) else str(v)
+
+
 def failed_runs_markdown(study: Study, runs: Any) -> str:
     """The failed runs, each with its failure and its diagnoses' outcomes; empty if none."""
     if "state" not in runs:
@@ -1258,7 +1262,7 @@ def failed_runs_markdown(study: Study, runs: Any) -> str:
     lines = ["## Failed runs", "",
              "A failure the simulation reached (its kind, the time, the job); a diagnosis "
              "reruns the run with some keys changed (the study file's [[diagnose]] tables"
-             + (": " + "; ".join(f"{d.name} sets " + ", ".join(f"{k} = {v}"
+             + (": " + "; ".join(f"{d.name} sets " + ", ".join(f"{k} = {_toml(v)}"
                                                               for k, v in d.spec.items())
                                  + (f" ({d.title})" if d.title else "")
                                  for d in study.diagnoses) if study.diagnoses else "")

@@ -1090,7 +1090,7 @@ def test_a_failure_a_diagnosis_ran_past_is_reported_and_left_out_of_the_failed_v
     md = st.summary_markdown(study, table) + st.failed_runs_markdown(study, runs)
     assert "1 (interpenetration; 1 ran past on a diagnosis rerun)" in md
     assert "1 (volume-drift)" in md
-    assert "## Failed runs" in md and "keep-out sets numerics.remesh_keep_out = True" in md
+    assert "## Failed runs" in md and "keep-out sets numerics.remesh_keep_out = true" in md
     # The verdict's `failed`: α 0.4375 keeps only its success (the failure was the remesher's),
     # α 0.6 its failure and its success.
     assert verdicts._values(runs, {"cells.alpha": 0.4375}, "failed") == [0.0]
