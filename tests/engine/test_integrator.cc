@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "activefoam/step_guards.h"
+#include "activefoam/step_loop.h"
 #include "activefoam/time_stepper.h"
 #include "test_support.h"
 
@@ -267,6 +268,9 @@ TEST(AdaptiveStep, AFailurePersistingToTheFloorEndsTheStepWithItsKind) {
   EXPECT_EQ(sim.stepsRejected(), 3);
   EXPECT_NE(r.reason.find("forced by the test"), std::string::npos) << r.reason;
   EXPECT_NE(r.reason.find("numerics.dt_min_s"), std::string::npos) << r.reason;
+  EXPECT_NE(r.reason.find("numerics.dt_s halved 3 times, 3 of them in this step"),
+            std::string::npos)
+      << r.reason;
 
   // Not adaptive: the first failure ends the step, nothing is retried.
   s.numerics.adaptive = false;
@@ -277,6 +281,45 @@ TEST(AdaptiveStep, AFailurePersistingToTheFloorEndsTheStepWithItsKind) {
   EXPECT_EQ(f.rejected, 0);
   EXPECT_EQ(f.dt, 0.1);
   EXPECT_EQ(f.reason, "forced by the test");
+}
+
+// A step that starts at the floor (an earlier step halved the schedule there) and fails: its
+// message counts the schedule's halvings, not only its own (none), and the run's episode names
+// the try that first halved the step from dt_s, which the failing step's tries never saw.
+TEST(AdaptiveStep, AFailureAtTheFloorNamesTheTryThatFirstHalvedTheStep) {
+  SceneSpec s = motileDoublet(0.1);
+  s.numerics.dt_min_s = 0.1 / 8;
+  Simulation sim(s);
+  HalvingEpisode episode(0.1);
+  StepReport r = sim.step();
+  ASSERT_TRUE(r.ok());
+  episode.see(r, sim.time());
+  EXPECT_EQ(episode.note(), "");
+  bool all = false;
+  sim.addGuard(
+      std::make_unique<ForcedFailure>([&](double, double dt) { return all || dt > 0.0125; }));
+  const double t1 = sim.time();
+  r = sim.step();  // 0.1 → 0.05 → 0.025 → 0.0125, accepted there
+  ASSERT_TRUE(r.ok()) << r.reason;
+  EXPECT_EQ(r.rejected, 3);
+  episode.see(r, sim.time());
+  all = true;
+  r = sim.step();  // starts at the floor, fails there
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.rejected, 0);
+  EXPECT_EQ(r.dt, 0.0125);
+  EXPECT_NE(r.reason.find("numerics.dt_s halved 3 times, 0 of them in this step"),
+            std::string::npos)
+      << r.reason;
+  episode.see(r, sim.time());
+  EXPECT_EQ(episode.note(), "; the step was first halved from numerics.dt_s = 0.1 s at t = " +
+                                formatNumber(t1) + " s by inverted-triangle: forced by the test");
+
+  // Back at dt_s, the episode is over.
+  StepReport back;
+  back.dt = 0.1;
+  episode.see(back, 1.0);
+  EXPECT_EQ(episode.note(), "");
 }
 
 // A checkpoint taken while the schedule runs at a halved step (after a rejection, before Δt

@@ -151,8 +151,11 @@ StepReport Simulation::step() {
     if (!stepper_.canHalve()) {
       if (stepper_.adaptive()) {
         std::ostringstream why;
+        // The halvings of the schedule, not only this step's: a step that starts at the floor
+        // (earlier steps halved it) fails "after 0 halvings" of its own.
         why << rep.reason << "; still failing at dt = " << rep.dt
-            << " s, the floor numerics.dt_min_s, after " << rejected << " halvings";
+            << " s, the floor numerics.dt_min_s (numerics.dt_s halved " << stepper_.level()
+            << " times, " << rejected << " of them in this step)";
         rep.reason = why.str();
       }
       return rep;

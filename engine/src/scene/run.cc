@@ -295,7 +295,9 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
   auto progress = [&] {
     if (obs.on_progress) obs.on_progress(sim.time(), sim.steps(), sim.stepsRejected());
   };
+  HalvingEpisode halving(dt);
   const LoopResult loop = runSteps(sim, total, obs.cancel, [&](const StepReport& r) {
+    halving.see(r, sim.time());
     if (r.rejected > 0 && acc.window_rejected == 0 && obs.on_log)  // one line per sample
       obs.on_log("step rejected: " + std::string(toString(r.rejected_kind)) + ": " +
                  r.rejected_reason + "; retried at dt = " + formatNumber(r.dt) + " s (" +
@@ -329,6 +331,7 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
   } else if (loop.end == LoopEnd::Failed) {
     sum.failure = loop.failed.failure;
     sum.reason = loop.failed.reason;
+    sum.reason += halving.note();
   }
   sum.t_s = sim.time();
   sum.steps = sim.steps();
