@@ -1259,17 +1259,21 @@ def failed_runs_markdown(study: Study, runs: Any) -> str:
     if not len(failed):
         return ""
     keys = study.swept_keys()
+    if study.diagnoses:
+        how = ("a diagnosis reruns the run with some keys changed (the study file's [[diagnose]] "
+               "tables: " + "; ".join(f"{d.name} sets " + ", ".join(
+                   f"{k} = {_toml(v)}" for k, v in d.spec.items())
+                   + (f" ({d.title})" if d.title else "") + " for " + ", ".join(d.kinds)
+                   for d in study.diagnoses)
+               + "). A rerun that ran to the end says the failure was those numerics', not the "
+               "point's: the verdict table's `failed` leaves it out.")
+    else:
+        how = "the study file has no [[diagnose]] tables: each failure counts as its point's."
     lines = ["## Failed runs", "",
-             "A failure the simulation reached (its kind, the time, the job); a diagnosis "
-             "reruns the run with some keys changed (the study file's [[diagnose]] tables"
-             + (": " + "; ".join(f"{d.name} sets " + ", ".join(f"{k} = {_toml(v)}"
-                                                              for k, v in d.spec.items())
-                                 + (f" ({d.title})" if d.title else "")
-                                 for d in study.diagnoses) if study.diagnoses else "")
-             + "). A rerun that ran to the end says the failure was those numerics', not the "
-             "point's: the verdict table's `failed` leaves it out.", ""]
+             "A failure the simulation reached (its kind, the time, the job); " + how, ""]
     for _, r in failed.iterrows():
-        point = ", ".join(f"{k} = {_cell(r.get(k))}" for k in keys)
+        # The point's own keys (a key of another grid is unset here).
+        point = ", ".join(f"{k} = {_cell(r.get(k))}" for k in keys if _cell(r.get(k)) != "—")
         t = r.get("t_end_s")
         when = f" at {float(t):.0f} s" if t == t and t is not None else ""
         diag = r.get("diagnoses")
