@@ -7,7 +7,7 @@
 //
 //   OMP_NUM_THREADS=1 build/release/bench/study_remesh_overlap SPEC.json CKPT T_BEFORE CELL_A
 //   CELL_B
-//       [OBJ_PREFIX]
+//       [OBJ_PREFIX] [KEEP_OUT_UM]
 //
 // T_BEFORE: the time of the last accepted step before the failing one (the replay stops there).
 // With OBJ_PREFIX the two cells' meshes before the remesh are written to OBJ_PREFIX-A.obj and
@@ -102,12 +102,14 @@ int main(int argc, char** argv) {
     writeObj(a0, ra, std::string(argv[6]) + "-A.obj");
     writeObj(b0, rb, std::string(argv[6]) + "-B.obj");
   }
-  // numerics.remesh_keep_out as the simulation sets it: each cell kept out of the other.
+  // numerics.remesh_keep_out_um as the simulation sets it (KEEP_OUT_UM, default a quarter of
+  // the interpenetration guard's depth): each cell kept out of the other.
   CellSet two;
   two.addCell(a0, ra);
   two.addCell(b0, rb);
+  const double keep_out_um = argc > 7 ? std::atof(argv[7]) : spec.numerics.max_penetration_um / 4;
   auto keepOut = [&](RemeshParams& p, int other) {
-    p.keep_out_um = spec.numerics.max_penetration_um / 4;
+    p.keep_out_um = keep_out_um;
     p.keep_out = [&two, other](const Vec3& x) {
       return windingNumber(two, other, x) > 0.5 ? distanceToSurface(two, other, x) : 0.0;
     };

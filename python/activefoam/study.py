@@ -449,7 +449,7 @@ KEYS_ADDED_LATER = {"numerics.contact_max_facing_deg": 90.0,
                     "numerics.remesh_on_surface": False,
                     "numerics.remesh_rescue": False,
                     "numerics.remesh_rebuild": False,
-                    "numerics.remesh_keep_out": False,
+                    "numerics.remesh_keep_out_um": 0.0,
                     "scene.polarity_from_preparation": False}
 
 

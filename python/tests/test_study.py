@@ -993,7 +993,7 @@ def _diagnosed_study(tmp: Path):
         "cells.alpha" = [0.4375, 0.6]
         [[diagnose]]
         name = "keep-out"
-        spec = { "numerics.remesh_keep_out" = true }
+        spec = { "numerics.remesh_keep_out_um" = 0.75 }
         kinds = ["interpenetration"]
         [[diagnose]]
         name = "reference-step"
@@ -1028,9 +1028,9 @@ def test_a_run_that_failed_in_the_simulation_is_rerun_once_per_diagnosis_naming_
     assert st.submit_diagnoses(study, foamd, out=out) == 3
     # The keep-out only for the interpenetration; the reference step for both failures; each
     # the failed run's keys with the diagnosis's on top, tagged diag:alpha.
-    got = sorted((s["cells.alpha"], s["numerics.dt_s"], s.get("numerics.remesh_keep_out"))
+    got = sorted((s["cells.alpha"], s["numerics.dt_s"], s.get("numerics.remesh_keep_out_um"))
                  for s in foamd.submitted)
-    assert got == [("0.4375", "0.25", None), ("0.4375", "1.0", "true"), ("0.6", "0.25", None)]
+    assert got == [("0.4375", "0.25", None), ("0.4375", "1.0", "0.75"), ("0.6", "0.25", None)]
     assert all(s["tag"] == "diag:alpha" and s["seed"] == "1" for s in foamd.submitted)
     assert out.getvalue().count("submitted") == 3
     # Each rerun matches its run and diagnosis; run again, nothing more.
@@ -1069,7 +1069,7 @@ def test_a_failure_a_diagnosis_ran_past_is_reported_and_left_out_of_the_failed_v
     for j in foamd.jobs["diag:alpha"]:
         spec = json.loads(j.spec_json)
         j.reason, j.outcome, j.progress = "", "", 0.4
-        if spec["numerics"].get("remesh_keep_out") is True:
+        if spec["numerics"].get("remesh_keep_out_um") == 0.75:
             j.state, j.t_s = job_pb2.JobState.Value("JOB_STATE_SUCCEEDED"), 240.0
         elif spec["cells"]["alpha"] == 0.4375:
             j.state, j.t_s = job_pb2.JobState.Value("JOB_STATE_FAILED"), 80.0
@@ -1090,7 +1090,7 @@ def test_a_failure_a_diagnosis_ran_past_is_reported_and_left_out_of_the_failed_v
     md = st.summary_markdown(study, table) + st.failed_runs_markdown(study, runs)
     assert "1 (interpenetration; 1 ran past on a diagnosis rerun)" in md
     assert "1 (volume-drift)" in md
-    assert "## Failed runs" in md and "keep-out sets numerics.remesh_keep_out = true" in md
+    assert "## Failed runs" in md and "keep-out sets numerics.remesh_keep_out_um = 0.75" in md
     # The verdict's `failed`: α 0.4375 keeps only its success (the failure was the remesher's),
     # α 0.6 its failure and its success.
     assert verdicts._values(runs, {"cells.alpha": 0.4375}, "failed") == [0.0]

@@ -44,18 +44,20 @@ TEST(Checkpoint, SimulationStateRoundTripsBitExactly) {
 // proof that a run without any has the bits of a run without the key), and the resumed run goes
 // on bit for bit; a state saved without the key is another spec's. (A doublet needs no rescue:
 // the count is 0 here; the rescue itself is Remesh.ALockedCellIsRepairedByTheRescue's.) Likewise
-// numerics.remesh_keep_out and its count of refused collapses (Remesh.KeepOutRefuses…).
+// numerics.remesh_keep_out_um and its count of refused collapses (Remesh.KeepOutRefuses…).
 namespace {
 
-void expectCountRoundTrips(bool NumericsParams::*key, std::int64_t (Simulation::*count)() const) {
+template <class T>
+void expectCountRoundTrips(T NumericsParams::*key, T on,
+                           std::int64_t (Simulation::*count)() const) {
   SceneSpec s = doublet();
-  s.numerics.*key = true;
+  s.numerics.*key = on;
   Simulation a(s);
   for (int k = 0; k < 200; ++k) ASSERT_TRUE(a.step().ok());
   const std::string state = a.saveState();
   {
     SceneSpec plain = s;
-    plain.numerics.*key = false;
+    plain.numerics.*key = T{};
     Simulation p(plain);
     for (int k = 0; k < 200; ++k) ASSERT_TRUE(p.step().ok());
     EXPECT_EQ(p.saveState().size() + sizeof(std::int64_t),
@@ -78,7 +80,7 @@ void expectCountRoundTrips(bool NumericsParams::*key, std::int64_t (Simulation::
   EXPECT_EQ(
       std::memcmp(a.cells().x.data(), b.cells().x.data(), sizeof(double) * a.cells().x.size()), 0);
   SceneSpec without = s;
-  without.numerics.*key = false;
+  without.numerics.*key = T{};
   Simulation c(without);
   EXPECT_THROW(c.loadState(state), std::invalid_argument);
   EXPECT_THROW(b.loadState(c.saveState()), std::invalid_argument);
@@ -87,11 +89,11 @@ void expectCountRoundTrips(bool NumericsParams::*key, std::int64_t (Simulation::
 }  // namespace
 
 TEST(Checkpoint, TheRemeshRescuesCountRoundTrips) {
-  expectCountRoundTrips(&NumericsParams::remesh_rescue, &Simulation::remeshRescues);
+  expectCountRoundTrips(&NumericsParams::remesh_rescue, true, &Simulation::remeshRescues);
 }
 
 TEST(Checkpoint, TheRemeshKeptOutCountRoundTrips) {
-  expectCountRoundTrips(&NumericsParams::remesh_keep_out, &Simulation::remeshKeptOut);
+  expectCountRoundTrips(&NumericsParams::remesh_keep_out_um, 0.75, &Simulation::remeshKeptOut);
 }
 
 TEST(Checkpoint, RejectsForeignOrDamagedState) {

@@ -162,9 +162,9 @@ TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
   EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
   EXPECT_FALSE(spheroidPrepSpec(other, 3, 11).numerics.remesh_rebuild);
   // Nor the collapses' keep-out.
-  other.numerics.remesh_keep_out = true;
+  other.numerics.remesh_keep_out_um = 0.75;
   EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
-  EXPECT_FALSE(spheroidPrepSpec(other, 3, 11).numerics.remesh_keep_out);
+  EXPECT_EQ(spheroidPrepSpec(other, 3, 11).numerics.remesh_keep_out_um, 0);
   // The preparation's preconditioner is its own, Jacobi, whatever the run's and the presets'
   // (block-Jacobi since 2026-11-24): caches prepared before that stay valid.
   EXPECT_EQ(prep.numerics.preconditioner, PreconditionerKind::Jacobi);

@@ -738,17 +738,14 @@ TEST(SpecFields, ThePrismsOverlapOnlyIsOffByDefaultAndNeedsThePrisms) {
       << specFingerprint(s);
 }
 
-// numerics.remesh_rescue and numerics.remesh_rebuild change the remeshing of locked cells,
-// numerics.remesh_keep_out that of cells pressed against a neighbour: off by default (the same
-// bits as before them), out of the fingerprint then, in it when on (the preparation keeps them
-// off: test_fusion_scene.cc).
-TEST(SpecFields, TheRemeshersRescueRebuildAndKeepOutAreOffByDefaultAndInTheFingerprintWhenOn) {
-  for (const std::string word : {"rescue", "rebuild", "keep_out"}) {
+// numerics.remesh_rescue and numerics.remesh_rebuild change the remeshing of locked cells: off
+// by default (the same bits as before them), out of the fingerprint then, in it when on (the
+// preparation keeps them off: test_fusion_scene.cc).
+TEST(SpecFields, TheRemeshersRescueAndRebuildAreOffByDefaultAndInTheFingerprintWhenOn) {
+  for (const std::string word : {"rescue", "rebuild"}) {
     const std::string key = "numerics.remesh_" + word;
     SceneSpec s = resolve(SceneSpec{});
-    EXPECT_FALSE(word == "rescue"    ? s.numerics.remesh_rescue
-                 : word == "rebuild" ? s.numerics.remesh_rebuild
-                                     : s.numerics.remesh_keep_out);
+    EXPECT_FALSE(word == "rescue" ? s.numerics.remesh_rescue : s.numerics.remesh_rebuild);
     EXPECT_EQ(specFingerprint(s).find(word), std::string::npos);
     ASSERT_EQ(setField(s, key, true), std::nullopt) << key;
     EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
@@ -757,6 +754,21 @@ TEST(SpecFields, TheRemeshersRescueRebuildAndKeepOutAreOffByDefaultAndInTheFinge
     ASSERT_TRUE(error.has_value()) << key;
     EXPECT_NE(error->message.find("true or false"), std::string::npos) << error->message;
   }
+}
+
+// numerics.remesh_keep_out_um likewise for cells pressed against a neighbour: 0 (off) by
+// default and out of the fingerprint then, in it when set; a depth below 0 is refused.
+TEST(SpecFields, TheRemeshersKeepOutIsOffByDefaultAndInTheFingerprintWhenSet) {
+  SceneSpec s = resolve(SceneSpec{});
+  EXPECT_EQ(s.numerics.remesh_keep_out_um, 0);
+  EXPECT_EQ(specFingerprint(s).find("keep_out"), std::string::npos);
+  ASSERT_EQ(setField(s, "numerics.remesh_keep_out_um", 0.75), std::nullopt);
+  EXPECT_TRUE(validate(s).empty()) << joined(validate(s));
+  EXPECT_NE(specFingerprint(s).find("numerics.remesh_keep_out_um=0.75;"), std::string::npos)
+      << specFingerprint(s);
+  ASSERT_EQ(setField(s, "numerics.remesh_keep_out_um", -0.5), std::nullopt);
+  EXPECT_NE(joined(validate(s)).find("numerics.remesh_keep_out_um"), std::string::npos)
+      << joined(validate(s));
 }
 
 }  // namespace

@@ -242,7 +242,7 @@ TEST(Threads, RemeshWithTheRescueAndTheRebuildIsBitIdenticalForAnyThreadCount) {
 
 // A cell pressed against its neighbour (tests/engine/data/pressed-pair-*.obj, a fig9 run's state
 // before the remesh that failed it), with two plain cells: the simulation's remesh without
-// numerics.remesh_keep_out puts a vertex past the interpenetration guard, with it no pair is
+// numerics.remesh_keep_out_um puts a vertex past the interpenetration guard, with it no pair is
 // beyond the guard and a collapse was refused; the same meshes for any thread count.
 TEST(Threads, RemeshWithKeepOutKeepsThePressedCellOutAndIsBitIdenticalForAnyThreadCount) {
   const std::string data = ENGINE_TEST_DATA;
@@ -270,7 +270,7 @@ TEST(Threads, RemeshWithKeepOutKeepsThePressedCellOutAndIsBitIdenticalForAnyThre
     EXPECT_NE(interpenetration(sim.cells(), sim.contacts(), limit, 0, scratch), "")
         << "the remesh without keep_out pushes a vertex past the guard";
   }
-  s.numerics.remesh_keep_out = true;
+  s.numerics.remesh_keep_out_um = s.numerics.max_penetration_um / 4;
   std::vector<Eigen::Matrix3Xd> xs;
   for (const int n : {1, 2, 3}) {
     Parallel p(n, kFine);

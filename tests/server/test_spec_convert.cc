@@ -246,19 +246,23 @@ TEST(SpecConvert, TheRemeshersRescueAndRebuildTravel) {
   }
 }
 
-// numerics.remesh_keep_out (proto field 25) likewise.
+// numerics.remesh_keep_out_um (proto field 25) likewise; a negative depth is refused naming it.
 TEST(SpecConvert, TheRemeshKeepOutTravels) {
   v1::SceneSpec typed;
-  typed.mutable_numerics()->set_remesh_keep_out(true);
+  typed.mutable_numerics()->set_remesh_keep_out_um(0.75);
   ConvertResult r = convertSpec(typed, "", {"scene=cell"});
   ASSERT_TRUE(r.ok()) << errorText(r.errors);
-  EXPECT_TRUE(r.spec->numerics.remesh_keep_out);
-  r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion", "numerics.remesh_keep_out=true"});
+  EXPECT_EQ(r.spec->numerics.remesh_keep_out_um, 0.75);
+  r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion", "numerics.remesh_keep_out_um=0.5"});
   ASSERT_TRUE(r.ok()) << errorText(r.errors);
-  EXPECT_TRUE(r.spec->numerics.remesh_keep_out);
+  EXPECT_EQ(r.spec->numerics.remesh_keep_out_um, 0.5);
   r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion"});
   ASSERT_TRUE(r.ok()) << errorText(r.errors);
-  EXPECT_FALSE(r.spec->numerics.remesh_keep_out);
+  EXPECT_EQ(r.spec->numerics.remesh_keep_out_um, 0);
+  r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion", "numerics.remesh_keep_out_um=-1"});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(errorText(r.errors).find("numerics.remesh_keep_out_um"), std::string::npos)
+      << errorText(r.errors);
 }
 
 TEST(SpecConvert, MissingSceneNamesTheSceneKey) {

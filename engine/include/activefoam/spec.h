@@ -80,12 +80,12 @@ struct NumericsParams {
   // from its centroid (remesh.h, rebuildRadially). false: the cell keeps its mesh, and a sliver
   // the remesher cannot remove can flatten until it inverts (earlier versions' behaviour).
   bool remesh_rebuild = false;
-  // A collapse whose volume-preserving placement would put the merged vertex deeper than
-  // max_penetration_um / 4 inside a cell this one touches (and deeper than the vertices it
-  // merges) is refused (remesh.h, RemeshParams::keep_out). false: it is done, and a remesh can
-  // push a vertex of a pressed cell into its neighbour by more than the interpenetration guard
-  // allows, failing the step at every Δt (earlier versions' behaviour).
-  bool remesh_keep_out = false;
+  // A collapse whose volume-preserving placement would put the merged vertex deeper than this
+  // (µm) inside a cell this one touches (and deeper than the vertices it merges) is refused
+  // (remesh.h, RemeshParams::keep_out). 0: off, it is done, and a remesh can push a vertex of a
+  // pressed cell into its neighbour by more than the interpenetration guard allows, failing the
+  // step at every Δt (earlier versions' behaviour).
+  double remesh_keep_out_um = 0;
   ContactQuadrature contact_quadrature = ContactQuadrature::Exact;
   double max_volume_error = 0.05;  // |V − V*|/V* beyond this stops the run as failed
   // Interpenetration of two cells (the area-weighted mean gap over their contact pairs) beyond

@@ -97,7 +97,7 @@ std::string specFingerprint(const SceneSpec& spec) {
     // Added later; false is the remeshing of earlier versions.
     if (f.key == "numerics.remesh_rescue" && !spec.numerics.remesh_rescue) continue;
     if (f.key == "numerics.remesh_rebuild" && !spec.numerics.remesh_rebuild) continue;
-    if (f.key == "numerics.remesh_keep_out" && !spec.numerics.remesh_keep_out) continue;
+    if (f.key == "numerics.remesh_keep_out_um" && spec.numerics.remesh_keep_out_um == 0) continue;
     // Added later; at 0 the pressure grows without bound, as in earlier versions.
     if (f.key == "numerics.contact_max_overlap_um" && spec.numerics.contact_max_overlap_um == 0)
       continue;
@@ -124,7 +124,7 @@ std::string Simulation::saveState(const std::string& extra) const {
   // the key is in the fingerprint, so the reader knows).
   if (spec_.numerics.remesh_rescue) w.pod(remesh_rescues_);
   if (spec_.numerics.remesh_rebuild) w.pod(remesh_rebuilds_);
-  if (spec_.numerics.remesh_keep_out) w.pod(remesh_kept_out_);
+  if (spec_.numerics.remesh_keep_out_um > 0) w.pod(remesh_kept_out_);
   w.pod(steps_rejected_);
   std::vector<std::int64_t> counts;
   for (const auto& g : guards_) counts.push_back(g->count());
@@ -146,7 +146,7 @@ std::string Simulation::loadState(const std::string& bytes) {
   const auto remesh_ops = r.pod<std::int64_t>();
   const auto rescues = spec_.numerics.remesh_rescue ? r.pod<std::int64_t>() : 0;
   const auto rebuilds = spec_.numerics.remesh_rebuild ? r.pod<std::int64_t>() : 0;
-  const auto kept_out = spec_.numerics.remesh_keep_out ? r.pod<std::int64_t>() : 0;
+  const auto kept_out = spec_.numerics.remesh_keep_out_um > 0 ? r.pod<std::int64_t>() : 0;
   const auto rejected = r.pod<std::int64_t>();
   const auto counts = r.vec<std::int64_t>();
   CellSet c = readCells(r, true, "checkpoint");

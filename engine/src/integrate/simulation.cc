@@ -245,11 +245,11 @@ StepReport Simulation::remeshCells(const std::vector<char>& which) {
   std::vector<TriMesh> meshes(n);
   std::vector<RemeshStats> stats(n);
   for (int c = 0; c < n; ++c) meshes[c] = cells_.cellMesh(c);
-  // numerics.remesh_keep_out: the cells each cell touches (its contacts at the step's start),
+  // numerics.remesh_keep_out_um: the cells each cell touches (its contacts at the step's start),
   // whose surfaces before this remesh its collapses must not enter. Read-only during the loop,
   // so the result does not depend on the thread count.
   std::vector<std::vector<int>> touching;
-  if (spec_.numerics.remesh_keep_out) {
+  if (spec_.numerics.remesh_keep_out_um > 0) {
     touching.resize(n);
     for (const ContactPair& p : contacts_.pairs) {
       const int a = cells_.tri_cell[p.ta], b = cells_.tri_cell[p.tb];
@@ -276,8 +276,8 @@ StepReport Simulation::remeshCells(const std::vector<char>& which) {
     rp.on_surface = spec_.numerics.remesh_on_surface;
     rp.rescue = spec_.numerics.remesh_rescue;
     rp.rebuild_triangles = spec_.numerics.remesh_rebuild ? tris : 0;
-    if (spec_.numerics.remesh_keep_out && !touching[c].empty()) {
-      rp.keep_out_um = spec_.numerics.max_penetration_um / 4;
+    if (spec_.numerics.remesh_keep_out_um > 0 && !touching[c].empty()) {
+      rp.keep_out_um = spec_.numerics.remesh_keep_out_um;
       rp.keep_out = [this, &others = touching[c]](const Vec3& p) {
         double depth = 0;
         for (int o : others)

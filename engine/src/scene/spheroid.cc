@@ -146,7 +146,7 @@ SceneSpec spheroidPrepSpec(const SceneSpec& spec, std::int64_t n_cells, std::uin
   // reference run without it.
   p.numerics.remesh_rescue = d.remesh_rescue;
   p.numerics.remesh_rebuild = d.remesh_rebuild;
-  p.numerics.remesh_keep_out = d.remesh_keep_out;
+  p.numerics.remesh_keep_out_um = d.remesh_keep_out_um;
   p.numerics.dt_min_s.reset();  // resolve() derives it from the preparation's Δt
   p.duration_s = spec.scene_params.prep_max_s;
   p.sample_every_s = kWindowS;

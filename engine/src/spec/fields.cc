@@ -184,13 +184,13 @@ const std::vector<Entry>& entries() {
                          "(earlier versions), and a sliver the remesher cannot remove can flatten "
                          "until it inverts"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.remesh_rebuild; }});
-    t.push_back({boolean("numerics.remesh_keep_out",
-                         "a collapse that would put the merged vertex deeper than "
-                         "max_penetration_um/4 inside a cell this one touches (and deeper than "
-                         "the vertices it merges) is refused; false: it is done (earlier "
-                         "versions), and a remesh can push a pressed cell's vertex into its "
-                         "neighbour past the interpenetration guard at every step length"),
-                 [](SceneSpec& s) -> Slot { return &s.numerics.remesh_keep_out; }});
+    t.push_back({real("numerics.remesh_keep_out_um", kClosed, 0, 100, kClosed, "µm",
+                      "a collapse that would put the merged vertex deeper than this inside a "
+                      "cell this one touches (and deeper than the vertices it merges) is "
+                      "refused; 0: off, every such collapse is done (earlier versions), and a "
+                      "remesh can push a pressed cell's vertex into its neighbour past the "
+                      "interpenetration guard at every step length"),
+                 [](SceneSpec& s) -> Slot { return &s.numerics.remesh_keep_out_um; }});
     t.push_back({choice("numerics.contact_quadrature", {"exact", "dunavant7", "centroid"},
                         "integration of the contact pressure over the overlap polygon"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.contact_quadrature; }});
