@@ -22,6 +22,7 @@
 
 #include "activefoam/cellset.h"
 #include "activefoam/remesh.h"
+#include "activefoam/remesh_policy.h"
 #include "activefoam/simulation.h"
 #include "activefoam/spec_io.h"
 #include "activefoam/spheroid.h"
@@ -114,16 +115,10 @@ int main(int argc, char** argv) {
       return windingNumber(two, other, x) > 0.5 ? distanceToSurface(two, other, x) : 0.0;
     };
   };
-  const int tris = static_cast<int>(spec.numerics.triangles_per_cell);
+  // The run's remesh parameters (the keep-out's depth aside: a variant below).
   auto params = [&](double r) {
-    const double a_ref = 4 * M_PI * r * r / tris;
-    RemeshParams rp;
-    rp.min_area = spec.numerics.remesh_min_area_factor * a_ref;
-    rp.max_area = spec.numerics.remesh_max_area_factor * a_ref;
-    rp.smooth_min_angle_deg = 15;
-    rp.on_surface = spec.numerics.remesh_on_surface;
-    rp.rescue = spec.numerics.remesh_rescue;
-    rp.rebuild_triangles = spec.numerics.remesh_rebuild ? tris : 0;
+    RemeshParams rp = cellRemeshParams(spec.numerics, r);
+    rp.keep_out_um = 0;
     return rp;
   };
   {

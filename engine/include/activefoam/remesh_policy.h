@@ -6,6 +6,7 @@
 
 #include "activefoam/cellset.h"
 #include "activefoam/geometry.h"
+#include "activefoam/remesh.h"
 #include "activefoam/spec.h"
 #include "activefoam/time_stepper.h"
 
@@ -28,5 +29,10 @@ class RemeshPolicy {
   double min_area_factor_;
   double triangles_;
 };
+
+// How a cell of radius r is remeshed in a run (the numerics' areas relative to 4πr²/triangles,
+// smoothing at 15°, on the surface, rescue, rebuild, the keep-out's depth); keep_out itself,
+// which needs the neighbours, is the caller's.
+RemeshParams cellRemeshParams(const NumericsParams& numerics, double radius_um);
 
 }  // namespace activefoam

@@ -34,4 +34,18 @@ std::vector<char> RemeshPolicy::due(std::int64_t ticks, const CellSet& cells, co
   return which;
 }
 
+RemeshParams cellRemeshParams(const NumericsParams& n, double r) {
+  const int tris = static_cast<int>(n.triangles_per_cell);
+  const double a_ref = 4 * M_PI * r * r / tris;
+  RemeshParams rp;
+  rp.min_area = n.remesh_min_area_factor * a_ref;
+  rp.max_area = n.remesh_max_area_factor * a_ref;
+  rp.smooth_min_angle_deg = 15;
+  rp.on_surface = n.remesh_on_surface;
+  rp.rescue = n.remesh_rescue;
+  rp.rebuild_triangles = n.remesh_rebuild ? tris : 0;
+  rp.keep_out_um = n.remesh_keep_out_um;
+  return rp;
+}
+
 }  // namespace activefoam

@@ -240,7 +240,6 @@ StepReport Simulation::remeshAll() {
 StepReport Simulation::remeshCells(const std::vector<char>& which) {
   StepReport rep;
   const auto t0 = Clock::now();
-  const int tris = static_cast<int>(spec_.numerics.triangles_per_cell);
   const int n = cells_.numCells();
   std::vector<TriMesh> meshes(n);
   std::vector<RemeshStats> stats(n);
@@ -267,17 +266,8 @@ StepReport Simulation::remeshCells(const std::vector<char>& which) {
 #pragma omp parallel for schedule(dynamic) if (cells_.numTriangles() > grain().min_items)
   for (int c = 0; c < n; ++c) {
     if (!which[c]) continue;
-    const double r = cells_.radius[c];
-    const double a_ref = 4 * M_PI * r * r / tris;
-    RemeshParams rp;
-    rp.min_area = spec_.numerics.remesh_min_area_factor * a_ref;
-    rp.max_area = spec_.numerics.remesh_max_area_factor * a_ref;
-    rp.smooth_min_angle_deg = 15;
-    rp.on_surface = spec_.numerics.remesh_on_surface;
-    rp.rescue = spec_.numerics.remesh_rescue;
-    rp.rebuild_triangles = spec_.numerics.remesh_rebuild ? tris : 0;
-    if (spec_.numerics.remesh_keep_out_um > 0 && !touching[c].empty()) {
-      rp.keep_out_um = spec_.numerics.remesh_keep_out_um;
+    RemeshParams rp = cellRemeshParams(spec_.numerics, cells_.radius[c]);
+    if (rp.keep_out_um > 0 && !touching[c].empty()) {
       rp.keep_out = [this, &others = touching[c]](const Vec3& p) {
         double depth = 0;
         for (int o : others)
