@@ -17,6 +17,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,6 +29,7 @@
 #include "activefoam/spheroid.h"
 #include "activefoam/step_guards.h"
 #include "activefoam/step_loop.h"
+#include "resolved_spec.h"
 
 using namespace activefoam;
 
@@ -76,13 +78,9 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "usage: study_remesh_overlap SPEC.json CKPT T_BEFORE CELL_A CELL_B\n");
     return 2;
   }
-  SpecParseResult parsed = parseSpecFile(argv[1]);
-  if (parsed.ok()) parsed = validateAndResolve(*parsed.spec);
-  if (!parsed.ok()) {
-    for (const auto& e : parsed.errors) std::fprintf(stderr, "%s\n", e.str().c_str());
-    return 2;
-  }
-  const SceneSpec spec = *parsed.spec;
+  const std::optional<SceneSpec> read = readResolvedSpec(argv[1]);
+  if (!read) return 2;
+  const SceneSpec spec = *read;
   std::ifstream in(argv[2], std::ios::binary);
   const std::string state((std::istreambuf_iterator<char>(in)), {});
   const double t_before = std::atof(argv[3]);

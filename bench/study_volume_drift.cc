@@ -23,6 +23,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -34,6 +35,7 @@
 #include "activefoam/spec_io.h"
 #include "activefoam/spheroid.h"
 #include "activefoam/step_loop.h"
+#include "resolved_spec.h"
 
 using namespace activefoam;
 namespace fs = std::filesystem;
@@ -130,13 +132,9 @@ int main(int argc, char** argv) {
                  "usage: study_volume_drift SPEC.json OUT_DIR [lead_s] [until_s] [cache_dir]\n");
     return 2;
   }
-  SpecParseResult parsed = parseSpecFile(argv[1]);
-  if (parsed.ok()) parsed = validateAndResolve(*parsed.spec);
-  if (!parsed.ok()) {
-    for (const auto& e : parsed.errors) std::fprintf(stderr, "%s\n", e.str().c_str());
-    return 2;
-  }
-  SceneSpec spec = *parsed.spec;
+  const std::optional<SceneSpec> read = readResolvedSpec(argv[1]);
+  if (!read) return 2;
+  SceneSpec spec = *read;
   const fs::path out = argv[2];
   const double lead = argc > 3 ? std::atof(argv[3]) : 120;
   if (argc > 4 && std::atof(argv[4]) > 0) spec.duration_s = std::atof(argv[4]);
