@@ -677,12 +677,11 @@ def _diag_jobs(study: Study, client: Any) -> Dict[int, Dict[str, List[Any]]]:
 
 
 def _diag_of_runs(study: Study, client: Any, source: Dict[int, str]
-                  ) -> Tuple[Dict[int, Dict[str, List[Any]]], Dict[int, Study]]:
+                  ) -> Dict[int, Dict[str, List[Any]]]:
     """Run index → diagnosis name → reruns, with a shared run's taken from the study that owns
-    it (the one whose job it is: its [[diagnose]] tables apply); and run index → that study."""
+    it (the one whose job it is: its [[diagnose]] tables apply)."""
     own = _diag_jobs(study, client)
     out = {i: ds for i, ds in own.items() if i not in source}
-    owner: Dict[int, Study] = {}
     cache: Dict[str, Dict[int, Dict[str, List[Any]]]] = {}
     for i, run in enumerate(study.runs()):
         if i not in source:
@@ -690,14 +689,13 @@ def _diag_of_runs(study: Study, client: Any, source: Dict[int, str]
         sh = _share_of(study, run)
         if sh is None:
             continue
-        owner[i] = sh.other
         if sh.other.name not in cache:
             cache[sh.other.name] = _diag_jobs(sh.other, client)
         k = next((k for k, r in enumerate(sh.other.runs())
                   if r.seed == run.seed and _same_point(r.point, sh.that)), None)
         if k is not None and k in cache[sh.other.name]:
             out[i] = cache[sh.other.name][k]
-    return out, owner
+    return out
 
 
 def _diag_needed(jobs: List[Any]) -> bool:
@@ -1043,7 +1041,7 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     found, source, stale = _run_jobs(study, client)
-    diag, _ = _diag_of_runs(study, client, source)
+    diag = _diag_of_runs(study, client, source)
     rows, samples, curves = [], [], []
     n_carried = 0
     for i, run in enumerate(study.runs()):
