@@ -377,6 +377,11 @@ def _load_diagnosis(study: Study, i: int, d: Any) -> Diagnosis:
     title = d.get("title", "")
     if not isinstance(title, str):
         raise StudyError(f"{where}.title: a string, got {title!r}")
+    if all(k in study.spec and _same(study.spec[k], v) for k, v in flat.items()):
+        # Runs are deterministic: the rerun would fail again, bit for bit.
+        raise StudyError(f"{where}.spec: the study's [spec] already sets "
+                         f"{', '.join(f'{k} = {v!r}' for k, v in flat.items())}; a rerun with "
+                         "the run's own numerics would fail again bit for bit")
     return Diagnosis(name=name, spec=flat, kinds=list(kinds), title=title)
 
 
@@ -709,6 +714,22 @@ def _diag_needed(jobs: List[Any]) -> bool:
     return _state_name(last.state) == "failed" and last.failure_kind not in SIMULATION_FAILURES
 
 
+def _diag_is_noop(d: Diagnosis, job: Any) -> bool:
+    """Whether the failed job already ran with every value the diagnosis sets (from a preset or
+    the defaults, which the study file does not show): its rerun would be the same run."""
+    spec = json.loads(job.spec_json) if getattr(job, "spec_json", "") else {}
+    if not spec:
+        return False
+    for k, v in d.spec.items():
+        got = _resolved_value(spec, k)
+        if got is None or not _same(got, v):
+            return False
+    return True
+
+
+NOOP_TEXT = "not rerun: the run already had these numerics"
+
+
 def submit_diagnoses(study: Study, client: Any, out=sys.stderr) -> int:
     """Submits the diagnosis reruns of the study's own runs that failed in the simulation with a
     kind a [[diagnose]] table names and have no rerun yet; returns how many."""
@@ -732,6 +753,11 @@ def submit_diagnoses(study: Study, client: Any, out=sys.stderr) -> int:
                 continue
             jobs = diag.get(i, {}).get(d.name, [])
             if not _diag_needed(jobs):
+                continue
+            if _diag_is_noop(d, last):
+                print(f"study {study.name}: {run.label()} failed ({last.failure_kind}): "
+                      f"diagnosis {d.name!r} {NOOP_TEXT} ({', '.join(d.spec)}): the study "
+                      "file's [[diagnose]] needs other values", file=out)
                 continue
             settings = [_setting(k, v) for k, v in study.diag_settings(run, d).items()]
             settings.sort(key=lambda x: not x.startswith("scene="))
@@ -1068,14 +1094,20 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
             row["shared_from"] = source[i]
         row.update(job_id=j.id, state=_state_name(j.state), failure_kind=j.failure_kind,
                    reason=j.reason, outcome=j.outcome, attempts=len(have), t_end_s=j.t_s)
-        if row["state"] == "failed" and diag.get(i):
+        # A diagnosis that applies to the run's failure but would rerun the same numerics.
+        noop = ([d.name for d in study.diagnoses
+                 if j.failure_kind in d.kinds and d.name not in diag.get(i, {})
+                 and _diag_is_noop(d, j)]
+                if row["state"] == "failed" and i not in source else [])
+        if row["state"] == "failed" and (diag.get(i) or noop):
             # Each diagnosis's last rerun: "NAME: outcome (job)"; the failure is the point's
             # unless one ran past it.
             texts, past = [], False
-            for name, js in diag[i].items():
+            for name, js in diag.get(i, {}).items():
                 text, ran_past = _diag_outcome(js[-1], float(j.t_s or 0.0))
                 texts.append(f"{name}: {text} ({js[-1].id})")
                 past = past or ran_past
+            texts += [f"{name}: {NOOP_TEXT}" for name in noop]
             row.update(diagnoses="; ".join(texts), diag_ran_past=past)
         if row["state"] in ("succeeded", "failed"):
             job = client.job(j.id)

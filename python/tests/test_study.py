@@ -156,6 +156,10 @@ BAD = [
     ("[study]\nname = 'x'\nseeds = [1]\n[spec]\nscene = 'fusion'\n[[grid]]\n"
      "'cells.alpha' = [0.5]\n[[diagnose]]\nname = 'k'\nspec = { 'numerics.dt_s' = 0.25 }\n"
      "kind = ['volume-drift']\n", "diagnose[0].kind: unknown key (did you mean 'kinds'?)"),
+    ("[study]\nname = 'x'\nseeds = [1]\n[spec]\nscene = 'fusion'\n'numerics.dt_s' = 0.25\n"
+     "[[grid]]\n'cells.alpha' = [0.5]\n[[diagnose]]\nname = 'k'\n"
+     "spec = { 'numerics.dt_s' = 0.25 }\n",
+     "diagnose[0].spec: the study's [spec] already sets numerics.dt_s = 0.25"),
 ]
 
 
@@ -1051,6 +1055,36 @@ def test_a_run_that_failed_in_the_simulation_is_rerun_once_per_diagnosis_naming_
     # A study with no [[diagnose]] submits none.
     (tmp_path / "plain").mkdir()
     assert st.submit_diagnoses(_alpha_study(tmp_path / "plain"), foamd) == 0
+
+
+def test_a_diagnosis_whose_numerics_the_run_already_had_is_not_rerun(tmp_path):
+    # The failed run's resolved spec already has the diagnosis's values (here from a preset the
+    # study file does not show): the rerun would be the same run, failing bit for bit.
+    from activefoam.v1 import job_pb2
+    study = _diagnosed_study(tmp_path)
+    f = study.path
+    f.write_text(f.read_text().replace('spec = { "numerics.dt_s" = 0.25 }',
+                                       'spec = { "numerics.cg_tol" = 0.001 }'))
+    study = st.load(f)
+    foamd = _FakeFoamd({"alpha": 0.4375})
+    _diagnosed_jobs(foamd)
+    for j in foamd.jobs["study:alpha"]:
+        spec = json.loads(j.spec_json)
+        # The volume drift's run had ε_CG 1e-3 already; the interpenetration's 1e-2.
+        spec["numerics"]["cg_tol"] = 0.001 if spec["cells"]["alpha"] == 0.6 else 0.01
+        j.spec_json = json.dumps(spec)
+    out = io.StringIO()
+    assert st.submit_diagnoses(study, foamd, out=out) == 2  # α 0.4375's two, not α 0.6's
+    assert all(s["cells.alpha"] == "0.4375" for s in foamd.submitted)
+    assert "cells.alpha=0.6, seed 1 failed (volume-drift): diagnosis 'reference-step' " + \
+        st.NOOP_TEXT + " (numerics.cg_tol)" in out.getvalue()
+    foamd.job = lambda jid: type("J", (), {"_results": lambda self, _: _NoResults()})()
+    for j in foamd.jobs["diag:alpha"]:
+        j.reason, j.outcome, j.progress, j.t_s = "", "", 0.0, 0.0
+        j.state = job_pb2.JobState.Value("JOB_STATE_QUEUED")
+    runs = pd.read_csv(st.collect(study, foamd, tmp_path / "report" / "data") / "runs.csv")
+    b = runs[(runs["seed"] == 1) & (runs["cells.alpha"] == 0.6)].iloc[0]
+    assert b["diagnoses"] == f"reference-step: {st.NOOP_TEXT}" and not b["diag_ran_past"]
 
 
 class _NoResults:
