@@ -218,6 +218,10 @@ def numerics_by_study(items: List[TrendSpec], data_root: os.PathLike,
     return out
 
 
+# Metrics of Eq. 1's fit: NaN where it did not converge (an arrested fusion).
+EQ1_METRICS = ("theta_eq_deg", "tau_f_s", "tau_f_over_tau_p")
+
+
 def _values(runs: Any, point: Dict[str, Any], metric: str) -> List[float]:
     sel = _select(runs, point)
     if not len(sel):
@@ -232,6 +236,16 @@ def _values(runs: Any, point: Dict[str, Any], metric: str) -> List[float]:
     if metric not in sel:
         return []
     return [float(x) for x in sel[metric] if x == x]
+
+
+def _no_value(runs: Any, point: Dict[str, Any], metric: str) -> int:
+    """How many of the point's succeeded runs have no value of the metric (Eq. 1's θ_eq and τ_f
+    where the fit did not converge: an arrested fusion has none)."""
+    sel = _select(runs, point)
+    if metric == "failed" or not len(sel) or metric not in sel:
+        return 0
+    ok = sel[sel["state"] == "succeeded"]
+    return int(ok[metric].isna().sum())
 
 
 def _median_interval(x: List[float]) -> trends.Difference:
@@ -276,6 +290,8 @@ def evaluate(items: List[TrendSpec], data_root: os.PathLike,
                 rows.append(row)
                 continue
             xl, xh = _values(runs, low, t.metric), _values(runs, high, t.metric)
+            row.update(no_value_low=_no_value(runs, low, t.metric),
+                       no_value_high=_no_value(runs, high, t.metric))
             row.update(n_low=len(xl), n_high=len(xh), median_low=trends.median(xl),
                        median_high=trends.median(xh),
                        numerics_differ=numerics_differ(runs, low, high)
@@ -324,6 +340,12 @@ def markdown(table: Any) -> str:
         verdict = r["verdict"]
         if verdict in ("agrees", "disagrees"):
             verdict = f"**{verdict}**"
+        missing = [f"{int(r.get(f'no_value_{side}') or 0)} {side}" for side in ("low", "high")
+                   if (r.get(f"no_value_{side}") or 0) > 0]
+        if verdict == "too few runs" and missing:
+            why = ("Eq. 1 did not converge" if r["metric"] in EQ1_METRICS
+                   else "the metric has no value")
+            verdict += f" (succeeded runs without a value: {', '.join(missing)}: {why})"
         differ = r.get("numerics_differ")
         if isinstance(differ, str) and differ:
             verdict += f" (the two ensembles ran different numerics: {differ})"

@@ -162,6 +162,26 @@ def test_too_few_runs_give_no_verdict(tmp_path):
     assert t["n_high"].iloc[0] == 2
 
 
+def test_runs_without_a_fit_are_named_where_they_leave_too_few(tmp_path):
+    """An arrested fusion has no Eq. 1 fit (θ_eq, τ_f NaN): a row short of runs for that reason
+    says how many succeeded runs had no value, not only "too few runs"."""
+    f = _table(tmp_path, RISE.format(expect="increase").replace("theta_end_deg",
+                                                                "theta_eq_deg"))
+    _data(tmp_path / "data", lambda tau, a, s: 80.0)
+    runs_csv = tmp_path / "data" / "syn" / "data" / "runs.csv"
+    r = pd.read_csv(runs_csv)
+    arrested = (r["cells.tau_p_s"] == 2400) & (r["cells.alpha"] == 0.75)
+    r["eq1_ok"] = (~arrested).astype(int)
+    r["theta_eq_deg"] = 80.0 + r["seed"] + 5.0 * (r["cells.tau_p_s"] == 2400)
+    r.to_csv(runs_csv, index=False)
+    t = vd.evaluate(vd.load(f), tmp_path / "data")
+    assert list(t["verdict"]) == ["agrees", "too few runs"]
+    assert list(t["no_value_high"]) == [0, 3] and list(t["no_value_low"]) == [0, 0]
+    md = vd.markdown(t)
+    assert "too few runs (succeeded runs without a value: 3 high: Eq. 1 did not converge)" in md
+    assert md.count("without a value") == 1
+
+
 def test_a_level_and_the_failures_are_judged(tmp_path):
     f = _table(tmp_path, """\
         [[trend]]
