@@ -1491,9 +1491,12 @@ def render(study: Study, data: Data, out_dir: os.PathLike) -> List[Path]:
             lab = f"{_label(study, by)} = {bv}" if by else None
             ax.errorbar(xs, med, yerr=[lo, hi], marker=markers[k % len(markers)], capsize=3,
                         label=lab)
-            for xv, f, n in zip(xs, rows["failed"], rows["runs"]):
+            past = rows["failed_ran_past"] if "failed_ran_past" in rows else [0] * len(rows)
+            for xv, f, n, p in zip(xs, rows["failed"], rows["runs"], past):
                 if f:
-                    ax.annotate(f"{f}/{n} failed", (xv, 0), xycoords=("data", "axes fraction"),
+                    # A failure a diagnosis rerun ran past is the numerics', not the point's.
+                    text = f"{f}/{n} failed" + (f" ({p} ran past on a rerun)" if p else "")
+                    ax.annotate(text, (xv, 0), xycoords=("data", "axes fraction"),
                                 fontsize=6, color="red", ha="center", va="bottom")
         if study.x_log and numeric:
             ax.set_xscale("log")
