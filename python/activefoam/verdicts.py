@@ -368,6 +368,29 @@ def _numerics_section(items: List[TrendSpec], data_root: os.PathLike,
             + "\n".join(lines) + "\n")
 
 
+def _figures_section(items: List[TrendSpec], data_root: os.PathLike, out: Path) -> str:
+    """Each judged study's report figures (DATA/NAME/NAME-trends.png, -curves.png), linked from
+    the table's folder: the verdicts read beside what they were drawn from."""
+    parts, seen = [], set()
+    for t in items:
+        name = t.study.name
+        if name in seen:
+            continue
+        seen.add(name)
+        folder = Path(data_root) / name
+        pngs = [folder / f"{name}-{kind}.png" for kind in ("trends", "curves")]
+        pngs = [p for p in pngs if p.exists()]
+        if not pngs:
+            continue
+        parts.append(f"### {t.study.title or name}\n\n" + "\n\n".join(
+            f"![{name} {p.stem.rsplit('-', 1)[-1]}]"
+            f"({Path(os.path.relpath(p, out)).as_posix()})" for p in pngs) + "\n")
+    if not parts:
+        return ""
+    return ("\n## The figures\n\nEach judged study's trends (median and IQR over seeds, failed "
+            "runs in red) and curves, from its report folder:\n\n" + "\n".join(parts))
+
+
 def write(items: List[TrendSpec], data_root: os.PathLike, out: os.PathLike) -> List[Path]:
     runs_by_study = _runs_by_study(items, data_root)
     table = evaluate(items, data_root, runs_by_study)
@@ -386,5 +409,6 @@ def write(items: List[TrendSpec], data_root: os.PathLike, out: os.PathLike) -> L
         "resolved* otherwise; no verdict from fewer than 3 runs a side. Source: *caption* — "
         "stated in the supplement's figure caption; *implied* — follows from a stated "
         "result (named in the statement); *none* — drawn, no trend stated.\n\n"
-        + markdown(table) + _numerics_section(items, data_root, runs_by_study))
+        + markdown(table) + _numerics_section(items, data_root, runs_by_study)
+        + _figures_section(items, data_root, o))
     return [o / "verdicts.md", o / "verdicts.csv"]

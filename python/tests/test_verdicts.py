@@ -228,6 +228,18 @@ def test_missing_data_is_not_run_yet_and_the_command_writes_the_table(tmp_path):
         "not run yet", "not run yet"]
 
 
+def test_the_table_shows_the_figures_of_the_studies_it_judges(tmp_path):
+    f = _table(tmp_path, RISE.format(expect="increase"))
+    _data(tmp_path / "data", lambda tau, a, s: 80.0 + s)
+    vd.write(vd.load(f), tmp_path / "data", tmp_path / "out")
+    assert "## The figures" not in (tmp_path / "out" / "verdicts.md").read_text()
+    (tmp_path / "data" / "syn" / "syn-trends.png").write_bytes(b"png")
+    vd.write(vd.load(f), tmp_path / "data", tmp_path / "out")
+    md = (tmp_path / "out" / "verdicts.md").read_text()
+    assert "## The figures" in md
+    assert "![syn trends](../data/syn/syn-trends.png)" in md and "syn-curves" not in md
+
+
 @pytest.mark.parametrize("edit, message", [
     (('metric = "theta_end_deg"', 'metric = "theta_end"'),
      "trend[0].metric: 'failed' or one of"),
