@@ -290,7 +290,8 @@ def evaluate(items: List[TrendSpec], data_root: os.PathLike,
                 rows.append(row)
                 continue
             xl, xh = _values(runs, low, t.metric), _values(runs, high, t.metric)
-            row.update(no_value_low=_no_value(runs, low, t.metric),
+            level = t.expect in ("below", "above")  # one ensemble, judged against a level
+            row.update(no_value_low=0 if level else _no_value(runs, low, t.metric),
                        no_value_high=_no_value(runs, high, t.metric))
             row.update(n_low=len(xl), n_high=len(xh), median_low=trends.median(xl),
                        median_high=trends.median(xh),
