@@ -1939,7 +1939,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             return 0
         if args.cmd == "verdicts":
             from activefoam import verdicts
-            for f in verdicts.write(verdicts.load(args.study), args.data, args.out):
+            def rel(x: str) -> str:  # as typed from the checkout, not this machine's paths
+                r = os.path.relpath(x)
+                return x if r.startswith("..") else r
+            command = (f"scripts/study.sh verdicts {rel(args.study)} --data {rel(args.data)} "
+                       f"--out {rel(args.out)}")
+            for f in verdicts.write(verdicts.load(args.study), args.data, args.out,
+                                    command=command):
                 print(f)
             return 0
         study = load(args.study)

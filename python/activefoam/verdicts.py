@@ -392,7 +392,8 @@ def _figures_section(items: List[TrendSpec], data_root: os.PathLike, out: Path) 
             "runs in red) and curves, from its report folder:\n\n" + "\n".join(parts))
 
 
-def write(items: List[TrendSpec], data_root: os.PathLike, out: os.PathLike) -> List[Path]:
+def write(items: List[TrendSpec], data_root: os.PathLike, out: os.PathLike,
+          command: str = "") -> List[Path]:
     runs_by_study = _runs_by_study(items, data_root)
     table = evaluate(items, data_root, runs_by_study)
     o = Path(out)
@@ -410,6 +411,8 @@ def write(items: List[TrendSpec], data_root: os.PathLike, out: os.PathLike) -> L
         "resolved* otherwise; no verdict from fewer than 3 runs a side. Source: *caption* — "
         "stated in the supplement's figure caption; *implied* — follows from a stated "
         "result (named in the statement); *none* — drawn, no trend stated.\n\n"
+        + (f"Regenerated from the studies' committed data by `{command}`.\n\n"
+           if command else "")
         + markdown(table) + _numerics_section(items, data_root, runs_by_study)
         + _figures_section(items, data_root, o))
     return [o / "verdicts.md", o / "verdicts.csv"]

@@ -224,6 +224,7 @@ def test_missing_data_is_not_run_yet_and_the_command_writes_the_table(tmp_path):
     assert r.returncode == 0, r.stderr
     md = (tmp_path / "out" / "verdicts.md").read_text()
     assert "2 rows: 2 not run yet" in md
+    assert f"by `scripts/study.sh verdicts {f} --data {tmp_path / 'nothing'} --out " in md
     assert pd.read_csv(tmp_path / "out" / "verdicts.csv")["verdict"].tolist() == [
         "not run yet", "not run yet"]
 
