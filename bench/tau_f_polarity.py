@@ -60,7 +60,15 @@ def main() -> int:
     rows = []
 
     runs, samples = load(root, "step-fitness")
-    dt = runs.settings.map(lambda s: json.loads(s).get("numerics.dt_s"))
+    settings = runs.settings.map(json.loads)
+    dt = settings.map(lambda s: s.get("numerics.dt_s"))
+    # Step fitness ran two arms at Δt 0.5 s (the law, the overlap within prisms): one at a time.
+    arms = {json.dumps({k: v for k, v in s.items() if k.startswith("numerics.")}, sort_keys=True)
+            for s in settings[dt == a.step]}
+    if len(arms) != 1:
+        print(f"tau_f_polarity: step fitness has {len(arms)} arms at Δt {a.step:g} s "
+              f"({'; '.join(sorted(arms)) or 'none'}); choose a step with one", file=sys.stderr)
+        return 2
     for _, r in runs[(dt == a.step) & (runs.state == "succeeded")].iterrows():
         g = samples[samples.job_id == r.job_id]
         if g.t_s.max() < window - 60:
