@@ -218,7 +218,8 @@ def numerics_by_study(items: List[TrendSpec], data_root: os.PathLike,
     return out
 
 
-# Metrics of Eq. 1's fit: NaN where it did not converge (an arrested fusion).
+# Metrics of Eq. 1's fit: NaN where it did not converge (an arrested fusion) or its τ_f is longer
+# than the run (study.derive_metrics).
 EQ1_METRICS = ("theta_eq_deg", "tau_f_s", "tau_f_over_tau_p")
 
 
@@ -246,6 +247,15 @@ def _no_value(runs: Any, point: Dict[str, Any], metric: str) -> int:
         return 0
     ok = sel[sel["state"] == "succeeded"]
     return int(ok[metric].isna().sum())
+
+
+def _beyond_run(runs: Any, point: Dict[str, Any], metric: str) -> int:
+    """Of _no_value's runs, those whose Eq. 1 fit converged with τ_f longer than the run."""
+    sel = _select(runs, point)
+    if metric not in EQ1_METRICS or not len(sel) or "eq1_beyond_run" not in sel:
+        return 0
+    ok = sel[sel["state"] == "succeeded"]
+    return int(ok["eq1_beyond_run"].fillna(False).astype(bool).sum())
 
 
 def _median_interval(x: List[float]) -> trends.Difference:
@@ -292,7 +302,9 @@ def evaluate(items: List[TrendSpec], data_root: os.PathLike,
             xl, xh = _values(runs, low, t.metric), _values(runs, high, t.metric)
             level = t.expect in ("below", "above")  # one ensemble, judged against a level
             row.update(no_value_low=0 if level else _no_value(runs, low, t.metric),
-                       no_value_high=_no_value(runs, high, t.metric))
+                       no_value_high=_no_value(runs, high, t.metric),
+                       beyond_run_low=0 if level else _beyond_run(runs, low, t.metric),
+                       beyond_run_high=_beyond_run(runs, high, t.metric))
             row.update(n_low=len(xl), n_high=len(xh), median_low=trends.median(xl),
                        median_high=trends.median(xh),
                        numerics_differ=numerics_differ(runs, low, high)
@@ -344,8 +356,15 @@ def markdown(table: Any) -> str:
         missing = [f"{int(r.get(f'no_value_{side}') or 0)} {side}" for side in ("low", "high")
                    if (r.get(f"no_value_{side}") or 0) > 0]
         if verdict == "too few runs" and missing:
-            why = ("Eq. 1 did not converge" if r["metric"] in EQ1_METRICS
-                   else "the metric has no value")
+            if r["metric"] in EQ1_METRICS:
+                beyond = sum(int(r.get(f"beyond_run_{side}") or 0) for side in ("low", "high"))
+                total = sum(int(r.get(f"no_value_{side}") or 0) for side in ("low", "high"))
+                why = ("Eq. 1 did not converge" if not beyond else
+                       "Eq. 1's τ_f longer than the run" if beyond == total else
+                       f"Eq. 1 did not converge ({total - beyond}) or its τ_f is longer than "
+                       f"the run ({beyond})")
+            else:
+                why = "the metric has no value"
             verdict += f" (succeeded runs without a value: {', '.join(missing)}: {why})"
         differ = r.get("numerics_differ")
         if isinstance(differ, str) and differ:

@@ -358,6 +358,33 @@ def test_theta_and_shape_index_over_the_last_hour_are_the_plateau_the_end_wander
     assert {"theta_last_hour_deg", "shape_index_last_hour"} <= set(st.FITNESS_METRICS)
 
 
+def test_an_eq1_fit_longer_than_its_run_is_not_counted_and_is_listed(tmp_path):
+    # fig8's p_a r/2γ = 0.33, α = 0.75 seed 2: θ rising 36° → 83° over 6 h, Eq. 1 "converged" at
+    # θ_eq = 138°, τ_f = 44 442 s — an extrapolation the engine's fit accepts (τ_f ≤ 10× span).
+    study = _alpha_study(tmp_path)
+    runs = pd.DataFrame([
+        {"job_id": "slow", "state": "succeeded", "cells.alpha": 0.6, "seed": 2, "eq1_ok": 1,
+         "theta_eq_deg": 138.2, "tau_f_s": 44442.0, "t_end_s": 21600.0},
+        {"job_id": "edge", "state": "succeeded", "cells.alpha": 0.6, "seed": 3, "eq1_ok": 1,
+         "theta_eq_deg": 95.0, "tau_f_s": 21600.0, "t_end_s": 21600.0},
+        {"job_id": "fast", "state": "succeeded", "cells.alpha": 0.4375, "seed": 1, "eq1_ok": 1,
+         "theta_eq_deg": 90.0, "tau_f_s": 2000.0, "t_end_s": 21600.0},
+        {"job_id": "flat", "state": "succeeded", "cells.alpha": 0.4375, "seed": 2, "eq1_ok": 0,
+         "theta_eq_deg": float("nan"), "tau_f_s": float("nan"), "t_end_s": 21600.0}])
+    samples = pd.DataFrame(columns=["job_id", "t_s"] + st.SAMPLE_COLUMNS)
+    msrd = pd.DataFrame(columns=["job_id", "lag_s", "msrd_um2"])
+    got = st.derive_metrics(study, runs, samples, msrd).set_index("job_id")
+    assert math.isnan(got.loc["slow", "theta_eq_deg"]) and math.isnan(got.loc["slow", "tau_f_s"])
+    assert math.isnan(got.loc["slow", "tau_f_over_tau_p"])
+    assert got.loc["edge", "theta_eq_deg"] == 95.0  # τ_f equal to the run: 1 − 1/e seen
+    assert got.loc["fast", "tau_f_s"] == 2000.0
+    assert list(got["eq1_beyond_run"]) == [True, False, False, False]
+    md = st.unsaturated_fits_markdown(study, got.reset_index())
+    assert "cells.alpha = 0.6, seed 2: τ_f = 44442 s against a 21600 s run, θ_eq = 138.2°" in md
+    assert "seed 3" not in md and "seed 1" not in md
+    assert st.unsaturated_fits_markdown(study, got.reset_index().iloc[1:]) == ""
+
+
 def test_runs_match_jobs_by_their_resolved_spec_reduced_keys_included(tmp_path):
     # foamd resolves the reduced keys (p_a r/2γ, τ_γ, L_η/r) into p_a, η, ξ and stores them as
     # null: a run on a reduced key must still find its job, or a rerun would submit it again.

@@ -6,6 +6,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -180,6 +181,32 @@ def test_runs_without_a_fit_are_named_where_they_leave_too_few(tmp_path):
     md = vd.markdown(t)
     assert "too few runs (succeeded runs without a value: 3 high: Eq. 1 did not converge)" in md
     assert md.count("without a value") == 1
+
+
+def test_fits_longer_than_their_run_are_named_apart_from_unconverged_ones(tmp_path):
+    """Eq. 1 converged with τ_f longer than the run extrapolates θ_eq past the data: no value
+    (study.derive_metrics), and the row says which of the two reasons left it short."""
+    f = _table(tmp_path, RISE.format(expect="increase").replace("theta_end_deg",
+                                                                "theta_eq_deg"))
+    _data(tmp_path / "data", lambda tau, a, s: 80.0)
+    runs_csv = tmp_path / "data" / "syn" / "data" / "runs.csv"
+    r = pd.read_csv(runs_csv)
+    high = (r["cells.tau_p_s"] == 2400) & (r["cells.alpha"] == 0.75)
+    r["eq1_ok"] = (~(high & (r["seed"] == 1))).astype(int)  # seed 1: no convergence
+    r["t_end_s"] = 21600.0
+    r["tau_f_s"] = np.where(high & (r["seed"] > 1), 44000.0, 2000.0)  # seeds 2, 3: too slow
+    r["theta_eq_deg"] = 80.0 + r["seed"] + 5.0 * (r["cells.tau_p_s"] == 2400)
+    r.to_csv(runs_csv, index=False)
+    t = vd.evaluate(vd.load(f), tmp_path / "data")
+    assert list(t["verdict"]) == ["agrees", "too few runs"]
+    assert list(t["no_value_high"]) == [0, 3] and list(t["beyond_run_high"]) == [0, 2]
+    assert ("3 high: Eq. 1 did not converge (1) or its τ_f is longer than the run (2))"
+            in vd.markdown(t))
+    r["eq1_ok"] = 1
+    r.to_csv(runs_csv, index=False)
+    t = vd.evaluate(vd.load(f), tmp_path / "data")
+    assert list(t["no_value_high"]) == [0, 2]  # seed 1 now counts: 1 run, still too few
+    assert "2 high: Eq. 1's τ_f longer than the run)" in vd.markdown(t)
 
 
 def test_a_level_and_the_failures_are_judged(tmp_path):
