@@ -217,6 +217,18 @@ def test_a_spec_foamd_refuses_submits_nothing(foamd, client, tmp_path):
     assert (jobs["state"] == "cancelled").all()
 
 
+@pytest.mark.parametrize("path", sorted(
+    p for p in (Path(__file__).resolve().parents[2] / "studies").glob("*.toml")
+    if p.name != "verdicts.toml"), ids=lambda p: p.name)
+def test_every_committed_study_file_reads(path):
+    # A study file is read before anything is submitted; a typo in a cluster's full-scale file
+    # should fail here, not on the cluster.
+    study = st.load(path)
+    assert study.points() and study.seeds
+    if study.fitness is None and "fitness" not in study.name:
+        assert len(study.seeds) >= 2  # figure studies: no trend from fewer (fig9-size: 2)
+
+
 def test_missing_data_folder_is_a_clear_error(tmp_path):
     f = _study(tmp_path, [1])
     r = _run(["report", str(f), "--from-data", str(tmp_path / "nowhere")])
