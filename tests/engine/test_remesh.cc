@@ -1,5 +1,6 @@
 // Remeshing (DESIGN.md §5): invariants and physics, never hard-coded outputs.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -376,6 +377,85 @@ TEST(Remesh, ACellTheRescueCannotRepairIsRebuilt) {
     ASSERT_GE(k, 0);
     ASSERT_LT(k, rebuilt.numVertices());
   }
+}
+
+// How deep p lies inside the closed mesh m (0 outside): winding number, then the nearest triangle.
+double depthIn(const TriMesh& m, const Vec3& p) {
+  double omega = 0, d2 = std::numeric_limits<double>::infinity();
+  for (const Tri& f : m.tri) {
+    const Vec3 a = m.x.col(f[0]) - p, b = m.x.col(f[1]) - p, c = m.x.col(f[2]) - p;
+    const double la = a.norm(), lb = b.norm(), lc = c.norm();
+    omega += 2 * std::atan2(a.dot(b.cross(c)),
+                            la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb);
+    d2 = std::min(
+        d2, (closestOnTriangle(p, m.x.col(f[0]), m.x.col(f[1]), m.x.col(f[2])) - p).squaredNorm());
+  }
+  return omega / (4 * M_PI) > 0.5 ? std::sqrt(d2) : 0.0;
+}
+
+// The rebuild lays the new surface over the crumpled cell's folds: a neighbour's vertex pressed
+// into a fold, outside the cell, can end up inside the rebuilt one (fig8, p_a r/2γ = 1, α 0.4375:
+// 1.71 µm, a failure at every Δt; docs/numerics.md). With keep_out_points such a rebuild is
+// refused and the cell keeps the mesh it had, bit for bit; one that engulfs nothing, or takes a
+// point no deeper than the old surface did, is done as without it.
+TEST(Remesh, ARebuildThatWouldEngulfATouchingCellsVertexIsRefused) {
+  const ObjCell cell =
+      readObjCell(std::string(ENGINE_TEST_DATA) + "/locked-cell-rescue-refused.obj");
+  const TriMesh locked = cell.mesh;
+  RemeshParams p = simulationParams(cell.radius, true);
+  TriMesh rescued = locked;
+  remesh(rescued, p);
+  p.rebuild_triangles = 320;
+  TriMesh rebuilt = locked;
+  ASSERT_EQ(remesh(rebuilt, p).rebuilds, 1);
+
+  // Points the rebuild engulfs: outside the rescued cell (where a neighbour may be), inside the
+  // rebuilt one, the deepest of a grid over the cell's box.
+  const Vec3 lo = locked.x.rowwise().minCoeff(), hi = locked.x.rowwise().maxCoeff();
+  std::vector<std::array<double, 2>> depths;  // in the rescued mesh, in the rebuilt one
+  std::vector<Vec3> grid;
+  const int n = 30;
+  for (int i = 0; i <= n; ++i)
+    for (int j = 0; j <= n; ++j)
+      for (int k = 0; k <= n; ++k) {
+        grid.push_back(lo + (hi - lo).cwiseProduct(Vec3(i, j, k) / n));
+        depths.push_back({depthIn(rescued, grid.back()), depthIn(rebuilt, grid.back())});
+      }
+  Vec3 engulfed = Vec3::Zero();
+  double deepest = 0;
+  for (std::size_t g = 0; g < grid.size(); ++g)
+    if (depths[g][0] == 0 && depths[g][1] > deepest) deepest = depths[g][1], engulfed = grid[g];
+  ASSERT_GT(deepest, 0.02) << "the rebuild bridges no fold of this cell";
+  // Inside both, past the keep-out in the rebuilt mesh but deeper still in the one it replaces.
+  Vec3 deeper_before = Vec3::Zero();
+  bool found = false;
+  for (std::size_t g = 0; g < grid.size() && !found; ++g)
+    if (depths[g][1] > 0.5 * deepest && depths[g][0] > depths[g][1])
+      deeper_before = grid[g], found = true;
+  ASSERT_TRUE(found);
+  const Vec3 far = hi + Vec3::Constant(5.0);
+
+  p.keep_out_um = 0.5 * deepest;
+  for (const auto& [points, refused] : std::vector<std::pair<std::vector<Vec3>, bool>>{
+           {{far}, false}, {{deeper_before}, false}, {{far, engulfed}, true}}) {
+    RemeshParams q = p;
+    q.keep_out_points = [&pts = points](std::vector<Vec3>& out) {
+      out.insert(out.end(), pts.begin(), pts.end());
+    };
+    TriMesh m = locked;
+    const RemeshStats st = remesh(m, q);
+    EXPECT_EQ(st.rebuilds, refused ? 0 : 1);
+    EXPECT_EQ(st.rebuilds_kept_out, refused ? 1 : 0);
+    const TriMesh& want = refused ? rescued : rebuilt;
+    EXPECT_EQ(m.tri, want.tri);
+    EXPECT_EQ(m.x, want.x);
+  }
+  // Deeper than the keep-out only: the same point at a keep-out above its depth is no reason.
+  p.keep_out_um = 1.01 * deepest;
+  p.keep_out_points = [&engulfed](std::vector<Vec3>& out) { out.push_back(engulfed); };
+  TriMesh m = locked;
+  EXPECT_EQ(remesh(m, p).rebuilds, 1);
+  EXPECT_EQ(m.x, rebuilt.x);
 }
 
 // A remesh that leaves no triangle below half of A_m is the same with the rebuild as without it;

@@ -68,6 +68,14 @@ struct RemeshParams {
   // done (earlier versions).
   std::function<double(const Vec3&)> keep_out;
   double keep_out_um = 0;
+  // With keep_out_points set (it fills the vertices of the cells this one touches; called only
+  // when a rebuild is about to be done), a rebuild that would put one of them deeper than
+  // keep_out_um inside the rebuilt surface, and deeper than inside the surface before, is refused:
+  // the cell keeps its mesh, as for any refused rebuild. The rebuild lays each direction's new
+  // vertex at the outermost crossing, over the crumpled cell's folds, and a neighbour's vertex
+  // pressed into a fold ended 1.71 µm inside the rebuilt cell (fig8, p_a r/2γ = 1, α 0.4375: a
+  // failure at every Δt; docs/numerics.md). Unset: every such rebuild is done (earlier versions).
+  std::function<void(std::vector<Vec3>&)> keep_out_points;
 };
 
 struct RemeshStats {
@@ -81,6 +89,7 @@ struct RemeshStats {
   int refused_collapses = 0;  // candidates rejected by the manifold/orientation/valence guards
   int refused_flips = 0;      // Delaunay-violating edges kept by the flip guards
   int kept_out = 0;  // collapses refused by RemeshParams::keep_out (also refused_collapses)
+  int rebuilds_kept_out = 0;  // 1 when RemeshParams::keep_out_points refused a rebuild
   double volume_before = 0;
   double volume_after = 0;
   int operations() const { return splits + collapses + flips + smooths + rebuilds; }

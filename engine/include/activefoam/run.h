@@ -52,8 +52,8 @@ struct RunSummary {
   std::int64_t remesh_rescues = 0;
   // Cell meshes rebuilt (numerics.remesh_rebuild): 0 means the bits of the run without the key.
   std::int64_t remesh_rebuilds = 0;
-  // Collapses refused for entering a neighbour (numerics.remesh_keep_out_um): 0 means the bits of
-  // the run without the key.
+  // Collapses and rebuilds refused for entering a neighbour (numerics.remesh_keep_out_um): 0
+  // means the bits of the run without the key.
   std::int64_t remesh_kept_out = 0;
   // Adaptive time step: tries undone and retried over the run, and the shortest step taken (on
   // failure: the shortest tried).

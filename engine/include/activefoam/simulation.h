@@ -100,8 +100,8 @@ class Simulation {
   // Cell meshes rebuilt (numerics.remesh_rebuild) over the run: while it is 0 the run has the
   // bits it would have without the key.
   std::int64_t remeshRebuilds() const { return remesh_rebuilds_; }
-  // Collapses refused for entering a neighbour (numerics.remesh_keep_out_um) over the run: while it
-  // is 0 the run has the bits it would have without the key.
+  // Collapses and rebuilds refused for entering a neighbour (numerics.remesh_keep_out_um) over the
+  // run: while it is 0 the run has the bits it would have without the key.
   std::int64_t remeshKeptOut() const { return remesh_kept_out_; }
   // The force terms built for this spec, in evaluation order (terms whose parameters vanish are
   // not built).

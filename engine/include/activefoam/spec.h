@@ -82,7 +82,9 @@ struct NumericsParams {
   bool remesh_rebuild = false;
   // A collapse whose volume-preserving placement would put the merged vertex deeper than this
   // (µm) inside a cell this one touches (and deeper than the vertices it merges) is refused
-  // (remesh.h, RemeshParams::keep_out). 0: off, it is done, and a remesh can push a vertex of a
+  // (remesh.h, RemeshParams::keep_out), and so is a rebuild (numerics.remesh_rebuild) that would
+  // put a touching cell's vertex that deep inside this one (RemeshParams::keep_out_points).
+  // 0: off, it is done, and a remesh can push a vertex of a
   // pressed cell into its neighbour by more than the interpenetration guard allows, failing the
   // step at every Δt (earlier versions' behaviour).
   double remesh_keep_out_um = 0;

@@ -275,6 +275,12 @@ StepReport Simulation::remeshCells(const std::vector<char>& which) {
             depth = std::max(depth, distanceToSurface(cells_, o, p));
         return depth;
       };
+      // The touching cells' vertices before this remesh, which a rebuild must not engulf.
+      rp.keep_out_points = [this, &others = touching[c]](std::vector<Vec3>& points) {
+        for (int o : others)
+          for (int v = cells_.cell_vertex_begin[o]; v < cells_.cell_vertex_begin[o + 1]; ++v)
+            points.push_back(cells_.x.col(v));
+      };
     }
     stats[c] = remesh(meshes[c], rp);
   }
@@ -285,7 +291,7 @@ StepReport Simulation::remeshCells(const std::vector<char>& which) {
     ops += st.operations();
     remesh_rescues_ += st.rescues;
     remesh_rebuilds_ += st.rebuilds;
-    remesh_kept_out_ += st.kept_out;
+    remesh_kept_out_ += st.kept_out + st.rebuilds_kept_out;
     if (st.volume_before > 0)
       rep.remesh_volume_jump = std::max(
           rep.remesh_volume_jump, std::abs(st.volume_after - st.volume_before) / st.volume_before);

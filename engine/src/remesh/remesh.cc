@@ -662,6 +662,46 @@ double smallestArea(const TriMesh& m) {
   return a;
 }
 
+double windingNumber(const TriMesh& m, const Vec3& p) {
+  // Van Oosterom & Strackee's solid angle of each triangle seen from p (as step_guards.cc).
+  double omega = 0;
+  for (const Tri& tr : m.tri) {
+    const Vec3 a = m.x.col(tr[0]) - p, b = m.x.col(tr[1]) - p, d = m.x.col(tr[2]) - p;
+    const double la = a.norm(), lb = b.norm(), ld = d.norm();
+    const double det = a.dot(b.cross(d));
+    const double den = la * lb * ld + a.dot(b) * ld + b.dot(d) * la + d.dot(a) * lb;
+    omega += 2 * std::atan2(det, den);
+  }
+  return omega / (4 * M_PI);
+}
+
+// How deep p lies inside the closed mesh m (0 outside).
+double depthInside(const TriMesh& m, const Vec3& p) {
+  if (windingNumber(m, p) <= 0.5) return 0;
+  double d2 = std::numeric_limits<double>::infinity();
+  for (const Tri& tr : m.tri)
+    d2 = std::min(
+        d2,
+        (closestOnTriangle(p, m.x.col(tr[0]), m.x.col(tr[1]), m.x.col(tr[2])) - p).squaredNorm());
+  return std::sqrt(d2);
+}
+
+// RemeshParams::keep_out_points: does the rebuilt mesh take a touching cell's vertex deeper than
+// keep_out_um, and deeper than the mesh it replaces?
+bool rebuildEngulfs(const TriMesh& before, const TriMesh& rebuilt, const RemeshParams& params) {
+  if (!params.keep_out_points || !(params.keep_out_um > 0)) return false;
+  std::vector<Vec3> points;
+  params.keep_out_points(points);
+  if (points.empty()) return false;
+  Vec3 lo = rebuilt.x.rowwise().minCoeff(), hi = rebuilt.x.rowwise().maxCoeff();
+  for (const Vec3& p : points) {
+    if ((p.array() < lo.array()).any() || (p.array() > hi.array()).any()) continue;
+    const double depth = depthInside(rebuilt, p);
+    if (depth > params.keep_out_um && depth > depthInside(before, p)) return true;
+  }
+  return false;
+}
+
 RemeshStats remeshImpl(TriMesh& mesh, const RemeshParams& params, std::vector<int>* old_to_new) {
   RemeshStats st;
   st.volume_before = meshVolume(mesh);
@@ -673,7 +713,11 @@ RemeshStats remeshImpl(TriMesh& mesh, const RemeshParams& params, std::vector<in
     const double smallest = smallestArea(mesh);
     if (smallest < 0.5 * params.min_area) {
       TriMesh rebuilt = mesh;
-      if (rebuildRadially(rebuilt, params.rebuild_triangles) && smallestArea(rebuilt) > smallest) {
+      const bool done =
+          rebuildRadially(rebuilt, params.rebuild_triangles) && smallestArea(rebuilt) > smallest;
+      const bool engulfs = done && rebuildEngulfs(mesh, rebuilt, params);
+      if (engulfs) st.rebuilds_kept_out = 1;
+      if (done && !engulfs) {
         if (old_to_new) {
           // Input vertex → the vertex it became → the new vertex nearest to that one.
           for (int& k : *old_to_new) {

@@ -187,7 +187,9 @@ const std::vector<Entry>& entries() {
     t.push_back({real("numerics.remesh_keep_out_um", kClosed, 0, 100, kClosed, "µm",
                       "a collapse that would put the merged vertex deeper than this inside a "
                       "cell this one touches (and deeper than the vertices it merges) is "
-                      "refused; 0: off, every such collapse is done (earlier versions), and a "
+                      "refused, and so is a rebuild that would put a touching cell's vertex "
+                      "that deep inside this one; 0: off, every such collapse is done (earlier "
+                      "versions), and a "
                       "remesh can push a pressed cell's vertex into its neighbour past the "
                       "interpenetration guard at every step length"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.remesh_keep_out_um; }});
