@@ -414,7 +414,7 @@ TEST(Remesh, ARebuildThatWouldEngulfATouchingCellsVertexIsRefused) {
   const Vec3 lo = locked.x.rowwise().minCoeff(), hi = locked.x.rowwise().maxCoeff();
   std::vector<std::array<double, 2>> depths;  // in the rescued mesh, in the rebuilt one
   std::vector<Vec3> grid;
-  const int n = 30;
+  const int n = 20;
   for (int i = 0; i <= n; ++i)
     for (int j = 0; j <= n; ++j)
       for (int k = 0; k <= n; ++k) {
