@@ -12,8 +12,8 @@
 #         consistent, Δt 0.25 s, `standard`'s mesh and ε_CG 1e-3, keep-out 1 µm), as every
 #         full-scale file runs it;
 # figure: the reduced figure studies' [spec] (fig8-reduced: Δt 1 s, ε_CG 1e-2, the contact's
-#         overlap within prisms) on the same 2 × 100 scene — a step step fitness passed at 2 × 20,
-#         not at 2 × 100.
+#         overlap within prisms) on the same 2 × 100 scene — step fitness passed it at 2 × 20;
+#         at 2 × 100 it is studies/step-fitness-full.toml's question.
 # STEPS (default 60) steps each, timed from the first sample to the last (setup excluded); P
 # (default: the threads list's largest) jobs side by side; REPS (default 2) repetitions of (a).
 # CACHE: prepared spheroids (foam-run --spheroid-cache); each configuration prepares its two on
@@ -65,7 +65,7 @@ row() {  # DIR CONFIG LAYOUT THREADS CONCURRENT REP FIRST_KEY
   awk -v cfg="$2" -v l="$3" -v t="$4" -v p="$5" -v r="$6" -v n="$steps" -v c="$c" -v ms="$ms" \
     -v dt="$(dt_of "$2")" -v same="$([ "$(samples_key "$1")" = "$7" ] && echo yes || echo no)" \
     'BEGIN { printf "%s,%s,%s,%s,%s,%s,%s,%.2f,%s\n", cfg, l, t, p, r, n, c,
-             t * ms / 1000 * 3600 / dt / 3600, same }'
+             t * ms / 1000 / dt, same }'
 }
 for config in full figure; do
   run_one "$out/$config-prepare" "$config" 1 0  # prepares (or loads) its spheroids, untimed

@@ -1380,7 +1380,8 @@ def summary_markdown(study: Study, table: Any) -> str:
     head_line = f"# {study.title}\n\n" + (f"Scale: {study.scale}.\n\n" if study.scale else "")
     return (head_line + "Median [q25, q75] (n runs) over seeds; mixing time is capped at the "
             "run's length where MSRD never reached r²; θ_eq and τ_f count where Eq. 1 converged "
-            "with τ_f no longer than the run (a longer one extrapolates θ_eq past the data). Steps redone: over the point's runs, the "
+            "with τ_f no longer than the run (a longer one extrapolates θ_eq past the data). "
+            "Steps redone: over the point's runs, the "
             "steps the engine rejected and redid at a shorter step (inverted triangles, "
             "penetration, oscillation); largest volume error: the largest |V − V₀|/V₀ of any "
             "cell at any sample of them (a run fails beyond numerics.max_volume_error; — where "
