@@ -39,6 +39,14 @@ double triangleArea(const TriMesh& m, int t);
 // Closest point of triangle abc to p (Ericson, Real-Time Collision Detection §5.1.5).
 Vec3 closestOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
 
+// Solid angle of triangle abc seen from p (Van Oosterom & Strackee), positive when p lies behind
+// it (on the side its normal points away from): summed over a closed outward mesh, 4π inside
+// and 0 outside.
+double solidAngle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
+
+// The generalised winding number of the closed mesh m around p (1 inside, 0 outside).
+double windingNumber(const TriMesh& m, const Vec3& p);
+
 // Topological and geometric invariants: every edge shared by exactly two triangles with
 // opposite orientation, vertex links are single cycles (2-manifold), no unused or out-of-range
 // vertices, positive volume. Returns an empty string when valid, else the first violation.

@@ -248,15 +248,10 @@ double facingCosine(const CellSet& cells, int vertex, int inside_of) {
 }  // namespace
 
 double windingNumber(const CellSet& cells, int c, const Vec3& p) {
-  // Van Oosterom & Strackee's solid angle of each triangle seen from p.
   double omega = 0;
   for (int t = cells.cell_tri_begin[c]; t < cells.cell_tri_begin[c + 1]; ++t) {
     const Tri& tr = cells.tri[t];
-    const Vec3 a = cells.x.col(tr[0]) - p, b = cells.x.col(tr[1]) - p, d = cells.x.col(tr[2]) - p;
-    const double la = a.norm(), lb = b.norm(), ld = d.norm();
-    const double det = a.dot(b.cross(d));
-    const double den = la * lb * ld + a.dot(b) * ld + b.dot(d) * la + d.dot(a) * lb;
-    omega += 2 * std::atan2(det, den);
+    omega += solidAngle(p, cells.x.col(tr[0]), cells.x.col(tr[1]), cells.x.col(tr[2]));
   }
   return omega / (4 * M_PI);
 }

@@ -94,6 +94,20 @@ Vec3 closestOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& 
   return a + ab * (vb * denom) + ac * (vc * denom);
 }
 
+double solidAngle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 u = a - p, v = b - p, w = c - p;
+  const double lu = u.norm(), lv = v.norm(), lw = w.norm();
+  const double det = u.dot(v.cross(w));
+  const double den = lu * lv * lw + u.dot(v) * lw + v.dot(w) * lu + w.dot(u) * lv;
+  return 2 * std::atan2(det, den);
+}
+
+double windingNumber(const TriMesh& m, const Vec3& p) {
+  double omega = 0;
+  for (const Tri& t : m.tri) omega += solidAngle(p, m.x.col(t[0]), m.x.col(t[1]), m.x.col(t[2]));
+  return omega / (4 * M_PI);
+}
+
 double meshArea(const TriMesh& m) {
   double a = 0;
   for (int t = 0; t < m.numTriangles(); ++t) a += triangleArea(m, t);

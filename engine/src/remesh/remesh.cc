@@ -662,19 +662,6 @@ double smallestArea(const TriMesh& m) {
   return a;
 }
 
-double windingNumber(const TriMesh& m, const Vec3& p) {
-  // Van Oosterom & Strackee's solid angle of each triangle seen from p (as step_guards.cc).
-  double omega = 0;
-  for (const Tri& tr : m.tri) {
-    const Vec3 a = m.x.col(tr[0]) - p, b = m.x.col(tr[1]) - p, d = m.x.col(tr[2]) - p;
-    const double la = a.norm(), lb = b.norm(), ld = d.norm();
-    const double det = a.dot(b.cross(d));
-    const double den = la * lb * ld + a.dot(b) * ld + b.dot(d) * la + d.dot(a) * lb;
-    omega += 2 * std::atan2(det, den);
-  }
-  return omega / (4 * M_PI);
-}
-
 // How deep p lies inside the closed mesh m (0 outside).
 double depthInside(const TriMesh& m, const Vec3& p) {
   if (windingNumber(m, p) <= 0.5) return 0;
