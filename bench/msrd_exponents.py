@@ -1,0 +1,102 @@
+#!/usr/bin/python3
+"""Is a point's motion caged? The local exponent of the MSRD (MSRD ∝ lag^β: β < 1 subdiffusive,
+caged; β ≈ 1 diffusive; β > 1 persistent) over lag windows, per run, from a study's committed
+data (runs.csv and msrd.csv.gz, written by `scripts/study.sh run … --report`). β is the
+least-squares slope of log MSRD against log lag over the window's lags.
+
+    bench/msrd_exponents.py DATA_DIR [DATA_DIR…] [--windows 360:3600,3600:14400] [--where K=V…]
+
+Prints one markdown row per succeeded run: its point (the study's swept keys), seed, β in each
+window, the MSRD at the longest lag and the mixing time (the study's column), then per
+point the median β of each window. A jammed tissue shows β well below 1 at long lags and a
+mixing time at the run's cap.
+"""
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+
+def windows_arg(text):
+    out = []
+    for part in text.split(","):
+        lo, hi = part.split(":")
+        out.append((float(lo), float(hi)))
+        if not 0 < out[-1][0] < out[-1][1]:
+            raise argparse.ArgumentTypeError(f"window {part!r}: need 0 < low < high (seconds)")
+    return out
+
+
+def slope(lags, msrd, lo, hi):
+    keep = (lags >= lo) & (lags <= hi) & (msrd > 0)
+    if keep.sum() < 3:
+        return float("nan")
+    return float(np.polyfit(np.log(lags[keep]), np.log(msrd[keep]), 1)[0])
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("data", nargs="+", type=Path, help="a study's data folder")
+    ap.add_argument("--windows", type=windows_arg, default=windows_arg("360:3600,3600:14400"),
+                    help="lag windows in seconds, LOW:HIGH,… (default 360:3600,3600:14400)")
+    ap.add_argument("--where", nargs="*", default=[],
+                    help="keep runs whose column K equals V (compared as text and as number)")
+    args = ap.parse_args()
+
+    rows = []
+    for folder in args.data:
+        runs_file, msrd_file = folder / "runs.csv", folder / "msrd.csv.gz"
+        for f in (runs_file, msrd_file):
+            if not f.is_file():
+                sys.exit(f"msrd_exponents: {f} not found (a study's data folder holds runs.csv "
+                         "and msrd.csv.gz)")
+        runs = pd.read_csv(runs_file)
+        msrd = pd.read_csv(msrd_file)
+        keys = list(runs.columns[1:list(runs.columns).index("seed")])
+        for cond in args.where:
+            k, _, v = cond.partition("=")
+            if k not in runs.columns:
+                sys.exit(f"msrd_exponents: --where {cond}: no column {k!r} in {runs_file}")
+            col = runs[k]
+            try:
+                runs = runs[np.isclose(col.astype(float), float(v))]
+            except ValueError:
+                runs = runs[col.astype(str) == v]
+        for _, run in runs[runs["state"] == "succeeded"].iterrows():
+            m = msrd[msrd["job_id"] == run["job_id"]].sort_values("lag_s")
+            if m.empty:
+                continue
+            lags, vals = m["lag_s"].to_numpy(float), m["msrd_um2"].to_numpy(float)
+            point = ", ".join(f"{k} = {run[k]}" for k in keys)
+            betas = [slope(lags, vals, lo, hi) for lo, hi in args.windows]
+            rows.append({"study": folder.parent.name, "point": point, "seed": int(run["seed"]),
+                         "job": run["job_id"], "betas": betas,
+                         "msrd_end_um2": vals[-1],
+                         "mixing_time_s": run.get("mixing_time_s", float("nan")),
+                         "t_end_s": run.get("t_end_s", float("nan"))})
+    if not rows:
+        sys.exit("msrd_exponents: no succeeded run with MSRD samples")
+
+    names = [f"β {lo / 60:g}–{hi / 60:g} min" for lo, hi in args.windows]
+    print("| study | point | seed | job | " + " | ".join(names) +
+          " | MSRD at the last lag (µm²) | mixing time (s) | run length (s) |")
+    print("|---|---|---|---|" + "---|" * len(names) + "---|---|---|")
+    for r in rows:
+        print(f"| {r['study']} | {r['point']} | {r['seed']} | {r['job']} | " +
+              " | ".join(f"{b:.2f}" for b in r["betas"]) +
+              f" | {r['msrd_end_um2']:.4g} | {r['mixing_time_s']:.4g} | {r['t_end_s']:.0f} |")
+    print()
+    print("| study | point | runs | " + " | ".join(f"median {n}" for n in names) + " |")
+    print("|---|---|---|" + "---|" * len(names))
+    groups = {}
+    for r in rows:
+        groups.setdefault((r["study"], r["point"]), []).append(r)
+    for (study, point), rs in groups.items():
+        med = [np.nanmedian([r["betas"][i] for r in rs]) for i in range(len(names))]
+        print(f"| {study} | {point} | {len(rs)} | " + " | ".join(f"{b:.2f}" for b in med) + " |")
+
+
+if __name__ == "__main__":
+    main()
