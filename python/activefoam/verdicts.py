@@ -293,6 +293,7 @@ def evaluate(items: List[TrendSpec], data_root: os.PathLike,
             row = {"figure": t.figure, "statement": t.statement, "source": t.source,
                    "study": t.study.name, "metric": t.metric, "expect": t.expect,
                    "at": f"{t.per} = {pv}" if t.per else "",
+                   "value": t.value,  # a level row names its level even before it has runs
                    "low": ", ".join(f"{k} = {v}" for k, v in t.low.items()),
                    "high": ", ".join(f"{k} = {v}" for k, v in t.high.items())}
             if runs is None:
