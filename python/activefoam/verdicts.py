@@ -312,7 +312,7 @@ def evaluate(items: List[TrendSpec], data_root: os.PathLike,
                        if t.expect not in ("below", "above") else "")
             if t.expect in ("below", "above"):
                 m = _median_interval(xh)
-                row.update(effect=m.diff, lo=m.lo, hi=m.hi, value=t.value)
+                row.update(effect=m.diff, lo=m.lo, hi=m.hi)
                 if len(xh) < trends.MIN_SEEDS:
                     verdict = "too few runs"
                 elif (m.hi < t.value) if t.expect == "below" else (m.lo > t.value):
