@@ -1,0 +1,265 @@
+#!/usr/bin/python3
+"""Whose motion makes the MSRD: cells under the doublet's surface or cells on it? The MSRD of
+neighbours (DESIGN.md: pairs in contact at the time origin, pooled over origins) split by where
+the pair's cells are at the origin — both buried (no free surface), both on the surface, or
+one of each — from a run's snapshots (foam-run with snapshot_every_s > 0).
+
+    bench/msrd_by_depth.py SNAPSHOT_DIR [--radius-um R] [--free-below F] [--touch-um D]
+                           [--engine-summary summary.json] [--csv OUT.csv]
+
+The snapshots carry meshes, not the engine's contact list, so contact is read from geometry:
+a vertex of cell i touches cell j when it lies within D of j's surface (default 0.5 µm, a
+point–triangle distance; the adhesion's range h0 is ~0.06 µm, the contact's overlap up to
+~1 µm); i and j are in contact when at least 3 of either's vertices touch the other; a cell's free fraction is the share of its vertices that
+touch no cell, and it is buried below F (default 0.05). --engine-summary compares the proxy's
+all-pairs curve with the engine's own MSRD (the run's summary.json): the proxy is read only
+where the two agree. Prints, per lag, the MSRD / r² of each class with its pair count, and
+the mixing time (MSRD = r²) of each class.
+"""
+import argparse
+import json
+import pickle
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+
+
+def data_array(text, name):
+    m = re.search(r'<DataArray[^>]*Name="' + name + r'"[^>]*>(.*?)</DataArray>', text, re.S)
+    if not m:
+        raise ValueError(f"no DataArray {name!r}")
+    return np.array(m.group(1).split(), dtype=float)
+
+
+def read_snapshot(path):
+    text = Path(path).read_text()
+    t = float(data_array(text, "TIME")[0])
+    pts = data_array(text, "Points").reshape(-1, 3)
+    vcell = data_array(text, "cell_id").astype(int)  # the PointData one comes first
+    tri = data_array(text, "connectivity").astype(int).reshape(-1, 3)
+    return t, pts, vcell[: len(pts)], tri
+
+
+def centroids(pts, vcell, tri, n):
+    """Volume centroids: signed tetrahedra from each cell's vertex mean."""
+    o = np.zeros((n, 3))
+    np.add.at(o, vcell, pts)
+    o /= np.bincount(vcell, minlength=n)[:, None]
+    c = vcell[tri[:, 0]]
+    a, b, d = (pts[tri[:, k]] - o[c] for k in range(3))
+    vol = np.einsum("ij,ij->i", a, np.cross(b, d)) / 6.0
+    w = np.zeros(n)
+    np.add.at(w, c, vol)
+    m = np.zeros((n, 3))
+    np.add.at(m, c, vol[:, None] * (a + b + d) / 4.0)
+    return o + m / w[:, None]
+
+
+def point_triangle_distance(p, a, b, c):
+    """Distances (m, t) from points p (m, 3) to triangles (a, b, c) (t, 3 each)."""
+    n = np.cross(b - a, c - a)
+    nn = np.linalg.norm(n, axis=1)
+    n = n / np.where(nn > 0, nn, 1.0)[:, None]
+    d = p[:, None, :] - a[None, :, :]
+    h = np.einsum("mtk,tk->mt", d, n)
+    q = p[:, None, :] - h[:, :, None] * n[None, :, :]  # projections on the planes
+
+    def inside(u, v, w):
+        return np.einsum("mtk,tk->mt", np.cross(v - u, q - u[None]), n) >= 0
+
+    ins = inside(a, b, c) & inside(b, c, a) & inside(c, a, b)
+
+    def seg(u, v):
+        e = v - u
+        s = np.clip(np.einsum("mtk,tk->mt", p[:, None, :] - u[None], e)
+                    / np.maximum(np.einsum("tk,tk->t", e, e), 1e-300), 0.0, 1.0)
+        return np.linalg.norm(p[:, None, :] - (u[None] + s[:, :, None] * e[None]), axis=2)
+
+    edge = np.minimum(np.minimum(seg(a, b), seg(b, c)), seg(c, a))
+    return np.where(ins, np.abs(h), edge)
+
+
+def contacts(pts, vcell, tri, x, n, touch_um, reach_um):
+    """Contacting cell pairs and each cell's free fraction: a vertex touches cell j when it
+    lies within touch_um of j's surface (a point–triangle distance)."""
+    verts = [np.flatnonzero(vcell == c) for c in range(n)]
+    tris = [tri[vcell[tri[:, 0]] == c] for c in range(n)]
+    touched = np.zeros(len(pts), dtype=bool)
+    pairs = []
+    for i in range(n):
+        for j in range(i + 1, n):
+            if np.linalg.norm(x[i] - x[j]) > reach_um:
+                continue
+            counts = []
+            for u, w in ((i, j), (j, i)):
+                p = pts[verts[u]]
+                t = tris[w]
+                lo = pts[verts[w]].min(axis=0) - touch_um
+                hi = pts[verts[w]].max(axis=0) + touch_um
+                near = np.all((p >= lo) & (p <= hi), axis=1)
+                if not near.any():
+                    counts.append(0)
+                    continue
+                d = point_triangle_distance(p[near], pts[t[:, 0]], pts[t[:, 1]], pts[t[:, 2]])
+                hit = verts[u][near][d.min(axis=1) < touch_um]
+                touched[hit] = True
+                counts.append(len(hit))
+            if max(counts) >= 3:
+                pairs.append((i, j))
+    free = np.array([1.0 - touched[v].mean() for v in verts])
+    return pairs, free
+
+
+CLASSES = ("all", "buried-buried", "buried-surface", "surface-surface")
+
+
+def msrd_by_class(xs, pairs_at, free_at, free_below, first_origin=0):
+    """Summed squared relative displacements and pair counts per lag (in samples) and class.
+    xs: (samples, cells, 3) centroids; pairs_at[o]: the pairs in contact at sample o; a cell is
+    buried at o when free_at[o] < free_below. Every origin–pair counts once (the engine's
+    pooling); origins before sample first_origin are left out."""
+    nl = len(xs)
+    sums = {c: np.zeros(nl) for c in CLASSES}
+    counts = {c: np.zeros(nl, dtype=int) for c in CLASSES}
+    for o in range(first_origin, nl):
+        if len(pairs_at[o]) == 0:
+            continue
+        p = np.asarray(pairs_at[o])
+        b = np.asarray(free_at[o]) < free_below
+        nb = b[p[:, 0]].astype(int) + b[p[:, 1]].astype(int)
+        cls = {"all": np.ones(len(p), bool), "buried-buried": nb == 2,
+               "buried-surface": nb == 1, "surface-surface": nb == 0}
+        rel0 = xs[o, p[:, 0]] - xs[o, p[:, 1]]
+        for lag in range(nl - o):
+            rel = xs[o + lag, p[:, 0]] - xs[o + lag, p[:, 1]]
+            d2 = np.sum((rel - rel0) ** 2, axis=1)
+            for c in CLASSES:
+                sums[c][lag] += d2[cls[c]].sum()
+                counts[c][lag] += int(cls[c].sum())
+    return sums, counts
+
+
+def mixing(lags, y):
+    """The lag where y first reaches 1 (linear between samples), or None."""
+    above = np.flatnonzero(y >= 1.0)
+    if len(above) == 0:
+        return None
+    k = above[0]
+    if k == 0:
+        return 0.0
+    return lags[k - 1] + (1.0 - y[k - 1]) / (y[k] - y[k - 1]) * (lags[k] - lags[k - 1])
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("snapshots", type=Path)
+    ap.add_argument("--radius-um", type=float, default=None,
+                    help="r for MSRD / r² (default: the run's spec.json beside the folder)")
+    ap.add_argument("--free-below", type=float, default=0.05)
+    ap.add_argument("--touch-um", type=float, default=0.5)
+    ap.add_argument("--engine-summary", type=Path, default=None)
+    ap.add_argument("--csv", type=Path, default=None)
+    ap.add_argument("--origins-from", type=float, default=0.0, metavar="SECONDS",
+                    help="only time origins at or after this time (e.g. once the doublet has "
+                         "fused: the MSRD without the fusion's own flow); the engine's curve "
+                         "pools every origin, so --engine-summary compares only at 0")
+    args = ap.parse_args()
+
+    files = sorted(args.snapshots.glob("snap_*.vtp"))
+    if len(files) < 3:
+        sys.exit(f"msrd_by_depth: {args.snapshots}: fewer than 3 snapshots")
+    r = args.radius_um
+    if r is None:
+        spec = args.snapshots.parent / "spec.json"
+        r = json.loads(spec.read_text())["cells"]["radius_mean_um"]
+
+    touch = args.touch_um
+    # Reading the meshes is the cost (seconds a snapshot): what each gives is kept beside them
+    # and reused while that snapshot is unchanged (a run still writing them adds to it).
+    cache = args.snapshots / f".msrd_by_depth-touch{touch:g}-r{r:g}.pkl"
+    saved = {}
+    if cache.exists():
+        try:
+            saved = pickle.loads(cache.read_bytes())
+        except Exception:
+            saved = {}
+    ts, xs, pairs_at, free_at = [], [], [], []
+    fresh = {}
+    for k, f in enumerate(files):
+        st = f.stat()
+        key = (f.name, st.st_size, st.st_mtime_ns)
+        if key not in saved:
+            t, pts, vcell, tri = read_snapshot(f)
+            n = int(vcell.max()) + 1
+            x = centroids(pts, vcell, tri, n)
+            pairs, free = contacts(pts, vcell, tri, x, n, touch, 3.0 * r)
+            saved[key] = (t, x, pairs, free)
+        fresh[key] = saved[key]
+        t, x, pairs, free = saved[key]
+        ts.append(t)
+        xs.append(x)
+        pairs_at.append(pairs)
+        free_at.append(free)
+        print(f"\r{k + 1}/{len(files)} snapshots", end="", file=sys.stderr)
+    print(file=sys.stderr)
+    try:
+        cache.write_bytes(pickle.dumps(fresh))
+    except OSError:
+        pass
+    ts = np.array(ts)
+    xs = np.array(xs)
+    dt = float(np.mean(np.diff(ts)))
+
+    buried0 = free_at[0] < args.free_below
+    print(f"r = {r} µm, touch = {touch:.2f} µm, snapshots every {dt:.0f} s, {len(ts)} of them; "
+          f"cells buried at t = 0: {int(buried0.sum())} of {len(buried0)}; "
+          f"buried over the run (median): "
+          f"{int(np.median([(f < args.free_below).sum() for f in free_at]))}")
+
+    lags = np.arange(len(ts)) * dt
+    nl = len(ts)
+    first = int(np.searchsorted(ts, args.origins_from - 1e-9))
+    if first >= len(ts) - 2:
+        sys.exit(f"msrd_by_depth: --origins-from {args.origins_from}: fewer than 3 snapshots from there")
+    if first:
+        print(f"origins from t = {ts[first]:.0f} s ({len(ts) - first} of them)")
+    sums, counts = msrd_by_class(xs, pairs_at, free_at, args.free_below, first)
+    curve = {c: np.where(counts[c] > 0, sums[c] / np.maximum(counts[c], 1), np.nan) / r**2
+             for c in CLASSES}
+    classes = CLASSES
+    nl = len(ts) - first
+
+    eng = None
+    if args.engine_summary:
+        m = json.loads(args.engine_summary.read_text())["msrd"]
+        eng = (np.array(m["lag_s"]), np.array(m["msrd_um2"]) / r**2)
+
+    print()
+    hdr = "| lag (s) | " + " | ".join(f"{c} (pairs)" for c in classes)
+    print(hdr + ((" | engine, all |" if not first else " | engine, all, every origin |")
+                 if eng else " |"))
+    print("|" + "---|" * (len(classes) + 1 + (1 if eng else 0)))
+    show = sorted(set(np.unique(np.round(np.geomspace(1, nl - 1, 14)).astype(int))))
+    for k in show:
+        row = f"| {lags[k]:.0f} | " + " | ".join(
+            f"{curve[c][k]:.3g} ({counts[c][k]})" for c in classes)
+        if eng:
+            row += f" | {np.interp(lags[k], eng[0], eng[1]):.3g}"
+        print(row + " |")
+    print()
+    for c in classes:
+        mt = mixing(lags, curve[c])
+        print(f"mixing time, {c}: " + (f"{mt:.0f} s" if mt is not None
+                                       else f"not reached in {lags[nl - 1]:.0f} s"))
+    if args.csv:
+        with open(args.csv, "w") as f:
+            f.write("lag_s," + ",".join(f"msrd_r2_{c},pairs_{c}" for c in classes) + "\n")
+            for k in range(nl):
+                f.write(f"{lags[k]:.6g}," + ",".join(
+                    f"{curve[c][k]:.6g},{counts[c][k]}" for c in classes) + "\n")
+
+
+if __name__ == "__main__":
+    main()

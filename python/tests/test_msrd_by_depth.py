@@ -1,0 +1,150 @@
+"""bench/msrd_by_depth.py: the geometry it reads contact from, and the MSRD split by depth, on
+meshes and motions with known answers."""
+import importlib.util
+import itertools
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+_PATH = Path(__file__).resolve().parents[2] / "bench" / "msrd_by_depth.py"
+_spec = importlib.util.spec_from_file_location("msrd_by_depth", _PATH)
+mbd = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(mbd)
+
+
+def cube(centre, side=1.0):
+    """A closed cube, each face a 3 × 3 grid of vertices (26 vertices, 48 outward triangles)."""
+    h = side / 2
+    grid = [-h, 0.0, h]
+    verts = [np.array(p) for p in itertools.product(grid, grid, grid) if any(abs(c) == h for c in p)]
+    index = {tuple(np.round(v, 9)): k for k, v in enumerate(verts)}
+    tris = []
+    for axis, sign in itertools.product(range(3), (-1, 1)):
+        u, w = [a for a in range(3) if a != axis]
+        for i, j in itertools.product(range(2), range(2)):
+            def at(a, b):
+                p = [0.0, 0.0, 0.0]
+                p[axis] = sign * h
+                p[u] = grid[a]
+                p[w] = grid[b]
+                return index[tuple(np.round(p, 9))]
+            q = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]
+            # (u, w, axis) is right-handed for sign +1 when axis follows w cyclically
+            outward = sign * (1 if (axis - w) % 3 == 1 else -1)
+            if outward < 0:
+                q = q[::-1]
+            tris += [(q[0], q[1], q[2]), (q[0], q[2], q[3])]
+    return np.array(verts) + np.asarray(centre, float), np.array(tris)
+
+
+def scene(centres, side=1.0):
+    pts, vcell, tri = [], [], []
+    for c, x in enumerate(centres):
+        p, t = cube(x, side)
+        tri.append(t + sum(len(q) for q in pts))
+        pts.append(p)
+        vcell += [c] * len(p)
+    return np.concatenate(pts), np.array(vcell), np.concatenate(tri)
+
+
+def test_point_triangle_distance_in_each_region():
+    a, b, c = np.array([[0.0, 0, 0]]), np.array([[1.0, 0, 0]]), np.array([[0.0, 1, 0]])
+    p = np.array([[0.2, 0.2, 0.5],   # above the face
+                  [2.0, 0.0, 0.0],   # past a vertex
+                  [-1.0, -1.0, 0.0],  # past the other vertex, in the plane
+                  [0.5, 0.5, 1.0],   # above the hypotenuse's middle
+                  [0.5, -2.0, 0.0]])  # beside an edge
+    d = mbd.point_triangle_distance(p, a, b, c)[:, 0]
+    assert d == pytest.approx([0.5, 1.0, np.sqrt(2.0), 1.0, 2.0])
+
+
+def test_cube_meshes_are_closed_and_outward():
+    pts, vcell, tri = scene([(0.3, -1.2, 2.0)], side=2.0)
+    x = mbd.centroids(pts, vcell, tri, 1)
+    assert x[0] == pytest.approx([0.3, -1.2, 2.0])
+    a, b, c = (pts[tri[:, k]] for k in range(3))
+    volume = np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0
+    assert volume == pytest.approx(8.0)
+    edges = {}
+    for t in tri:
+        for k in range(3):
+            e = (t[k], t[(k + 1) % 3])
+            edges[e] = edges.get(e, 0) + 1
+    assert all(edges.get((j, i)) == 1 for (i, j) in edges)  # each edge once each way
+
+
+def test_a_grid_of_touching_cubes_buries_only_its_middle():
+    centres = list(itertools.product(range(3), range(3), range(3)))
+    pts, vcell, tri = scene(centres)
+    x = mbd.centroids(pts, vcell, tri, len(centres))
+    assert x == pytest.approx(np.array(centres, float))
+    pairs, free = mbd.contacts(pts, vcell, tri, x, len(centres), touch_um=0.05, reach_um=1.5)
+    middle = centres.index((1, 1, 1))
+    assert free[middle] == 0.0
+    assert np.all(np.delete(free, middle) > 0.0)
+    # every face neighbour touches over a face: a pair
+    for i, j in itertools.combinations(range(len(centres)), 2):
+        if np.abs(np.subtract(centres[i], centres[j])).sum() == 1:
+            assert (i, j) in pairs
+    # corner neighbours share one vertex, and cubes apart share none: no pair
+    for i, j in pairs:
+        assert np.abs(np.subtract(centres[i], centres[j])).max() == 1
+        assert np.abs(np.subtract(centres[i], centres[j])).sum() <= 2
+
+
+def test_separated_cubes_do_not_touch():
+    pts, vcell, tri = scene([(0, 0, 0), (1.2, 0, 0)])
+    x = mbd.centroids(pts, vcell, tri, 2)
+    pairs, free = mbd.contacts(pts, vcell, tri, x, 2, touch_um=0.1, reach_um=5.0)
+    assert pairs == []
+    assert free == pytest.approx([1.0, 1.0])
+
+
+def test_msrd_splits_by_the_depth_at_the_origin():
+    # cell 0 buried and still, cells 1 and 2 on the surface moving along x and y at unit speed:
+    # buried–surface pairs move apart by lag², the surface pair by 2 lag²
+    lags = np.arange(6)
+    xs = np.zeros((6, 3, 3))
+    xs[:, 1, 0] = lags
+    xs[:, 2, 1] = lags
+    pairs = [[(0, 1), (0, 2), (1, 2)]] * 6
+    free = [np.array([0.0, 0.4, 0.4])] * 6
+    sums, counts = mbd.msrd_by_class(xs, pairs, free, free_below=0.05)
+    n_origins = 6 - lags
+    assert list(counts["buried-surface"]) == list(2 * n_origins)
+    assert list(counts["surface-surface"]) == list(n_origins)
+    assert list(counts["buried-buried"]) == [0] * 6
+    assert sums["buried-surface"] / counts["buried-surface"] == pytest.approx(lags**2.0)
+    assert sums["surface-surface"] / counts["surface-surface"] == pytest.approx(2.0 * lags**2)
+    assert sums["all"] / counts["all"] == pytest.approx(4.0 / 3.0 * lags**2)
+
+
+def test_a_pair_counts_in_the_class_it_had_at_its_origin():
+    # cell 1 is buried at the first origin only: that origin's pair is buried–buried
+    xs = np.zeros((3, 2, 3))
+    xs[:, 1, 2] = [0.0, 1.0, 2.0]
+    free = [np.array([0.0, 0.0]), np.array([0.0, 0.5]), np.array([0.0, 0.5])]
+    sums, counts = mbd.msrd_by_class(xs, [[(0, 1)]] * 3, free, free_below=0.05)
+    assert list(counts["buried-buried"]) == [1, 1, 1]
+    assert list(counts["buried-surface"]) == [2, 1, 0]  # origins 1 and 2
+    assert sums["buried-buried"][2] == pytest.approx(4.0)
+
+
+def test_origins_before_the_first_are_left_out():
+    # the pair separates only during the first two samples (a flow), then stays: from origin 2
+    # on its MSRD is zero at every lag
+    xs = np.zeros((6, 2, 3))
+    xs[:, 1, 0] = [0.0, 1.0, 2.0, 2.0, 2.0, 2.0]
+    free = [np.array([0.5, 0.5])] * 6
+    sums, counts = mbd.msrd_by_class(xs, [[(0, 1)]] * 6, free, 0.05, first_origin=2)
+    assert list(counts["all"]) == [4, 3, 2, 1, 0, 0]
+    assert np.all(sums["all"] == 0.0)
+    sums, counts = mbd.msrd_by_class(xs, [[(0, 1)]] * 6, free, 0.05)
+    assert sums["all"][1] / counts["all"][1] == pytest.approx(2.0 / 5.0)
+
+
+def test_mixing_interpolates_where_the_curve_crosses_one():
+    lags = np.arange(0.0, 3000.0, 100.0)
+    assert mbd.mixing(lags, lags / 1234.0) == pytest.approx(1234.0)
+    assert mbd.mixing(lags, lags / 1e6) is None
