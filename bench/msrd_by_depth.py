@@ -219,7 +219,6 @@ def main():
           f"{int(np.median([(f < args.free_below).sum() for f in free_at]))}")
 
     lags = np.arange(len(ts)) * dt
-    nl = len(ts)
     first = int(np.searchsorted(ts, args.origins_from - 1e-9))
     if first >= len(ts) - 2:
         sys.exit(f"msrd_by_depth: --origins-from {args.origins_from}: fewer than 3 snapshots from there")
@@ -229,7 +228,7 @@ def main():
     curve = {c: np.where(counts[c] > 0, sums[c] / np.maximum(counts[c], 1), np.nan) / r**2
              for c in CLASSES}
     classes = CLASSES
-    nl = len(ts) - first
+    nl = len(ts) - first  # the lags some origin reaches
 
     eng = None
     if args.engine_summary:
