@@ -898,10 +898,18 @@ def cancel_stale(study: Study, client: Any, cancel: bool, out=sys.stderr) -> int
               f"run of {study.path.name} as it is now ({ids}): they go on; --cancel-stale "
               "cancels them", file=out)
         return len(live)
-    for j in live:
-        client.cancel(j.id, f"study {study.name}: no run of the study file as it is now")
-    print(f"study {study.name}: cancelled {len(live)} jobs that are no run of "
-          f"{study.path.name} as it is now ({ids})", file=out)
+    # A running job may finish its last step before the cancel reaches it: the count says what
+    # the server answered, not what was asked.
+    states = [client.cancel(j.id, f"study {study.name}: no run of the study file as it is now")
+              for j in live]
+    stopping = sum(s == "running" for s in states)
+    cancelled = sum(s == "cancelled" for s in states)
+    ended = len(states) - stopping - cancelled
+    print(f"study {study.name}: cancelled {cancelled + stopping} jobs that are no run of "
+          f"{study.path.name} as it is now ({ids})"
+          + (f"; {stopping} of them running, to stop at their next step unless it is their last"
+             if stopping else "")
+          + (f"; {ended} had ended before the cancel reached them" if ended else ""), file=out)
     return len(live)
 
 
