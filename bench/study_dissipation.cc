@@ -1,0 +1,299 @@
+// Where does the fusing aggregate's power go? Fig. 14 of the supplement has cell–cell friction
+// "sharply" slowing relative motion over L_η/r 0.25–2 (ξ over a factor 64); ours barely moves
+// (docs/science/fig14-reduced/). A run's motion is overdamped: every step solves Γ v = F, so the
+// power the forces put in, vᵀF, is dissipated term by term as vᵀΓ_term v. If contact friction
+// takes a small share of it, ξ cannot slow the cells much; this driver measures the shares.
+//
+// Every configuration starts from the same aggregate, prepared once at the base spec's ξ (the
+// key=value settings), and is driven by the same polarity noise (one Wiener path per cell, a
+// function of time): configurations differ by their L_η/r alone. Every sample_s it takes the
+// velocity of the next step, v = Δx/Δt (a one-stage integrator: exactly the solved v; a step
+// that remeshes is skipped for the next one), and prints per configuration and sample:
+//   - the dissipation of medium drag, cortex viscosity and the contact friction's tangential
+//     and normal parts, nW (nN·µm/s): vᵀΓ_term v with Γ_term built by the term itself from the
+//     step's start geometry and contacts;
+//   - the contact springs' implicit part Δt vᵀK_c v (contact-implicit integrators: Γ carries it;
+//     no dissipation of the model, the spring's force taken at the end of the step);
+//   - the power of the forces, vᵀF (= the sum above to the solve's tolerance: the check that Γ
+//     is rebuilt as the step used it), and of the active forces alone;
+//   - the same dissipations of each cell's affine part of v (translation, rotation, uniform
+//     strain: cell-scale motion) and the cortex's and tangential friction's of the rest;
+//   - the cortex's dissipation of v less its one-ring mean (vertex-scale jitter);
+//   - the RMS speed of the cell centroids and of their motion relative to their contacting
+//     neighbours' centroids, µm/min, and the MSRD from t = 0 (pairs in contact then).
+//
+//   OMP_NUM_THREADS=1 build/release/bench/study_dissipation CACHE_DIR n_cells seed T_s sample_s
+//       integrator:Δt:preconditioner[:ε_CG] l_eta_1[:key=value…][,l_eta_2…] [key=value …]
+//
+// The key=value settings at the end apply to every configuration and to the preparation; those
+// after a configuration's L_η/r to it alone (0.5:cells.eta_m=0.1), the aggregate unchanged.
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "activefoam/contacts.h"
+#include "activefoam/friction_operator.h"
+#include "activefoam/geometry.h"
+#include "activefoam/observables.h"
+#include "activefoam/simulation.h"
+#include "activefoam/spec_io.h"
+#include "activefoam/spheroid.h"
+#include "activefoam/terms.h"
+#include "scheme_config.h"
+
+using namespace activefoam;
+
+namespace {
+
+double quadratic(const ForceTerm& term, const StepContext& ctx, const Eigen::VectorXd& v) {
+  FrictionOperator op;
+  op.reset(ctx.cells.numVertices(), ctx.cells.topology_version);
+  term.addFriction(ctx, op);
+  Eigen::VectorXd y(v.size());
+  op.apply(v.data(), y.data());
+  return v.dot(y);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 8) {
+    std::fprintf(
+        stderr,
+        "usage: study_dissipation CACHE_DIR n_cells seed T_s sample_s "
+        "integrator:dt:preconditioner[:cg_tol] l_eta[:key=value...][,l_eta...] [key=value ...]\n");
+    return 2;
+  }
+  const SpheroidCache cache(argv[1]);
+  const int n = std::atoi(argv[2]);
+  const auto seed = static_cast<std::uint64_t>(std::atoll(argv[3]));
+  const double duration = std::atof(argv[4]), every = std::atof(argv[5]);
+  SceneSpec base;
+  base.scene = SceneKind::Fusion;
+  base.seed = seed;
+  base.scene_params.n_cells = n;
+  base.cells.pa_reduced = 0.33;
+  base.numerics.triangles_per_cell = 320;
+  for (int a = 8; a < argc; ++a)
+    if (const auto error = applySetting(base, argv[a])) {  // as foam-run --set
+      std::fprintf(stderr, "%s: %s\n", argv[a], error->str().c_str());
+      return 2;
+    }
+  const SceneSpec unresolved = base;
+  base = resolve(base);
+  const CellSet cells = buildFusionCells(
+      base, &cache, {[](const std::string& l) { std::fprintf(stderr, "%s\n", l.c_str()); }});
+
+  // Configurations: L_η/r, each with its own settings after it (0.5:cells.eta_m=0.1).
+  struct Config {
+    double l_eta;
+    std::vector<std::string> settings;
+    std::string label;
+  };
+  std::vector<Config> configs;
+  std::stringstream list(argv[7]);
+  for (std::string item; std::getline(list, item, ',');) {
+    Config c{std::atof(item.c_str()), {}, item};
+    std::stringstream parts(item);
+    std::string part;
+    std::getline(parts, part, ':');
+    while (std::getline(parts, part, ':')) c.settings.push_back(part);
+    configs.push_back(c);
+  }
+
+  std::printf(
+      "config,l_eta_reduced,xi,t_s,p_medium,p_cortex,p_friction_t,p_friction_n,p_spring_implicit,"
+      "p_forces,p_active,p_medium_affine,p_cortex_affine,p_friction_t_affine,p_friction_n_affine,"
+      "p_cortex_rest,p_friction_t_rest,p_cortex_vertex_scale,v_centroid_um_min,v_relative_um_min,"
+      "msrd_um2,"
+      "unique_contacts,wall_s\n");
+  for (const Config& config : configs) {
+    const double l_eta = config.l_eta;
+    SceneSpec s = unresolved;
+    s.cells.xi_normal.reset();
+    s.cells.xi_tangential.reset();
+    s.cells.l_eta_reduced = l_eta;
+    for (const std::string& setting : config.settings)
+      if (const auto error = applySetting(s, setting)) {
+        std::fprintf(stderr, "%s: %s\n", setting.c_str(), error->str().c_str());
+        return 2;
+      }
+    bench::SchemeConfig scheme;
+    if (const std::string error = bench::applySchemeConfig(argv[6], s, scheme); !error.empty()) {
+      std::fprintf(stderr, "%s: %s\n", argv[6], error.c_str());
+      return 2;
+    }
+    s = resolve(s);
+    Simulation sim(s, cells, scheme.scheme(s));
+    MsrdTracker msrd;
+    ContactHistory history;
+    const auto t0 = std::chrono::steady_clock::now();
+    int k = 0;
+    // Terms built on their own: each one's Γ block, nothing else.
+    CellParams tangential = s.cells, normal = s.cells;
+    tangential.xi_normal = 0.0;
+    normal.xi_tangential = 0.0;
+    const MediumDrag medium(s.cells);
+    const CortexViscosity cortex(s.cells);
+    const ContactFriction fric_t(tangential), fric_n(normal);
+    CellParams springs_only = s.cells;
+    springs_only.xi_normal = 0.0;
+    springs_only.xi_tangential = 0.0;
+    const ContactFriction springs(springs_only);
+    const ActiveMigration act(s.cells, s.seed);
+    auto sample = [&]() -> bool {
+      sim.detect();
+      // The step's start: copies, since the step changes them.
+      const CellSet c0 = sim.cells();
+      const Geometry g0 = sim.geometry();
+      const ContactList con0 = sim.contacts();
+      Eigen::Matrix3Xd f;
+      sim.computeForces(f);
+      const double dt = sim.dt();
+      const double stiffness_dt = sim.scheme().contactStiffnessDt(dt);
+      const bool consistent = sim.scheme().consistentStiffness();
+      const StepReport r = sim.step();
+      if (!r.ok()) {
+        std::fprintf(stderr, "L_eta %g: failed at t = %g s: %s\n", l_eta, sim.time(),
+                     std::string(toString(r.failure)).c_str());
+        return false;
+      }
+      if (sim.cells().topology_version != c0.topology_version ||
+          sim.cells().numVertices() != c0.numVertices())
+        return true;  // remeshed: the next step gives the velocity
+      const int nv = c0.numVertices();
+      Eigen::VectorXd v(3 * nv);
+      for (int i = 0; i < nv; ++i) v.segment<3>(3 * i) = (sim.cells().x.col(i) - c0.x.col(i)) / dt;
+      Topology topo;
+      updateTopology(c0, topo);
+      StepContext plain{c0, g0, topo, dt, sim.time() - dt, &con0, 0.0};
+      plain.consistent_stiffness = consistent;
+      StepContext stiff = plain;
+      stiff.contact_stiffness_dt = stiffness_dt;
+      const double pm = quadratic(medium, plain, v), pc = quadratic(cortex, plain, v);
+      const double pt = quadratic(fric_t, plain, v), pn = quadratic(fric_n, plain, v);
+      const double ps = stiffness_dt > 0 ? quadratic(springs, stiff, v) : 0.0;
+      double pf = 0;
+      for (int i = 0; i < nv; ++i) pf += v.segment<3>(3 * i).dot(f.col(i));
+      // The active forces alone: the migration term's forces at the start.
+      double pa = 0;
+      Eigen::Matrix3Xd fa = Eigen::Matrix3Xd::Zero(3, nv);
+      act.addForces(plain, fa);
+      for (int i = 0; i < nv; ++i) pa += v.segment<3>(3 * i).dot(fa.col(i));
+      msrd.addSample(plain.t, c0, g0, con0);
+      history.add(c0, con0);
+      // Each cell's affine part of v (translation, rotation, uniform strain: the least-squares
+      // fit v_i ≈ a + B (x_i − x̄) weighted by nodal area): the motion at the cell's scale. What
+      // the terms dissipate on it against on the rest says whether the power goes into moving and
+      // reshaping whole cells or into finer ripples of their shells.
+      const int nc = c0.numCells();
+      Eigen::VectorXd v_aff(3 * nv);
+      {
+        std::vector<Vec3> xm(nc, Vec3::Zero()), vm(nc, Vec3::Zero());
+        std::vector<double> sw(nc, 0.0);
+        for (int i = 0; i < nv; ++i) {
+          const int c = c0.vertex_cell[i];
+          const double w = g0.vertex_area[i];
+          xm[c] += w * c0.x.col(i);
+          vm[c] += w * v.segment<3>(3 * i);
+          sw[c] += w;
+        }
+        std::vector<Eigen::Matrix3d> xx(nc, Eigen::Matrix3d::Zero()),
+            vx(nc, Eigen::Matrix3d::Zero());
+        for (int c = 0; c < nc; ++c) {
+          xm[c] /= sw[c];
+          vm[c] /= sw[c];
+        }
+        for (int i = 0; i < nv; ++i) {
+          const int c = c0.vertex_cell[i];
+          const double w = g0.vertex_area[i];
+          const Vec3 dx = c0.x.col(i) - xm[c];
+          xx[c] += w * dx * dx.transpose();
+          vx[c] += w * (v.segment<3>(3 * i) - vm[c]) * dx.transpose();
+        }
+        std::vector<Eigen::Matrix3d> b(nc);
+        for (int c = 0; c < nc; ++c) b[c] = vx[c] * xx[c].inverse();
+        for (int i = 0; i < nv; ++i) {
+          const int c = c0.vertex_cell[i];
+          v_aff.segment<3>(3 * i) = vm[c] + b[c] * (c0.x.col(i) - xm[c]);
+        }
+      }
+      const Eigen::VectorXd v_rest = v - v_aff;
+      // The vertex-scale part: v less its one-ring mean. A field smooth over a few edges leaves
+      // little here; jitter from vertex to vertex (a discretisation's noise) leaves most of itself.
+      Eigen::VectorXd v_ring = v;
+      {
+        Eigen::VectorXd sum = Eigen::VectorXd::Zero(3 * nv);
+        std::vector<int> count(nv, 0);
+        for (const Edge& e : topo.edges) {
+          sum.segment<3>(3 * e.i) += v.segment<3>(3 * e.j);
+          sum.segment<3>(3 * e.j) += v.segment<3>(3 * e.i);
+          ++count[e.i];
+          ++count[e.j];
+        }
+        for (int i = 0; i < nv; ++i)
+          if (count[i]) v_ring.segment<3>(3 * i) -= sum.segment<3>(3 * i) / count[i];
+      }
+      const double pc_ring = quadratic(cortex, plain, v_ring);
+      const double pm_a = quadratic(medium, plain, v_aff), pc_a = quadratic(cortex, plain, v_aff);
+      const double pt_a = quadratic(fric_t, plain, v_aff), pn_a = quadratic(fric_n, plain, v_aff);
+      const double pc_r = quadratic(cortex, plain, v_rest), pt_r = quadratic(fric_t, plain, v_rest);
+      // Centroid speeds, absolute and relative to the contacting neighbours' mean.
+      std::vector<Vec3> vc(nc, Vec3::Zero());
+      std::vector<double> area(nc, 0.0);
+      for (int i = 0; i < nv; ++i) {
+        const int c = c0.vertex_cell[i];
+        vc[c] += g0.vertex_area[i] * v.segment<3>(3 * i);
+        area[c] += g0.vertex_area[i];
+      }
+      for (int c = 0; c < nc; ++c) vc[c] /= area[c];
+      std::vector<std::set<int>> nb(nc);
+      for (const ContactPair& p : con0.pairs) {
+        const int a = c0.tri_cell[p.ta], b = c0.tri_cell[p.tb];
+        nb[a].insert(b);
+        nb[b].insert(a);
+      }
+      double v2 = 0, rel2 = 0;
+      int rel_n = 0;
+      for (int c = 0; c < nc; ++c) {
+        v2 += vc[c].squaredNorm();
+        if (nb[c].empty()) continue;
+        Vec3 mean = Vec3::Zero();
+        for (const int d : nb[c]) mean += vc[d];
+        rel2 += (vc[c] - mean / static_cast<double>(nb[c].size())).squaredNorm();
+        ++rel_n;
+      }
+      const double wall =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      std::printf(
+          "%s,%g,%.6g,%g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%."
+          "6g,"
+          "%.6g,%.6g,%.6g,%.1f\n",
+          config.label.c_str(), l_eta, s.cells.xi, plain.t, pm, pc, pt, pn, ps, pf, pa, pm_a, pc_a,
+          pt_a, pn_a, pc_r, pt_r, pc_ring, 60 * std::sqrt(v2 / nc),
+          rel_n ? 60 * std::sqrt(rel2 / rel_n) : 0.0, msrd.msrd(k), history.normalized(), wall);
+      std::fflush(stdout);
+      ++k;
+      return true;
+    };
+    if (!sample()) continue;
+    while (sim.time() < duration - 1e-9) {
+      if (sim.time() + 1e-9 >= k * every) {
+        if (!sample()) break;
+        continue;
+      }
+      const StepReport r = sim.step();
+      if (!r.ok()) {
+        std::fprintf(stderr, "L_eta %g: failed at t = %g s: %s\n", l_eta, sim.time(),
+                     std::string(toString(r.failure)).c_str());
+        break;
+      }
+    }
+  }
+  return 0;
+}
