@@ -44,6 +44,7 @@
 #include "activefoam/spec_io.h"
 #include "activefoam/spheroid.h"
 #include "activefoam/terms.h"
+#include "base_point.h"
 #include "scheme_config.h"
 
 using namespace activefoam;
@@ -69,25 +70,8 @@ int main(int argc, char** argv) {
         "integrator:dt:preconditioner[:cg_tol] l_eta[:key=value...][,l_eta...] [key=value ...]\n");
     return 2;
   }
-  const SpheroidCache cache(argv[1]);
-  const int n = std::atoi(argv[2]);
-  const auto seed = static_cast<std::uint64_t>(std::atoll(argv[3]));
-  const double duration = std::atof(argv[4]), every = std::atof(argv[5]);
-  SceneSpec base;
-  base.scene = SceneKind::Fusion;
-  base.seed = seed;
-  base.scene_params.n_cells = n;
-  base.cells.pa_reduced = 0.33;
-  base.numerics.triangles_per_cell = 320;
-  for (int a = 8; a < argc; ++a)
-    if (const auto error = applySetting(base, argv[a])) {  // as foam-run --set
-      std::fprintf(stderr, "%s: %s\n", argv[a], error->str().c_str());
-      return 2;
-    }
-  const SceneSpec unresolved = base;
-  base = resolve(base);
-  const CellSet cells = buildFusionCells(
-      base, &cache, {[](const std::string& l) { std::fprintf(stderr, "%s\n", l.c_str()); }});
+  const auto point = bench::basePoint(argc, argv, 8);
+  if (!point) return 2;
 
   // Configurations: L_η/r, each with its own settings after it (0.5:cells.eta_m=0.1).
   struct Config {
@@ -114,7 +98,7 @@ int main(int argc, char** argv) {
       "unique_contacts,wall_s\n");
   for (const Config& config : configs) {
     const double l_eta = config.l_eta;
-    SceneSpec s = unresolved;
+    SceneSpec s = point->spec;  // unresolved: L_η/r derives ξ
     s.cells.xi_normal.reset();
     s.cells.xi_tangential.reset();
     s.cells.l_eta_reduced = l_eta;
@@ -129,7 +113,7 @@ int main(int argc, char** argv) {
       return 2;
     }
     s = resolve(s);
-    Simulation sim(s, cells, scheme.scheme(s));
+    Simulation sim(s, point->cells, scheme.scheme(s));
     MsrdTracker msrd;
     ContactHistory history;
     const auto t0 = std::chrono::steady_clock::now();
@@ -282,8 +266,8 @@ int main(int argc, char** argv) {
       return true;
     };
     if (!sample()) continue;
-    while (sim.time() < duration - 1e-9) {
-      if (sim.time() + 1e-9 >= k * every) {
+    while (sim.time() < point->duration_s - 1e-9) {
+      if (sim.time() + 1e-9 >= k * point->sample_s) {
         if (!sample()) break;
         continue;
       }

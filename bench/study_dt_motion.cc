@@ -31,6 +31,7 @@
 #include "activefoam/simulation.h"
 #include "activefoam/spec_io.h"
 #include "activefoam/spheroid.h"
+#include "base_point.h"
 #include "scheme_config.h"
 
 using namespace activefoam;
@@ -42,24 +43,11 @@ int main(int argc, char** argv) {
                  "integrator:dt:preconditioner[:cg_tol][,...] [key=value ...]\n");
     return 2;
   }
-  const SpheroidCache cache(argv[1]);
-  const int n = std::atoi(argv[2]);
-  const auto seed = static_cast<std::uint64_t>(std::atoll(argv[3]));
-  const double duration = std::atof(argv[4]), every = std::atof(argv[5]);
-  SceneSpec base;
-  base.scene = SceneKind::Fusion;
-  base.seed = seed;
-  base.scene_params.n_cells = n;
-  base.cells.pa_reduced = 0.33;
-  base.numerics.triangles_per_cell = 320;
-  for (int a = 7; a < argc; ++a)
-    if (const auto error = applySetting(base, argv[a])) {  // as foam-run --set
-      std::fprintf(stderr, "%s: %s\n", argv[a], error->str().c_str());
-      return 2;
-    }
-  base = resolve(base);
-  const CellSet cells = buildFusionCells(
-      base, &cache, {[](const std::string& l) { std::fprintf(stderr, "%s\n", l.c_str()); }});
+  const auto point = bench::basePoint(argc, argv, 7);
+  if (!point) return 2;
+  const double duration = point->duration_s, every = point->sample_s;
+  const SceneSpec& base = point->resolved;
+  const CellSet& cells = point->cells;
 
   std::vector<std::string> configs;
   std::stringstream list(argv[6]);
