@@ -94,13 +94,10 @@ int main(int argc, char** argv) {
       "config,l_eta_reduced,xi,t_s,p_medium,p_cortex,p_friction_t,p_friction_n,p_spring_implicit,"
       "p_forces,p_active,p_medium_affine,p_cortex_affine,p_friction_t_affine,p_friction_n_affine,"
       "p_cortex_rest,p_friction_t_rest,p_cortex_vertex_scale,v_centroid_um_min,v_relative_um_min,"
-      "msrd_um2,"
-      "unique_contacts,wall_s\n");
+      "msrd_um2,unique_contacts,wall_s\n");
   for (const Config& config : configs) {
     const double l_eta = config.l_eta;
-    SceneSpec s = point->spec;  // unresolved: L_η/r derives ξ
-    s.cells.xi_normal.reset();
-    s.cells.xi_tangential.reset();
+    SceneSpec s = point->spec;  // unresolved: L_η/r derives ξ (and ξ⊥, ξ∥ where not set)
     s.cells.l_eta_reduced = l_eta;
     for (const std::string& setting : config.settings)
       if (const auto error = applySetting(s, setting)) {
