@@ -19,6 +19,7 @@
 //   - the same dissipations of each cell's affine part of v (translation, rotation, uniform
 //     strain: cell-scale motion) and the cortex's and tangential friction's of the rest;
 //   - the cortex's dissipation of v less its one-ring mean (vertex-scale jitter);
+//   - medium drag's and friction's dissipation of each cell's translation alone;
 //   - the RMS speed of the cell centroids and of their motion relative to their contacting
 //     neighbours' centroids, µm/min, and the MSRD from t = 0 (pairs in contact then).
 //
@@ -93,7 +94,8 @@ int main(int argc, char** argv) {
   std::printf(
       "config,l_eta_reduced,xi,t_s,p_medium,p_cortex,p_friction_t,p_friction_n,p_spring_implicit,"
       "p_forces,p_active,p_medium_affine,p_cortex_affine,p_friction_t_affine,p_friction_n_affine,"
-      "p_cortex_rest,p_friction_t_rest,p_cortex_vertex_scale,v_centroid_um_min,v_relative_um_min,"
+      "p_cortex_rest,p_friction_t_rest,p_cortex_vertex_scale,p_medium_translation,"
+      "p_friction_t_translation,p_friction_n_translation,v_centroid_um_min,v_relative_um_min,"
       "msrd_um2,unique_contacts,wall_s\n");
   for (const Config& config : configs) {
     const double l_eta = config.l_eta;
@@ -173,7 +175,7 @@ int main(int argc, char** argv) {
       // the terms dissipate on it against on the rest says whether the power goes into moving and
       // reshaping whole cells or into finer ripples of their shells.
       const int nc = c0.numCells();
-      Eigen::VectorXd v_aff(3 * nv);
+      Eigen::VectorXd v_aff(3 * nv), v_move(3 * nv);
       {
         std::vector<Vec3> xm(nc, Vec3::Zero()), vm(nc, Vec3::Zero());
         std::vector<double> sw(nc, 0.0);
@@ -202,8 +204,12 @@ int main(int argc, char** argv) {
         for (int i = 0; i < nv; ++i) {
           const int c = c0.vertex_cell[i];
           v_aff.segment<3>(3 * i) = vm[c] + b[c] * (c0.x.col(i) - xm[c]);
+          v_move.segment<3>(3 * i) = vm[c];
         }
       }
+      // Each cell's translation alone: what carries cells apart (the MSRD's motion).
+      const double pm_m = quadratic(medium, plain, v_move), pt_m = quadratic(fric_t, plain, v_move),
+                   pn_m = quadratic(fric_n, plain, v_move);
       const Eigen::VectorXd v_rest = v - v_aff;
       // The vertex-scale part: v less its one-ring mean. A field smooth over a few edges leaves
       // little here; jitter from vertex to vertex (a discretisation's noise) leaves most of itself.
@@ -254,9 +260,9 @@ int main(int argc, char** argv) {
       std::printf(
           "%s,%g,%.6g,%g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%."
           "6g,"
-          "%.6g,%.6g,%.6g,%.1f\n",
+          "%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.1f\n",
           config.label.c_str(), l_eta, s.cells.xi, plain.t, pm, pc, pt, pn, ps, pf, pa, pm_a, pc_a,
-          pt_a, pn_a, pc_r, pt_r, pc_ring, 60 * std::sqrt(v2 / nc),
+          pt_a, pn_a, pc_r, pt_r, pc_ring, pm_m, pt_m, pn_m, 60 * std::sqrt(v2 / nc),
           rel_n ? 60 * std::sqrt(rel2 / rel_n) : 0.0, msrd.msrd(k), history.normalized(), wall);
       std::fflush(stdout);
       ++k;
