@@ -1,14 +1,17 @@
 // Where does the fusing aggregate's power go? Fig. 14 of the supplement has cell–cell friction
 // "sharply" slowing relative motion over L_η/r 0.25–2 (ξ over a factor 64); ours barely moves
 // (docs/science/fig14-reduced/). A run's motion is overdamped: every step solves Γ v = F, so the
-// power the forces put in, vᵀF, is dissipated term by term as vᵀΓ_term v. If contact friction
-// takes a small share of it, ξ cannot slow the cells much; this driver measures the shares.
+// power the forces put in, vᵀF, is dissipated term by term as vᵀΓ_term v; this driver measures
+// the shares. (They describe one step, not the response to a change: at the base point friction
+// takes the larger share of the cells' translation, yet ξ ÷ 16 barely speeds them —
+// docs/science/fig14-friction/.)
 //
 // Every configuration starts from the same aggregate, prepared once at the base spec's ξ (the
 // key=value settings), and is driven by the same polarity noise (one Wiener path per cell, a
 // function of time): configurations differ by their L_η/r alone. Every sample_s it takes the
-// velocity of the next step, v = Δx/Δt (a one-stage integrator: exactly the solved v; a step
-// that remeshes is skipped for the next one), and prints per configuration and sample:
+// velocity of the next step, v = Δx/Δt (exactly the solved v of a one-stage integrator; under
+// ros2 it is not, and the balance below says so; a step that remeshes is skipped for the next
+// one), and prints per configuration and sample:
 //   - the dissipation of medium drag, cortex viscosity and the contact friction's tangential
 //     and normal parts, nW (nN·µm/s): vᵀΓ_term v with Γ_term built by the term itself from the
 //     step's start geometry and contacts;
