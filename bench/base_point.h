@@ -1,17 +1,21 @@
 // The reduced base point's fusion as the study drivers start it (study_dt_motion,
-// study_dissipation): the supplement's Table 1/2 parameters with p_a r/2γ = 0.33, 320 triangles
-// a cell, then foam-run's key=value settings; and its aggregate, prepared once into a cache.
+// study_dissipation, study_shape): the supplement's Table 1/2 parameters with p_a r/2γ = 0.33,
+// 320 triangles a cell, then foam-run's key=value settings; and its aggregate, prepared once into
+// a cache. And the configurations study_dissipation and study_shape run from it.
 #pragma once
 
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <optional>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include "activefoam/spec.h"
 #include "activefoam/spec_io.h"
 #include "activefoam/spheroid.h"
+#include "scheme_config.h"
 
 namespace activefoam::bench {
 
@@ -46,6 +50,47 @@ inline std::optional<BasePoint> basePoint(int argc, char** argv, int first_setti
   b.cells = buildFusionCells(
       b.resolved, &cache, {[](const std::string& l) { std::fprintf(stderr, "%s\n", l.c_str()); }});
   return b;
+}
+
+// One configuration of a driver's list "l_eta[:key=value…][,l_eta…]": an L_η/r and the
+// settings that apply to it alone (0.5:cells.eta_m=0.1); the aggregate is the same for all.
+struct Config {
+  double l_eta;
+  std::vector<std::string> settings;
+  std::string label;  // as written in the list
+};
+
+inline std::vector<Config> parseConfigs(const char* list) {
+  std::vector<Config> configs;
+  std::stringstream items(list);
+  for (std::string item; std::getline(items, item, ',');) {
+    Config c{std::atof(item.c_str()), {}, item};
+    std::stringstream parts(item);
+    std::string part;
+    std::getline(parts, part, ':');
+    while (std::getline(parts, part, ':')) c.settings.push_back(part);
+    configs.push_back(c);
+  }
+  return configs;
+}
+
+// The resolved spec a configuration runs: the base point's (unresolved: L_η/r derives ξ, and
+// ξ⊥, ξ∥ where not set) with its L_η/r and settings, then the step "integrator:Δt:…"; nullopt
+// (the error printed) when a setting or the step is malformed.
+inline std::optional<SceneSpec> configSpec(const BasePoint& point, const Config& config,
+                                           const char* step, SchemeConfig& scheme) {
+  SceneSpec s = point.spec;
+  s.cells.l_eta_reduced = config.l_eta;
+  for (const std::string& setting : config.settings)
+    if (const auto error = applySetting(s, setting)) {
+      std::fprintf(stderr, "%s: %s\n", setting.c_str(), error->str().c_str());
+      return std::nullopt;
+    }
+  if (const std::string error = applySchemeConfig(step, s, scheme); !error.empty()) {
+    std::fprintf(stderr, "%s: %s\n", step, error.c_str());
+    return std::nullopt;
+  }
+  return resolve(s);
 }
 
 }  // namespace activefoam::bench

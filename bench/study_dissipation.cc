@@ -35,6 +35,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <string>
@@ -77,22 +78,7 @@ int main(int argc, char** argv) {
   const auto point = bench::basePoint(argc, argv, 8);
   if (!point) return 2;
 
-  // Configurations: L_η/r, each with its own settings after it (0.5:cells.eta_m=0.1).
-  struct Config {
-    double l_eta;
-    std::vector<std::string> settings;
-    std::string label;
-  };
-  std::vector<Config> configs;
-  std::stringstream list(argv[7]);
-  for (std::string item; std::getline(list, item, ',');) {
-    Config c{std::atof(item.c_str()), {}, item};
-    std::stringstream parts(item);
-    std::string part;
-    std::getline(parts, part, ':');
-    while (std::getline(parts, part, ':')) c.settings.push_back(part);
-    configs.push_back(c);
-  }
+  const std::vector<bench::Config> configs = bench::parseConfigs(argv[7]);
 
   std::printf(
       "config,l_eta_reduced,xi,t_s,p_medium,p_cortex,p_friction_t,p_friction_n,p_spring_implicit,"
@@ -100,21 +86,12 @@ int main(int argc, char** argv) {
       "p_cortex_rest,p_friction_t_rest,p_cortex_vertex_scale,p_medium_translation,"
       "p_friction_t_translation,p_friction_n_translation,v_centroid_um_min,v_relative_um_min,"
       "msrd_um2,unique_contacts,wall_s\n");
-  for (const Config& config : configs) {
+  for (const bench::Config& config : configs) {
     const double l_eta = config.l_eta;
-    SceneSpec s = point->spec;  // unresolved: L_η/r derives ξ (and ξ⊥, ξ∥ where not set)
-    s.cells.l_eta_reduced = l_eta;
-    for (const std::string& setting : config.settings)
-      if (const auto error = applySetting(s, setting)) {
-        std::fprintf(stderr, "%s: %s\n", setting.c_str(), error->str().c_str());
-        return 2;
-      }
     bench::SchemeConfig scheme;
-    if (const std::string error = bench::applySchemeConfig(argv[6], s, scheme); !error.empty()) {
-      std::fprintf(stderr, "%s: %s\n", argv[6], error.c_str());
-      return 2;
-    }
-    s = resolve(s);
+    const std::optional<SceneSpec> resolved = bench::configSpec(*point, config, argv[6], scheme);
+    if (!resolved) return 2;
+    const SceneSpec& s = *resolved;
     Simulation sim(s, point->cells, scheme.scheme(s));
     MsrdTracker msrd;
     ContactHistory history;

@@ -24,6 +24,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -78,21 +79,7 @@ int main(int argc, char** argv) {
   }
   const auto point = bench::basePoint(argc, argv, 8);
   if (!point) return 2;
-  struct Config {
-    double l_eta;
-    std::vector<std::string> settings;
-    std::string label;
-  };
-  std::vector<Config> configs;
-  std::stringstream list(argv[7]);
-  for (std::string item; std::getline(list, item, ',');) {
-    Config c{std::atof(item.c_str()), {}, item};
-    std::stringstream parts(item);
-    std::string part;
-    std::getline(parts, part, ':');
-    while (std::getline(parts, part, ':')) c.settings.push_back(part);
-    configs.push_back(c);
-  }
+  const std::vector<bench::Config> configs = bench::parseConfigs(argv[7]);
 
   std::printf(
       "config,prep_l_eta_reduced,l_eta_reduced,t_s,theta_deg,q,q_smooth,elong,contact_fraction,"
@@ -106,20 +93,11 @@ int main(int argc, char** argv) {
     }
     std::fprintf(per_cell, "config,t_s,cell,label,q,q_smooth,elong,contact_fraction\n");
   }
-  for (const Config& config : configs) {
-    SceneSpec s = point->spec;
-    s.cells.l_eta_reduced = config.l_eta;
-    for (const std::string& setting : config.settings)
-      if (const auto error = applySetting(s, setting)) {
-        std::fprintf(stderr, "%s: %s\n", setting.c_str(), error->str().c_str());
-        return 2;
-      }
+  for (const bench::Config& config : configs) {
     bench::SchemeConfig scheme;
-    if (const std::string error = bench::applySchemeConfig(argv[6], s, scheme); !error.empty()) {
-      std::fprintf(stderr, "%s: %s\n", argv[6], error.c_str());
-      return 2;
-    }
-    s = resolve(s);
+    const std::optional<SceneSpec> resolved = bench::configSpec(*point, config, argv[6], scheme);
+    if (!resolved) return 2;
+    const SceneSpec& s = *resolved;
     Simulation sim(s, point->cells, scheme.scheme(s));
     const auto t0 = std::chrono::steady_clock::now();
     long steps = 0;
