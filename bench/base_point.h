@@ -10,6 +10,7 @@
 #include <optional>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "activefoam/spec.h"
@@ -91,6 +92,28 @@ inline std::optional<SceneSpec> configSpec(const BasePoint& point, const Config&
     return std::nullopt;
   }
   return resolve(s);
+}
+
+// The common command line of study_dissipation and study_shape: CACHE_DIR n_cells seed T_s
+// sample_s STEP CONFIGS [key=value …]; nullopt (the usage or the error printed) when it is wrong.
+struct ConfigDriver {
+  BasePoint point;
+  std::vector<Config> configs;
+  const char* step;
+};
+
+inline std::optional<ConfigDriver> configDriver(int argc, char** argv, const char* name) {
+  if (argc < 8) {
+    std::fprintf(stderr,
+                 "usage: %s CACHE_DIR n_cells seed T_s sample_s "
+                 "integrator:dt:preconditioner[:cg_tol] l_eta[:key=value...][,l_eta...] "
+                 "[key=value ...]\n",
+                 name);
+    return std::nullopt;
+  }
+  auto point = basePoint(argc, argv, 8);
+  if (!point) return std::nullopt;
+  return ConfigDriver{std::move(*point), parseConfigs(argv[7]), argv[6]};
 }
 
 }  // namespace activefoam::bench

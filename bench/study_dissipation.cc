@@ -68,17 +68,10 @@ double quadratic(const ForceTerm& term, const StepContext& ctx, const Eigen::Vec
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 8) {
-    std::fprintf(
-        stderr,
-        "usage: study_dissipation CACHE_DIR n_cells seed T_s sample_s "
-        "integrator:dt:preconditioner[:cg_tol] l_eta[:key=value...][,l_eta...] [key=value ...]\n");
-    return 2;
-  }
-  const auto point = bench::basePoint(argc, argv, 8);
-  if (!point) return 2;
-
-  const std::vector<bench::Config> configs = bench::parseConfigs(argv[7]);
+  const auto driver = bench::configDriver(argc, argv, "study_dissipation");
+  if (!driver) return 2;
+  const bench::BasePoint* point = &driver->point;
+  const std::vector<bench::Config>& configs = driver->configs;
 
   std::printf(
       "config,l_eta_reduced,xi,t_s,p_medium,p_cortex,p_friction_t,p_friction_n,p_spring_implicit,"
@@ -89,7 +82,8 @@ int main(int argc, char** argv) {
   for (const bench::Config& config : configs) {
     const double l_eta = config.l_eta;
     bench::SchemeConfig scheme;
-    const std::optional<SceneSpec> resolved = bench::configSpec(*point, config, argv[6], scheme);
+    const std::optional<SceneSpec> resolved =
+        bench::configSpec(*point, config, driver->step, scheme);
     if (!resolved) return 2;
     const SceneSpec& s = *resolved;
     Simulation sim(s, point->cells, scheme.scheme(s));

@@ -70,16 +70,10 @@ CellSet smoothed(const CellSet& cells, const Topology& topo, int passes) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 8) {
-    std::fprintf(
-        stderr,
-        "usage: study_shape CACHE_DIR n_cells seed T_s sample_s "
-        "integrator:dt:preconditioner[:cg_tol] l_eta[:key=value...][,l_eta...] [key=value ...]\n");
-    return 2;
-  }
-  const auto point = bench::basePoint(argc, argv, 8);
-  if (!point) return 2;
-  const std::vector<bench::Config> configs = bench::parseConfigs(argv[7]);
+  const auto driver = bench::configDriver(argc, argv, "study_shape");
+  if (!driver) return 2;
+  const bench::BasePoint* point = &driver->point;
+  const std::vector<bench::Config>& configs = driver->configs;
 
   std::printf(
       "config,prep_l_eta_reduced,l_eta_reduced,t_s,theta_deg,q,q_smooth,elong,contact_fraction,"
@@ -95,7 +89,8 @@ int main(int argc, char** argv) {
   }
   for (const bench::Config& config : configs) {
     bench::SchemeConfig scheme;
-    const std::optional<SceneSpec> resolved = bench::configSpec(*point, config, argv[6], scheme);
+    const std::optional<SceneSpec> resolved =
+        bench::configSpec(*point, config, driver->step, scheme);
     if (!resolved) return 2;
     const SceneSpec& s = *resolved;
     Simulation sim(s, point->cells, scheme.scheme(s));
