@@ -4,7 +4,8 @@
     bench/shape_table.py RUN.csv... [--windows 0:300,3000:3600,6600:7200]
 
 Each RUN.csv is one study_shape invocation (one prepared aggregate; the file name's "seedN"
-names the seed), with its per-cell file beside it (RUN-cells.csv, from STUDY_SHAPE_CELLS).
+names the seed), with its per-cell file beside it (RUN-cells.csv from STUDY_SHAPE_CELLS, or
+RUN-cells.csv.gz).
 Prints, per window (mean over the window's samples):
   1. each run's shape index q, its vertex-scale smoothed value, their difference (the ripples'
      share), the cells' elongation, the contact fraction and θ;
@@ -34,6 +35,8 @@ def load(paths):
         d["seed"] = seed
         runs.append(d)
         c = p.with_name(p.stem + "-cells.csv")
+        if not c.exists():
+            c = p.with_name(p.stem + "-cells.csv.gz")  # as committed
         if c.exists():
             cd = pd.read_csv(c, dtype={"config": str})
             cd["seed"] = seed
@@ -85,10 +88,13 @@ def summarize(rows):
         if len(sel) < 2:
             continue
         dq = np.array([d.q for d, _ in sel])
-        share = np.array([k * d.contact_fraction / d.q for d, k in sel])
+        if np.all(dq == 0):
+            continue  # t = 0: the same aggregate, nothing to share out
+        share = np.array([k * d.contact_fraction / d.q if d.q != 0 else np.nan for d, k in sel])
         out.append(f"{name} (prepared at {prep:g}, {len(sel)} seeds): Δq {np.median(dq):+.4f} "
                    f"({dq.min():+.4f} to {dq.max():+.4f}), contact fraction's share "
-                   f"{np.median(share):.0%} ({share.min():.0%} to {share.max():.0%})")
+                   f"{np.nanmedian(share):.0%} ({np.nanmin(share):.0%} to "
+                   f"{np.nanmax(share):.0%})")
     return out
 
 

@@ -68,6 +68,15 @@ def test_seeds_are_summarized_by_their_median_and_range(tmp_path):
     assert "share 100%" in line
 
 
+def test_a_gzipped_cell_file_is_read_as_committed(tmp_path):
+    p = run(tmp_path, 1, {"0.25": 0.50, "2": 0.45})
+    cells = tmp_path / "prep2-seed1-cells.csv"
+    pd.read_csv(cells).to_csv(tmp_path / "prep2-seed1-cells.csv.gz", index=False)
+    cells.unlink()
+    _, loaded = st.load([p])
+    assert loaded is not None and len(loaded) == 2 * 4 * 6
+
+
 def test_the_report_runs_end_to_end(tmp_path, capsys):
     p = run(tmp_path, 1, {"0.25": 0.5, "2": 0.45, "0.25:x=0": 0.45, "2:x=0": 0.45})
     assert st.main([str(p), "--windows", "0:180", "--pair", "0.25:x=0|2:x=0"]) == 0
