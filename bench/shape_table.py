@@ -2,6 +2,7 @@
 """bench/study_shape's runs as tables: where the shape index's rise with friction comes from.
 
     bench/shape_table.py RUN.csv... [--windows 0:300,3000:3600,6600:7200]
+                         [--low 0.25] [--high 2] [--pair "LABEL_A|LABEL_B" ...]
 
 Each RUN.csv is one study_shape invocation (one prepared aggregate; the file name's "seedN"
 names the seed), with its per-cell file beside it (RUN-cells.csv from STUDY_SHAPE_CELLS, or
@@ -9,8 +10,9 @@ RUN-cells.csv.gz).
 Prints, per window (mean over the window's samples):
   1. each run's shape index q, its vertex-scale smoothed value, their difference (the ripples'
      share), the cells' elongation, the contact fraction and θ;
-  2. the differences L_η/r 0.25 − 2 of the same quantities, paired by seed and preparation
-     (same aggregate, same noise), and the preparation's own effect at t = 0;
+  2. the differences --low − --high (and each --pair A − B) of the same quantities, paired by
+     seed and preparation (same aggregate, same noise), with their median over seeds; and the
+     prepared aggregates themselves (t = 0);
   3. q against how buried the cells are: the mean q of the cells whose contact fraction is in
      each third of the pooled range, per configuration; and, in the paired differences, the
      part of Δq that the change of contact fraction accounts for (the cells' q regressed on

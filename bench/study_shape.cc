@@ -4,8 +4,8 @@
 // driver takes the question apart:
 //   - the preparation against the run: the aggregate is prepared once, at the key=value
 //     settings' L_η/r; every configuration then runs from it with its own L_η/r and the same
-//     polarity noise (one Wiener path per cell, a function of time). Two invocations with the
-//     preparation at L_η/r 0.25 and 2 give the 2 × 2 table;
+//     polarity noise (one Wiener path per cell, a function of time); invocations with the
+//     preparation at different L_η/r cross the preparation with the run;
 //   - where on the cells: the shape index S/V^{2/3} of the raw mesh, of the mesh smoothed at the
 //     vertex scale (Taubin λ|μ, four passes: ripples of a few edges removed, the cell's shape
 //     kept), so that raw − smoothed is the vertex-scale roughness's share; and each cell's
@@ -25,7 +25,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <optional>
-#include <sstream>
 #include <string>
 #include <vector>
 
