@@ -82,7 +82,8 @@ def paired_differences(m, cells, pairs, lo, hi):
 
 
 def summarize(rows):
-    """Per difference and preparation run at more than one seed: Δq and the contact's share."""
+    """Per difference and preparation run at more than one seed: Δq and its contact part
+    (dq/df × Δf), each as median (min to max); absolute, since Δq may be near 0."""
     out = []
     keys = sorted({(prep, name) for _, prep, name, _, _ in rows})
     for prep, name in keys:
@@ -91,12 +92,11 @@ def summarize(rows):
             continue
         dq = np.array([d.q for d, _ in sel])
         if np.all(dq == 0):
-            continue  # t = 0: the same aggregate, nothing to share out
-        share = np.array([k * d.contact_fraction / d.q if d.q != 0 else np.nan for d, k in sel])
+            continue  # t = 0: the same aggregate
+        part = np.array([k * d.contact_fraction for d, k in sel])
         out.append(f"{name} (prepared at {prep:g}, {len(sel)} seeds): Δq {np.median(dq):+.4f} "
-                   f"({dq.min():+.4f} to {dq.max():+.4f}), contact fraction's share "
-                   f"{np.nanmedian(share):.0%} ({np.nanmin(share):.0%} to "
-                   f"{np.nanmax(share):.0%})")
+                   f"({dq.min():+.4f} to {dq.max():+.4f}), its contact part "
+                   f"{np.nanmedian(part):+.4f} ({np.nanmin(part):+.4f} to {np.nanmax(part):+.4f})")
     return out
 
 

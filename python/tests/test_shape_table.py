@@ -65,7 +65,7 @@ def test_seeds_are_summarized_by_their_median_and_range(tmp_path):
     assert sorted(r[0] for r in rows) == [1, 2, 3]
     (line,) = st.summarize(rows)
     assert "3 seeds" in line and "Δq +0.0120 (+0.0060 to +0.0300)" in line
-    assert "share 100%" in line
+    assert "its contact part +0.0120 (+0.0060 to +0.0300)" in line  # all of Δq: q follows f
 
 
 def test_a_gzipped_cell_file_is_read_as_committed(tmp_path):
