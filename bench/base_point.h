@@ -95,7 +95,8 @@ inline std::optional<SceneSpec> configSpec(const BasePoint& point, const Config&
 }
 
 // The common command line of study_dissipation and study_shape: CACHE_DIR n_cells seed T_s
-// sample_s STEP CONFIGS [key=value …]; nullopt (the usage or the error printed) when it is wrong.
+// sample_s STEP CONFIGS [key=value …]; nullopt (the usage or the error printed) when it is
+// wrong, any configuration's settings included.
 struct ConfigDriver {
   BasePoint point;
   std::vector<Config> configs;
@@ -113,7 +114,13 @@ inline std::optional<ConfigDriver> configDriver(int argc, char** argv, const cha
   }
   auto point = basePoint(argc, argv, 8);
   if (!point) return std::nullopt;
-  return ConfigDriver{std::move(*point), parseConfigs(argv[7]), argv[6]};
+  ConfigDriver d{std::move(*point), parseConfigs(argv[7]), argv[6]};
+  // Every configuration's keys checked now: a typo in the last one is not found an hour in.
+  for (const Config& c : d.configs) {
+    SchemeConfig scheme;
+    if (!configSpec(d.point, c, d.step, scheme)) return std::nullopt;
+  }
+  return d;
 }
 
 }  // namespace activefoam::bench
