@@ -5,11 +5,13 @@ data (runs.csv and msrd.csv.gz, written by `scripts/study.sh run … --report`).
 least-squares slope of log MSRD against log lag over the window's lags.
 
     bench/msrd_exponents.py DATA_DIR [DATA_DIR…] [--windows 360:3600,3600:14400] [--where K=V…]
+        [--at 600,3600]
 
 Prints one markdown row per succeeded run: its point (the study's swept keys), seed, β in each
 window, the MSRD at the longest lag and the mixing time (the study's column), then per
 point the median β of each window. A jammed tissue shows β well below 1 at long lags and a
-mixing time at the run's cap.
+mixing time at the run's cap. --at adds each point's median MSRD / r² at those lags (r = 8.88 µm,
+the reports' r), to set points side by side at equal lag.
 """
 import argparse
 import sys
@@ -17,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+R_UM = 8.88  # the cell radius the studies' reports divide the MSRD by
 
 
 def windows_arg(text):
@@ -43,7 +47,13 @@ def main():
                     help="lag windows in seconds, LOW:HIGH,… (default 360:3600,3600:14400)")
     ap.add_argument("--where", nargs="*", default=[],
                     help="keep runs whose column K equals V (compared as text and as number)")
+    ap.add_argument("--at", default="",
+                    help="lags in seconds, L1,L2,…: the points' median MSRD / r² there")
     args = ap.parse_args()
+    try:
+        at = [float(x) for x in args.at.split(",") if x.strip()]
+    except ValueError:
+        sys.exit(f"msrd_exponents: --at {args.at}: need lags in seconds, L1,L2,…")
 
     rows = []
     for folder in args.data:
@@ -74,6 +84,8 @@ def main():
             rows.append({"study": folder.parent.name, "point": point, "seed": int(run["seed"]),
                          "job": run["job_id"], "betas": betas,
                          "msrd_end_um2": vals[-1],
+                         "at": [float(np.interp(lag, lags, vals, left=np.nan, right=np.nan))
+                                / R_UM ** 2 for lag in at],
                          "mixing_time_s": run.get("mixing_time_s", float("nan")),
                          "t_end_s": run.get("t_end_s", float("nan"))})
     if not rows:
@@ -88,14 +100,18 @@ def main():
               " | ".join(f"{b:.2f}" for b in r["betas"]) +
               f" | {r['msrd_end_um2']:.4g} | {r['mixing_time_s']:.4g} | {r['t_end_s']:.0f} |")
     print()
-    print("| study | point | runs | " + " | ".join(f"median {n}" for n in names) + " |")
-    print("|---|---|---|" + "---|" * len(names))
+    at_names = [f"MSRD({lag:g} s) / r²" for lag in at]
+    print("| study | point | runs | " + " | ".join(f"median {n}" for n in names + at_names) +
+          " |")
+    print("|---|---|---|" + "---|" * (len(names) + len(at_names)))
     groups = {}
     for r in rows:
         groups.setdefault((r["study"], r["point"]), []).append(r)
     for (study, point), rs in groups.items():
         med = [np.nanmedian([r["betas"][i] for r in rs]) for i in range(len(names))]
-        print(f"| {study} | {point} | {len(rs)} | " + " | ".join(f"{b:.2f}" for b in med) + " |")
+        med_at = [np.nanmedian([r["at"][i] for r in rs]) for i in range(len(at))]
+        print(f"| {study} | {point} | {len(rs)} | " + " | ".join(f"{b:.2f}" for b in med) +
+              "".join(f" | {m:.3g}" for m in med_at) + " |")
 
 
 if __name__ == "__main__":
