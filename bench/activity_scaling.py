@@ -16,12 +16,13 @@ resampled within each point. A key that has one value across the runs is left ou
 (its exponent reads "—").
 
     bench/activity_scaling.py DATA_DIR [DATA_DIR…] [--metric unique_contacts_norm]
-        [--duration 21600] [--plot FILE.png] [--boot 2000]
+        [--duration 21600] [--plot FILE.png] [--boot 2000] [--also mixing_time_s,…]
 
 Runs enter only at the base of everything A_π does not name (L_η/r 0.5; the keys of
 `ALLOWED` may differ) and at one duration (Y grows with time). A run whose Y − Y₀ ≤ 0, or whose
 α has no p_a = 0 runs, is named and left out. Prints the points (their parameters, A_π with the
-supplement's exponents, median Y) and the fit as markdown.
+supplement's exponents, median Y, and the medians of the runs.csv columns named by --also) and
+the fit as markdown.
 """
 import argparse
 import json
@@ -77,7 +78,7 @@ def a_pi(p, a1=-0.5, a2=0.25, a3=0.0):
             * p["n_cells"] ** a3)
 
 
-def load(dirs, metric, duration):
+def load(dirs, metric, duration, also=()):
     """Succeeded runs (one row per job) with their parameters; and what was left out, why."""
     rows, skipped, seen = [], [], set()
     for d in dirs:
@@ -97,7 +98,8 @@ def load(dirs, metric, duration):
             except Skip as e:
                 skipped.append((where, str(e)))
                 continue
-            rows.append({**p, "y": float(r[metric]), "job_id": job,
+            rows.append({**p, **{c: float(r.get(c, math.nan)) for c in also},
+                         "y": float(r[metric]), "job_id": job,
                          "study": Path(d).parent.name, "seed": int(r["seed"])})
     return pd.DataFrame(rows), skipped
 
@@ -170,13 +172,22 @@ def main(argv=None):
     ap.add_argument("--metric", default="unique_contacts_norm")
     ap.add_argument("--duration", type=float, default=21600.0)
     ap.add_argument("--boot", type=int, default=2000)
+    ap.add_argument("--also", default="",
+                    help="runs.csv columns whose point medians the table shows too (comma-separated)")
     ap.add_argument("--plot", help="a PNG: Y − Y₀ against A_π, the supplement's and the fit's")
     a = ap.parse_args(argv)
     for d in a.dirs:
         if not (Path(d) / "runs.csv").is_file():
             print(f"error: {d}: no runs.csv", file=sys.stderr)
             return 2
-    df, skipped = load(a.dirs, a.metric, a.duration)
+    also = [c for c in a.also.split(",") if c]
+    for d in a.dirs:
+        header = pd.read_csv(Path(d) / "runs.csv", nrows=0).columns
+        for c in [a.metric] + also:
+            if c not in header:
+                print(f"error: {d}/runs.csv has no column {c!r}", file=sys.stderr)
+                return 2
+    df, skipped = load(a.dirs, a.metric, a.duration, also)
     if df.empty:
         print("error: no succeeded run at the base of what A_π leaves out", file=sys.stderr)
         return 2
@@ -187,14 +198,16 @@ def main(argv=None):
     print("Y₀(α), the p_a = 0 median: " +
           ", ".join(f"α {al}: {y:.3g}" for al, y in base.items()) + "\n")
     print("| p_a r/2γ | α | τ_p (s) | τ_γ (s) | N | runs | A_π (supplement) | median Y | "
-          "median Y − Y₀ | studies |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "median Y − Y₀ | " + "".join(f"median {c} | " for c in also) + "studies |")
+    print("|---|---|---|---|---|---|---|---|---|" + "---|" * len(also) + "---|")
     pts = act.groupby(KEYS)
     for key, g in sorted(pts, key=lambda kv: a_pi(dict(zip(KEYS, kv[0])))):
         p = dict(zip(KEYS, key))
         print(f"| {p['pa_r_over_gamma'] / 2:.4g} | {p['alpha']:g} | {p['tau_p_s']:g} | "
               f"{p['tau_gamma_s']:g} | {p['n_cells']:g} | {len(g)} | {a_pi(p):.3g} | "
-              f"{g.y.median():.3g} | {g.dy.median():.3g} | {', '.join(sorted(set(g.study)))} |")
+              f"{g.y.median():.3g} | {g.dy.median():.3g} | " +
+              "".join(f"{g[c].median():.4g} | " for c in also) +
+              f"{', '.join(sorted(set(g.study)))} |")
     est = fit(act)
     boot = bootstrap(act, a.boot) if a.boot > 0 else pd.DataFrame()
     print("\n| exponent | the supplement's (theory) | a free walker's | ours | 95 % interval |")

@@ -130,3 +130,18 @@ def test_a_shared_run_counts_once(tmp_path):
 def test_a_folder_without_runs_exits_2(tmp_path, capsys):
     assert asc.main([str(tmp_path)]) == 2
     assert "no runs.csv" in capsys.readouterr().err
+
+
+def test_an_unknown_column_exits_2_naming_it(tmp_path, capsys):
+    d = write(tmp_path, "s", [{"cells.pa_reduced": 0.33}], seeds=(1,))
+    assert asc.main([str(d), "--also", "msrd_end_over_r2"]) == 2
+    assert "no column 'msrd_end_over_r2'" in capsys.readouterr().err
+
+
+def test_the_point_table_shows_the_also_columns(tmp_path, capsys):
+    assert asc.main([*map(str, grid(tmp_path)), "--boot", "20", "--also", "seed"]) == 0
+    out = capsys.readouterr().out
+    assert "| median seed |" in out
+    # every point ran seeds 1, 2, 3: the median is 2
+    rows = [r for r in out.splitlines() if r.startswith("| 0.") or r.startswith("| 1 |")]
+    assert rows and all(r.split("|")[10].strip() == "2" for r in rows)
