@@ -234,6 +234,7 @@ def main(argv=None):
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
+        import matplotlib.ticker
         fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
         ours = {"a1": 0 if math.isnan(est["a1"]) else est["a1"],
                 "a2": 0 if math.isnan(est["a2"]) else est["a2"],
@@ -245,10 +246,18 @@ def main(argv=None):
                 ax.scatter(x, g.dy, label=study, s=18)
             ax.set_xscale("log")
             ax.set_yscale("log")
+            for axis in (ax.xaxis, ax.yaxis):
+                axis.set_major_locator(matplotlib.ticker.LogLocator(subs=(1, 1.5, 2, 3, 5, 7)))
+                axis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
+                axis.set_minor_formatter(matplotlib.ticker.NullFormatter())
             ax.set_xlabel(title)
+            ax.axvline(a_pi({"pa_r_over_gamma": 0.66, "alpha": 0.4375, "tau_p_s": 150,
+                             "tau_gamma_s": 10, "n_cells": 20}, **ex), color="k", ls=":", lw=1)
             ax.grid(True, which="both", alpha=0.3)
         axes[0].set_ylabel(f"{a.metric} − Y₀(α)")
         axes[1].legend(fontsize=7)
+        fig.suptitle("dotted: Fig. 9's τ_p = 2.5 min at the base point, where the supplement's "
+                     "tissue jams", fontsize=9)
         fig.tight_layout()
         fig.savefig(a.plot, dpi=120)
     return 0

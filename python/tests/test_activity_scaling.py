@@ -145,3 +145,9 @@ def test_the_point_table_shows_the_also_columns(tmp_path, capsys):
     # every point ran seeds 1, 2, 3: the median is 2
     rows = [r for r in out.splitlines() if r.startswith("| 0.") or r.startswith("| 1 |")]
     assert rows and all(r.split("|")[10].strip() == "2" for r in rows)
+
+
+def test_the_plot_is_written(tmp_path):
+    png = tmp_path / "a.png"
+    assert asc.main([*map(str, grid(tmp_path)), "--boot", "10", "--plot", str(png)]) == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
