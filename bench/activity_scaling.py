@@ -12,11 +12,13 @@ Y₀(α) (the median of the p_a = 0 runs at that α) and fits
     log(Y − Y₀) = c + k log(p_a r/γ) + b1 log α + b2 log(τ_p/τ_γ) + b3 log N
 
 by least squares over runs, so that a_i = b_i / k; intervals are 95 % bootstrap over runs
-resampled within each point. A key that has one value across the runs is left out of the fit
+resampled within each point. --no-baseline fits Y itself (Y₀ = 0: the mixing time, which
+falls with activity, so k < 0). A key that has one value across the runs is left out of the fit
 (its exponent reads "—").
 
     bench/activity_scaling.py DATA_DIR [DATA_DIR…] [--metric unique_contacts_norm]
         [--duration 21600] [--plot FILE.png] [--boot 2000] [--also mixing_time_s,…]
+        [--no-baseline]
 
 Runs enter only at the base of everything A_π does not name (L_η/r 0.5; the keys of
 `ALLOWED` may differ) and at one duration (Y grows with time). A run whose Y − Y₀ ≤ 0, or whose
@@ -107,11 +109,13 @@ def load(dirs, metric, duration, also=()):
 KEYS = ["pa_r_over_gamma", "alpha", "tau_p_s", "tau_gamma_s", "n_cells"]
 
 
-def with_baseline(df):
-    """Y − Y₀(α), Y₀ the median of the p_a = 0 runs at that α; rows that cannot be used named."""
+def with_baseline(df, baseline=True):
+    """Y − Y₀(α), Y₀ the median of the p_a = 0 runs at that α (0 without the baseline: Y itself,
+    for a metric such as the mixing time that has no passive part to take off); rows that
+    cannot be used named."""
     base = df[df.pa_r_over_gamma == 0].groupby("alpha").y.median()
     act = df[df.pa_r_over_gamma > 0].copy()
-    act["y0"] = act.alpha.map(base)
+    act["y0"] = act.alpha.map(base) if baseline else 0.0
     named = []
     for _, r in act[act.y0.isna()].iterrows():
         named.append((f"{r.study} {r.job_id}", f"no p_a = 0 runs at α {r.alpha}"))
@@ -172,6 +176,8 @@ def main(argv=None):
     ap.add_argument("--metric", default="unique_contacts_norm")
     ap.add_argument("--duration", type=float, default=21600.0)
     ap.add_argument("--boot", type=int, default=2000)
+    ap.add_argument("--no-baseline", action="store_true",
+                    help="fit Y itself (a metric with no passive part, e.g. mixing_time_s)")
     ap.add_argument("--also", default="",
                     help="runs.csv columns whose point medians the table shows too (comma-separated)")
     ap.add_argument("--plot", help="a PNG: Y − Y₀ against A_π, the supplement's and the fit's")
@@ -191,12 +197,14 @@ def main(argv=None):
     if df.empty:
         print("error: no succeeded run at the base of what A_π leaves out", file=sys.stderr)
         return 2
-    act, base, named = with_baseline(df)
+    act, base, named = with_baseline(df, not a.no_baseline)
     skipped += named
-    print(f"# {a.metric}: Y − Y₀(α) against A_π, {len(act)} runs at {act.groupby(KEYS).ngroups} "
+    what = "Y" if a.no_baseline else "Y − Y₀(α)"
+    print(f"# {a.metric}: {what} against A_π, {len(act)} runs at {act.groupby(KEYS).ngroups} "
           f"points ({', '.join(sorted(set(act.study)))})\n")
-    print("Y₀(α), the p_a = 0 median: " +
-          ", ".join(f"α {al}: {y:.3g}" for al, y in base.items()) + "\n")
+    if not a.no_baseline:
+        print("Y₀(α), the p_a = 0 median: " +
+              ", ".join(f"α {al}: {y:.3g}" for al, y in base.items()) + "\n")
     print("| p_a r/2γ | α | τ_p (s) | τ_γ (s) | N | runs | A_π (supplement) | median Y | "
           "median Y − Y₀ | " + "".join(f"median {c} | " for c in also) + "studies |")
     print("|---|---|---|---|---|---|---|---|---|" + "---|" * len(also) + "---|")
@@ -213,7 +221,7 @@ def main(argv=None):
     print("\n| exponent | the supplement's (theory) | a free walker's | ours | 95 % interval |")
     print("|---|---|---|---|---|")
     theory = {"k": ("—", "—"), "a1": ("−1/2", "—"), "a2": ("1/4", "1/2"), "a3": ("≈ 0", "—")}
-    label = {"k": "k (log Y − Y₀ per log p_a r/γ)", "a1": "a1 (α)", "a2": "a2 (τ_p/τ_γ)",
+    label = {"k": f"k (log {what} per log p_a r/γ)", "a1": "a1 (α)", "a2": "a2 (τ_p/τ_γ)",
              "a3": "a3 (N)"}
     for name in ["k", "a1", "a2", "a3"]:
         lo = hi = math.nan

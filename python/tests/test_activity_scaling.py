@@ -151,3 +151,23 @@ def test_the_plot_is_written(tmp_path):
     png = tmp_path / "a.png"
     assert asc.main([*map(str, grid(tmp_path)), "--boot", "10", "--plot", str(png)]) == 0
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_without_the_baseline_a_falling_metric_gives_its_exponents_with_k_below_0(tmp_path):
+    # mixing time = 3e4 · A_π^(−2): no passive part, falls with activity
+    rows = []
+    for i, s in enumerate([{"cells.pa_reduced": pa, "cells.alpha": al, "cells.tau_p_s": t}
+                           for pa in (0.165, 0.33) for al in (0.3, 0.75) for t in (150, 600)]):
+        p = asc.parameters(s)
+        rows.append({"run": i, "seed": 1, "settings": json.dumps({**s, "duration_s": 21600}),
+                     "job_id": f"j-{i}", "state": "succeeded",
+                     "mixing_time_s": 3e4 * asc.a_pi(p) ** -2.0})
+    d = tmp_path / "m" / "data"
+    d.mkdir(parents=True)
+    pd.DataFrame(rows).to_csv(d / "runs.csv", index=False)
+    df, _ = asc.load([d], "mixing_time_s", 21600)
+    act, _, named = asc.with_baseline(df, baseline=False)
+    assert not named and len(act) == 8
+    est = asc.fit(act)
+    assert est["k"] == pytest.approx(-2.0)
+    assert est["a1"] == pytest.approx(-0.5) and est["a2"] == pytest.approx(0.25)
