@@ -39,8 +39,9 @@ R_UM = 8.88  # the mean cell radius of the reduced parameters (docs: DESIGN §3)
 GAMMA_REF = 0.5  # nN/µm
 BASE = {"alpha": 0.4375, "tau_p_s": 600.0, "tau_gamma_s": 10.0, "n_cells": 20.0,
         "l_eta_reduced": 0.5}
-# Keys that change no part of the model A_π leaves out: the numerics, the run's bookkeeping,
-# and the two that Fig. 10's τ_γ points scale with η/γ (the shell's times).
+# The keys a run may set and still enter: A_π's own parameters, the numerics, the run's
+# bookkeeping, and the two that Fig. 10's τ_γ points scale with η/γ (the shell's times). Any
+# other key changes something A_π does not name, and the run is left out (named).
 ALLOWED_PREFIXES = ("numerics.",)
 ALLOWED = {"seed", "duration_s", "scene.polarity_from_preparation", "cells.tau_k_s",
            "cells.gamma", "cells.p_a", "cells.pa_reduced", "cells.alpha", "cells.tau_p_s",
