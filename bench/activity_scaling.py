@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-R_UM = 8.88  # the mean cell radius of the reduced parameters (docs: DESIGN §3)
+R_UM = 8.88  # the mean cell radius of the reduced parameters (DESIGN §3), unless a run sets it
 GAMMA_REF = 0.5  # nN/µm
 BASE = {"alpha": 0.4375, "tau_p_s": 600.0, "tau_gamma_s": 10.0, "n_cells": 20.0,
         "l_eta_reduced": 0.5}
@@ -45,7 +45,7 @@ BASE = {"alpha": 0.4375, "tau_p_s": 600.0, "tau_gamma_s": 10.0, "n_cells": 20.0,
 ALLOWED_PREFIXES = ("numerics.",)
 ALLOWED = {"seed", "duration_s", "scene.polarity_from_preparation", "cells.tau_k_s",
            "cells.gamma", "cells.p_a", "cells.pa_reduced", "cells.alpha", "cells.tau_p_s",
-           "cells.tau_gamma_s", "scene.n_cells", "cells.l_eta_reduced"}
+           "cells.tau_gamma_s", "scene.n_cells", "cells.l_eta_reduced", "cells.radius_mean_um"}
 
 
 class Skip(Exception):
@@ -65,7 +65,8 @@ def parameters(settings):
             raise Skip("sets both cells.pa_reduced and cells.gamma")
         pa_r_over_gamma = 2.0 * float(settings["cells.pa_reduced"])
     elif "cells.p_a" in settings:
-        pa_r_over_gamma = float(settings["cells.p_a"]) * R_UM / gamma
+        radius = float(settings.get("cells.radius_mean_um", R_UM))
+        pa_r_over_gamma = float(settings["cells.p_a"]) * radius / gamma
     else:
         raise Skip("sets neither cells.pa_reduced nor cells.p_a")
     tau_gamma = float(settings.get("cells.tau_gamma_s", BASE["tau_gamma_s"] * GAMMA_REF / gamma))

@@ -10,17 +10,28 @@ least-squares slope of log MSRD against log lag over the window's lags.
 Prints one markdown row per succeeded run: its point (the study's swept keys), seed, β in each
 window, the MSRD at the longest lag and the mixing time (the study's column), then per
 point the median β of each window. A jammed tissue shows β well below 1 at long lags and a
-mixing time at the run's cap. --at adds each point's median MSRD / r² at those lags (r = 8.88 µm,
-the reports' r), to set points side by side at equal lag.
+mixing time at the run's cap. --at adds each point's median MSRD / r² at those lags (r: the run's
+cells.radius_mean_um where its settings set it, else 8.88 µm, as the reports divide), to set
+points side by side at equal lag.
 """
 import argparse
+import json
 import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-R_UM = 8.88  # the cell radius the studies' reports divide the MSRD by
+R_UM = 8.88  # the cell radius the studies' reports divide the MSRD by, unless a run sets its own
+
+
+def radius_um(run):
+    """The cell radius a run's MSRD is read against: its settings' cells.radius_mean_um, else
+    the reports' default."""
+    try:
+        return float(json.loads(run["settings"]).get("cells.radius_mean_um", R_UM))
+    except (KeyError, TypeError, ValueError):
+        return R_UM
 
 
 def windows_arg(text):
@@ -85,7 +96,7 @@ def main():
                          "job": run["job_id"], "betas": betas,
                          "msrd_end_um2": vals[-1],
                          "at": [float(np.interp(lag, lags, vals, left=np.nan, right=np.nan))
-                                / R_UM ** 2 for lag in at],
+                                / radius_um(run) ** 2 for lag in at],
                          "mixing_time_s": run.get("mixing_time_s", float("nan")),
                          "t_end_s": run.get("t_end_s", float("nan"))})
     if not rows:

@@ -92,6 +92,9 @@ def test_each_studys_way_of_stating_the_parameters_is_read():
     p = asc.parameters({"cells.pa_reduced": 0.33})
     assert p == {"pa_r_over_gamma": 0.66, "alpha": 0.4375, "tau_p_s": 600.0,
                  "tau_gamma_s": 10.0, "n_cells": 20.0}
+    # a run with its own cell radius: p_a r/γ with that r
+    p = asc.parameters({"cells.p_a": 0.05, "cells.radius_mean_um": 10.0})
+    assert p["pa_r_over_gamma"] == pytest.approx(1.0)
     # γ without τ_γ: η stays, τ_γ = η/γ
     assert asc.parameters({"cells.p_a": 0.1, "cells.gamma": 1.0})["tau_gamma_s"] == 5.0
 
