@@ -1413,6 +1413,11 @@ def _markdown(df: Any, floatfmt: str = ".3g") -> str:
     return "\n".join(lines) + "\n"
 
 
+def _value(v: Any) -> str:
+    """A key's value in a figure's labels: 0.037162162162162164 crowds a panel's title."""
+    return format(v, ".4g") if isinstance(v, float) else str(v)
+
+
 def _label(study: Study, key: str) -> str:
     if key == study.x and study.x_label:
         return study.x_label
@@ -1496,7 +1501,7 @@ def render(study: Study, data: Data, out_dir: os.PathLike) -> List[Path]:
             t, med, q25, q75 = _series(study, data, sel, "theta_deg")
             if len(t):
                 h = t / 3600
-                ax_t.plot(h, med, color=c, label=f"{_label(study, x)} = {xv}")
+                ax_t.plot(h, med, color=c, label=f"{_label(study, x)} = {_value(xv)}")
                 ax_t.fill_between(h, q25, q75, color=c, alpha=0.2, lw=0)
                 ok = sel[np.isfinite(sel["theta_eq_deg"])] if "theta_eq_deg" in sel else sel[:0]
                 if len(ok) and "theta0_deg" in ok:  # Eq. 1's θ0 (Eq. 2's is eq2_…)
@@ -1509,7 +1514,7 @@ def render(study: Study, data: Data, out_dir: os.PathLike) -> List[Path]:
             if keep.any():
                 ax_m.loglog(lag[keep] / 3600, m[keep] / r**2, color=c)
         ax_m.axhline(1.0, color="k", ls=":", lw=1, label="r²")
-        title = f"{_label(study, by)} = {bv}" if by else ""
+        title = f"{_label(study, by)} = {_value(bv)}" if by else ""
         ax_t.set(xlabel="t (h)", ylabel="θ (°)", title=title)
         ax_m.set(xlabel="lag (h)", ylabel="MSRD / r²", title=title)
         if row == 0:
@@ -1536,7 +1541,7 @@ def render(study: Study, data: Data, out_dir: os.PathLike) -> List[Path]:
             med = rows[f"{m}_median"].to_numpy(dtype=float)
             lo = med - rows[f"{m}_q25"].to_numpy(dtype=float)
             hi = rows[f"{m}_q75"].to_numpy(dtype=float) - med
-            lab = f"{_label(study, by)} = {bv}" if by else None
+            lab = f"{_label(study, by)} = {_value(bv)}" if by else None
             ax.errorbar(xs, med, yerr=[lo, hi], marker=markers[k % len(markers)], capsize=3,
                         label=lab)
             past = rows["failed_ran_past"] if "failed_ran_past" in rows else [0] * len(rows)
