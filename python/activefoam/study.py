@@ -1520,8 +1520,9 @@ def render(study: Study, data: Data, out_dir: os.PathLike) -> List[Path]:
         if row == 0:
             ax_t.legend(fontsize=7)
             ax_m.legend(fontsize=7)
-    fig.suptitle(f"{study.title}: θ(t) (median, IQR; dashed: Eq. 1 with the median fit) and MSRD",
-                 fontsize=9)
+    # Wrapped: a long study title ran off the figure's edge.
+    fig.suptitle(textwrap.fill(f"{study.title}: θ(t) (median, IQR; dashed: Eq. 1 with the median "
+                               "fit) and MSRD", 120), fontsize=9)
     fig.tight_layout()
     fig.savefig(out / f"{study.name}-curves.png", dpi=110)
     plt.close(fig)
