@@ -82,8 +82,10 @@ def a_pi(p, a1=-0.5, a2=0.25, a3=0.0):
             * p["n_cells"] ** a3)
 
 
-def load(dirs, metric, duration, also=()):
-    """Succeeded runs (one row per job) with their parameters; and what was left out, why."""
+def load(dirs, metric, duration, also=(), max_pa=None):
+    """Succeeded runs (one row per job) with their parameters; and what was left out, why.
+    max_pa: the largest p_a r/2γ (at the run's own γ) kept — beyond it a 2 × 20 doublet stops
+    holding together (fig10's p_a r/2γ = 2) and its contacts saturate, a curve no power law fits."""
     rows, skipped, seen = [], [], set()
     for d in dirs:
         runs = pd.read_csv(Path(d) / "runs.csv")
@@ -101,6 +103,10 @@ def load(dirs, metric, duration, also=()):
                 p = parameters(settings)
             except Skip as e:
                 skipped.append((where, str(e)))
+                continue
+            if max_pa is not None and p["pa_r_over_gamma"] / 2 > max_pa:
+                skipped.append((where, f"p_a r/2γ {p['pa_r_over_gamma'] / 2:.4g} > --max-pa "
+                                       f"{max_pa:g}"))
                 continue
             rows.append({**p, **{c: float(r.get(c, math.nan)) for c in also},
                          "y": float(r[metric]), "job_id": job,
@@ -182,6 +188,8 @@ def main(argv=None):
                     help="fit Y itself (a metric with no passive part, e.g. mixing_time_s)")
     ap.add_argument("--also", default="",
                     help="runs.csv columns whose point medians the table shows too (comma-separated)")
+    ap.add_argument("--max-pa", type=float,
+                    help="leave out runs whose p_a r/2γ (at their own γ) is above this")
     ap.add_argument("--plot", help="a PNG: Y − Y₀ against A_π, the supplement's and the fit's")
     a = ap.parse_args(argv)
     for d in a.dirs:
@@ -195,7 +203,7 @@ def main(argv=None):
             if c not in header:
                 print(f"error: {d}/runs.csv has no column {c!r}", file=sys.stderr)
                 return 2
-    df, skipped = load(a.dirs, a.metric, a.duration, also)
+    df, skipped = load(a.dirs, a.metric, a.duration, also, a.max_pa)
     if df.empty:
         print("error: no succeeded run at the base of what A_π leaves out", file=sys.stderr)
         return 2

@@ -111,6 +111,16 @@ def test_runs_off_the_base_of_what_a_pi_leaves_out_are_named_not_fitted(tmp_path
     assert why["day"].startswith("duration 86400")
 
 
+def test_runs_above_max_pa_are_named_not_fitted(tmp_path):
+    d = write(tmp_path, "fig10", [{"cells.p_a": 0.1126, "cells.gamma": g, "cells.tau_gamma_s": tg}
+                                  for g, tg in ((1.0, 5), (0.25, 20))])
+    df, skipped = asc.load([d], "unique_contacts_norm", 21600, max_pa=1)
+    assert len(df) == 3 and np.allclose(df.pa_r_over_gamma / 2, 0.1126 * asc.R_UM / 2)
+    assert len(skipped) == 3 and all(r.startswith("p_a r/2γ 2 > --max-pa 1") for _, r in skipped)
+    df, skipped = asc.load([d], "unique_contacts_norm", 21600)
+    assert len(df) == 6 and not skipped
+
+
 def test_a_point_without_its_alphas_passive_baseline_is_named(tmp_path):
     d = write(tmp_path, "s", [{"cells.pa_reduced": 0, "cells.alpha": 0.4375},
                               {"cells.pa_reduced": 0.33, "cells.alpha": 0.4375},
