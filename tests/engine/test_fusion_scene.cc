@@ -1,11 +1,14 @@
 // The fusion scene's machinery on small aggregates (fast enough for the sanitizer pass):
 // prepared spheroids and their cache, placement, and a fusion run resumed from a checkpoint.
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -186,6 +189,71 @@ TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
 // A spheroid still compacting would fuse while it shrinks (issue 16): unless the spec allows
 // it, the job fails with preparation-failed, naming the rate reached and the limit — also when
 // the uncompacted spheroid comes from the cache.
+// Soft cells (K = 0.02 nN/µm² against the default 0.5) are compressed past the preparation's
+// default 5 % volume limit by their tension and packing, at any step: a run that tolerates 30 %
+// prepares them under its own limit, the other fails naming the drift. Cells that pass at 5 %
+// keep the default preparation's key and bits.
+TEST(FusionScene, APreparationFailingAtTheDefaultVolumeLimitFollowsTheRunsLooserLimit) {
+  TempDir dir;
+  const SpheroidCache cache(dir.path.string());
+  SceneSpec s = smallFusionSpec();
+  s.cells.bulk_modulus = 0.02;
+  s.scene_params.prep_max_s = 60;
+  s = resolve(s);
+  ASSERT_EQ(s.numerics.max_volume_error, 0.05);
+  try {
+    buildFusionCells(s, &cache);
+    FAIL() << "the soft cells passed the 5 % limit: the test no longer reaches the fallback";
+  } catch (const PrepFailed& e) {
+    EXPECT_TRUE(e.volume_drift);
+    EXPECT_NE(std::string(e.what()).find("volume-drift"), std::string::npos) << e.what();
+  }
+  SceneSpec tolerant = s;
+  tolerant.numerics.max_volume_error = 0.3;
+  std::vector<std::string> lines;
+  PrepObserver po;
+  po.on_log = [&](const std::string& l) { lines.push_back(l); };
+  std::vector<PreparedSpheroid> info;
+  const CellSet cells = buildFusionCells(tolerant, &cache, po, &info);
+  ASSERT_EQ(cells.numCells(), 7);
+  for (int k = 0; k < 2; ++k) {
+    const SceneSpec prep = spheroidPrepSpec(tolerant, k == 0 ? 3 : 4, spheroidSeed(5, k));
+    EXPECT_EQ(prep.numerics.max_volume_error, 0.05);  // the key of the default preparation
+    SceneSpec looser = prep;
+    looser.numerics.max_volume_error = 0.3;
+    EXPECT_EQ(info[k].key, spheroidCacheKey(looser)) << k;
+    EXPECT_FALSE(info[k].from_cache);
+  }
+  bool said = false;
+  for (const std::string& l : lines)
+    said |= l.find("preparing it again under the run's numerics.max_volume_error 0.3") !=
+            std::string::npos;
+  EXPECT_TRUE(said);
+  // Its volume error was past 5 % somewhere in the preparation; prepared, it is within 30 %.
+  Simulation sim(tolerant, cells);
+  double worst = 0;
+  for (int c = 0; c < 7; ++c)
+    worst =
+        std::max(worst, std::abs(sim.geometry().cell_volume[c] / sim.cells().target_volume[c] - 1));
+  EXPECT_LT(worst, 0.3);
+  // Again: taken from the cache as the looser preparation, without repeating the failure.
+  lines.clear();
+  std::vector<PreparedSpheroid> again;
+  const CellSet cached = buildFusionCells(tolerant, &cache, po, &again);
+  EXPECT_EQ(cached.x, cells.x);
+  for (int k = 0; k < 2; ++k) EXPECT_TRUE(again[k].from_cache);
+  for (const std::string& l : lines) EXPECT_EQ(l.find("failed"), std::string::npos) << l;
+
+  // Stiff cells pass at 5 %: a looser run limit leaves their preparation (key, bits) alone.
+  SceneSpec stiff = smallFusionSpec();
+  std::vector<PreparedSpheroid> base, loose;
+  const CellSet at5 = buildFusionCells(stiff, nullptr, {}, &base);
+  stiff.numerics.max_volume_error = 0.3;
+  const CellSet at30 = buildFusionCells(stiff, nullptr, {}, &loose);
+  EXPECT_EQ(at30.x, at5.x);
+  for (int k = 0; k < 2; ++k) EXPECT_EQ(loose[k].key, base[k].key);
+}
+
 TEST(FusionScene, AnUncompactedSpheroidFailsThePreparationNamingItsRate) {
   TempDir dir;
   SceneSpec s = smallFusionSpec();

@@ -33,7 +33,7 @@ struct PreparedSpheroid {
 // the contact-implicit integrator at scene.prep_dt_s, for at most scene.prep_max_s. Sampling,
 // snapshots, the fusion-only keys and the solver settings (ε_CG, preconditioner, quadrature,
 // failure limits: the defaults are used) are normalised so that they do not change the cache
-// key; the mesh settings do.
+// key; the mesh settings do. buildFusionCells may loosen the volume limit (see there).
 SceneSpec spheroidPrepSpec(const SceneSpec& spec, std::int64_t n_cells, std::uint64_t seed);
 
 // The seeds of a fusion spec's spheroids A (0) and B (1): derived from its seed.
@@ -67,6 +67,7 @@ struct PrepObserver {
 struct PrepFailed : std::runtime_error {
   using std::runtime_error::runtime_error;
   bool cancelled = false;
+  bool volume_drift = false;  // a cell's volume error crossed the preparation's limit
 };
 
 // The compaction criterion: the run is compact at time t (≥ 120 s) when
@@ -77,6 +78,9 @@ PreparedSpheroid prepareSpheroid(const SceneSpec& prep, const SpheroidCache* cac
 
 // The fusion scene's cells: spheroid A (n_cells_a or n_cells, label 0) at the origin and B
 // (label 1) along +x, the facing extremes gap_um apart; polarities drawn from the spec's seed.
+// A spheroid whose preparation fails on the default volume limit is prepared again under the
+// run's numerics.max_volume_error when that is looser (a run that tolerates larger volume
+// errors tolerates them in its preparation too); the spheroids that pass keep their bits.
 // `info` (optional) receives the two preparations.
 CellSet buildFusionCells(const SceneSpec& spec, const SpheroidCache* cache,
                          const PrepObserver& observer = {},

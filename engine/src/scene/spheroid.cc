@@ -282,10 +282,13 @@ PreparedSpheroid prepareSpheroid(const SceneSpec& prep, const SpheroidCache* cac
     e.cancelled = true;
     throw e;
   }
-  if (loop.end == LoopEnd::Failed)
-    throw PrepFailed("preparing the " + what +
-                     " failed: " + std::string(toString(loop.failed.failure)) + ": " +
-                     loop.failed.reason + " (try a smaller scene.prep_dt_s)");
+  if (loop.end == LoopEnd::Failed) {
+    PrepFailed e("preparing the " + what +
+                 " failed: " + std::string(toString(loop.failed.failure)) + ": " +
+                 loop.failed.reason + " (try a smaller scene.prep_dt_s)");
+    e.volume_drift = loop.failed.failure == FailureKind::VolumeDrift;
+    throw e;
+  }
   out.relaxed_s = sim.time();
   out.radius_gyration_um = rg();
   out.cells = sim.cells();
@@ -308,10 +311,40 @@ CellSet buildFusionCells(const SceneSpec& spec, const SpheroidCache* cache, cons
   const SceneParams& sp = spec.scene_params;
   const std::int64_t na = sp.n_cells_a > 0 ? sp.n_cells_a : sp.n_cells;
   const std::int64_t nb = sp.n_cells_b > 0 ? sp.n_cells_b : sp.n_cells;
-  PreparedSpheroid a =
-      prepareSpheroid(spheroidPrepSpec(spec, na, spheroidSeed(spec.seed, 0)), cache, obs);
-  PreparedSpheroid b =
-      prepareSpheroid(spheroidPrepSpec(spec, nb, spheroidSeed(spec.seed, 1)), cache, obs);
+  // The default volume limit (5 %) is the preparation's own so that runs differing in their
+  // limits share aggregates; a cell compressed or swollen past it at a stiff or motile point
+  // (Fig. 10's γ = 1: 5.0 % at 5.8 s, at any step) would fail a run that declared it tolerates
+  // more before the run starts. Such a spheroid is prepared under the run's limit instead, with
+  // its own cache key (the limit halves steps, so the bits may differ); a spheroid that passes
+  // at 5 % is the same as before. A cached looser preparation exists only because the default
+  // one failed (preparations are deterministic), so it is taken without repeating the failure.
+  auto prepare = [&](std::int64_t n, int which) {
+    const SceneSpec prep = spheroidPrepSpec(spec, n, spheroidSeed(spec.seed, which));
+    const double limit = spec.numerics.max_volume_error;
+    if (!(limit > prep.numerics.max_volume_error)) return prepareSpheroid(prep, cache, obs);
+    SceneSpec looser = prep;
+    looser.numerics.max_volume_error = limit;
+    if (cache && !cache->load(prep))
+      if (cache->load(looser)) return prepareSpheroid(looser, cache, obs);
+    try {
+      return prepareSpheroid(prep, cache, obs);
+    } catch (const PrepFailed& e) {
+      if (!e.volume_drift) throw;
+      if (obs.on_log)
+        obs.on_log(std::string(e.what()) + "; preparing it again under the run's " +
+                   "numerics.max_volume_error " + formatNumber(limit));
+      try {
+        return prepareSpheroid(looser, cache, obs);
+      } catch (const PrepFailed& again) {
+        if (again.cancelled) throw;
+        throw PrepFailed(std::string(again.what()) + " (prepared again under the run's " +
+                         "numerics.max_volume_error after failing at the preparation's " +
+                         formatNumber(prep.numerics.max_volume_error) + ")");
+      }
+    }
+  };
+  PreparedSpheroid a = prepare(na, 0);
+  PreparedSpheroid b = prepare(nb, 1);
   // A spheroid still compacting would fuse while it shrinks: θ(t) and the fits would mix the
   // two (issue 16). prep_max_s = 0 asks for the packed cells as they are.
   if (sp.prep_max_s > 0 && !sp.allow_uncompacted)
