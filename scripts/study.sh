@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs a study file (studies/*.toml) through foamd, resumably, and reports it (docs/science/).
 #
-#   scripts/study.sh run studies/fig14-reduced.toml [--report DIR] [--no-wait] [--retry-failed]
+#   scripts/study.sh run studies/fig14-reduced.toml [--report DIR] [--no-wait] [--retry-failed | --retry-kinds KINDS]
 #   scripts/study.sh report studies/fig14-reduced.toml [--out DIR] [--from-data DIR]
 #   scripts/study.sh check studies/fig14-reduced.toml
 #   scripts/study.sh verdicts studies/verdicts.toml --data docs/science --out docs/science/verdicts

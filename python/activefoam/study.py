@@ -13,8 +13,9 @@ has that value in the job's resolved spec, so rerunning `run` submits only the r
 job yet, or whose job was cancelled or failed for a reason other than the simulation itself (an
 engine error, a lost worker). A run that failed in the simulation (non-finite, volume drift,
 interpenetration, ...) is a result — the supplement's hatched cells — and is not run again unless
-`--retry-failed`. A job of the study that is no run of the file as it is now (an earlier
-version's [spec], grid or seeds) is named when it is queued or running, and cancelled with
+`--retry-failed` (`--retry-kinds preparation-failed`: only the runs that failed so). A job of
+the study that is no run of the file as it is now (an earlier version's [spec], grid or seeds)
+is named when it is queued or running, and cancelled with
 `--cancel-stale`. A run that failed in the simulation is rerun once per [[diagnose]] table of
 the file that names its failure kind, with that table's keys changed (tag `diag:NAME`): the
 report says whether the rerun ran past the failure (then the failure is those numerics', not
@@ -36,7 +37,7 @@ import textwrap
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Collection, Dict, List, Optional, Sequence, Tuple, Union
 
 try:
     import tomllib  # Python ≥ 3.11
@@ -646,7 +647,28 @@ def _run_jobs(study: Study, client: Any) -> Tuple[Dict[int, List[Any]], Dict[int
     return found, source, stale
 
 
-def _needs_job(jobs: List[Any], retry_failed: bool) -> bool:
+def _retries(retry_failed: Union[bool, Collection[str]], kind: str) -> bool:
+    """Whether `--retry-failed` (True: every kind) or `--retry-kinds` (a set) reruns a failure of
+    `kind`: after a fix that changes only runs that failed so (a preparation that now follows
+    the run's volume limit), the runs of that kind are rerun and the others' results stand."""
+    if isinstance(retry_failed, bool):
+        return retry_failed
+    return kind in retry_failed
+
+
+def _retry_kinds(arg: Optional[str]) -> Union[bool, Collection[str]]:
+    """`--retry-kinds` as given: absent → False, KINDS → that set (checked)."""
+    if arg is None:
+        return False
+    kinds = {k.strip() for k in arg.split(",") if k.strip()}
+    unknown = sorted(kinds - SIMULATION_FAILURES)
+    if unknown or not kinds:
+        raise StudyError(f"--retry-kinds: {', '.join(unknown) or repr(arg)} is no failure kind "
+                         f"of the simulation; allowed: {', '.join(sorted(SIMULATION_FAILURES))}")
+    return kinds
+
+
+def _needs_job(jobs: List[Any], retry_failed: Union[bool, Collection[str]]) -> bool:
     from activefoam.client import _state_name
     if not jobs:
         return True
@@ -655,7 +677,8 @@ def _needs_job(jobs: List[Any], retry_failed: bool) -> bool:
     if state == "cancelled":
         return True
     if state == "failed":
-        return retry_failed or last.failure_kind not in SIMULATION_FAILURES
+        return (_retries(retry_failed, last.failure_kind) or
+                last.failure_kind not in SIMULATION_FAILURES)
     return False
 
 
@@ -913,12 +936,14 @@ def cancel_stale(study: Study, client: Any, cancel: bool, out=sys.stderr) -> int
     return len(live)
 
 
-def submit_missing(study: Study, client: Any, retry_failed: bool = False,
+def submit_missing(study: Study, client: Any,
+                   retry_failed: Union[bool, Collection[str]] = False,
                    out=sys.stderr, carried: Optional[Carried] = None) -> Tuple[int, int]:
     """Submits every run that has no live or finished job; returns (submitted, already held).
     Nothing is submitted twice: each job carries an idempotency key made of the run and its
     attempt number. A run that `carried` (an earlier store's data) holds as ended counts as held
-    (a failed one is submitted again with retry_failed). A spec foamd refuses stops the
+    (a failed one is submitted again with retry_failed: True, or a set of failure kinds). A
+    spec foamd refuses stops the
     submission and cancels what this call submitted (a study is submitted whole or not at all),
     then raises StudyError."""
     from activefoam.client import _setting, _state_name
@@ -941,7 +966,8 @@ def submit_missing(study: Study, client: Any, retry_failed: bool = False,
             held += 1
             continue
         if _takes_carried(have, carried, i) and not (
-                retry_failed and carried.rows[i]["state"] == "failed"):
+                carried.rows[i]["state"] == "failed" and
+                _retries(retry_failed, str(carried.rows[i].get("failure_kind") or ""))):
             held += 1
             continue
         failed = sum(1 for j in have if _state_name(j.state) == "failed")
@@ -1922,6 +1948,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p_run.add_argument("--no-wait", action="store_true", help="submit and return")
     p_run.add_argument("--retry-failed", action="store_true",
                        help="also rerun runs that failed in the simulation itself")
+    p_run.add_argument("--retry-kinds", metavar="KINDS", default=None,
+                       help="also rerun the runs that failed in the simulation with one of these "
+                       "failure kinds (comma-separated, e.g. preparation-failed)")
     p_run.add_argument("--cancel-stale", action="store_true",
                        help="cancel the study's queued or running jobs that are no run of the "
                        "file as it is now (an earlier version's [spec], grid or seeds); without "
@@ -2021,10 +2050,14 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             print(f"study {study.name}: {len(carried.rows)} ended runs in {args.with_data}",
                   file=sys.stderr)
         if args.cmd == "run":
+            if args.retry_failed and args.retry_kinds:
+                raise StudyError("--retry-failed reruns every failure kind: not with "
+                                 "--retry-kinds")
+            retry = True if args.retry_failed else _retry_kinds(args.retry_kinds)
             with _client(args) as c:
                 # Stale jobs first: a changed step must not leave the old one's queue running.
                 cancel_stale(study, c, args.cancel_stale)
-                n_new, n_held = submit_missing(study, c, retry_failed=args.retry_failed,
+                n_new, n_held = submit_missing(study, c, retry_failed=retry,
                                                carried=carried)
                 print(f"study {study.name}: {n_new} runs submitted, {n_held} already in the "
                       f"store{' or the data' if carried else ''} (tag {study.tag})",

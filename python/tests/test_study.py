@@ -929,6 +929,13 @@ def test_an_earlier_stores_ended_runs_count_as_done_and_are_reported_with_the_st
     # --retry-failed runs the carried failure again.
     foamd2 = _FakeFoamd({"alpha": 0.4375})
     assert st.submit_missing(study, foamd2, retry_failed=True, carried=carried) == (2, 2)
+    # --retry-failed KINDS reruns only failures of those kinds: the carried one is volume drift.
+    foamd3 = _FakeFoamd({"alpha": 0.4375})
+    assert st.submit_missing(study, foamd3, retry_failed={"preparation-failed"},
+                             carried=carried) == (1, 3)
+    foamd4 = _FakeFoamd({"alpha": 0.4375})
+    assert st.submit_missing(study, foamd4, retry_failed={"volume-drift", "interpenetration"},
+                             carried=carried) == (2, 2)
     # The report's data: the store's job where it has one, the carried rows elsewhere, with
     # their samples and curves; the carried rows say where they came from.
     for jobs in foamd.jobs.values():
@@ -1179,3 +1186,19 @@ def test_a_failure_a_diagnosis_ran_past_is_reported_and_left_out_of_the_failed_v
     # α 0.6 its failure and its success.
     assert verdicts._values(runs, {"cells.alpha": 0.4375}, "failed") == [0.0]
     assert sorted(verdicts._values(runs, {"cells.alpha": 0.6}, "failed")) == [0.0, 1.0]
+
+
+def test_retry_failed_takes_every_kind_or_the_named_ones_and_refuses_unknown_kinds():
+    assert st._retry_kinds(None) is False
+    assert st._retry_kinds("preparation-failed, volume-drift") == {"preparation-failed",
+                                                                   "volume-drift"}
+    for bad in ("prep-failed", "volume-drift,engine-error", ","):
+        with pytest.raises(st.StudyError, match="--retry-kinds: .*allowed: .*preparation-failed"):
+            st._retry_kinds(bad)
+    prep = [_FakeJob("j-1", 4, {}, state="FAILED", failure_kind="preparation-failed")]
+    drift = [_FakeJob("j-2", 4, {}, state="FAILED", failure_kind="volume-drift")]
+    lost = [_FakeJob("j-3", 4, {}, state="FAILED", failure_kind="engine-error")]
+    assert not st._needs_job(prep, False) and st._needs_job(prep, True)
+    assert st._needs_job(prep, {"preparation-failed"})
+    assert not st._needs_job(drift, {"preparation-failed"})
+    assert st._needs_job(lost, {"preparation-failed"}) and st._needs_job(lost, False)
