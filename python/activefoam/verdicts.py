@@ -35,7 +35,7 @@ import os
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -249,6 +249,19 @@ def _no_value(runs: Any, point: Dict[str, Any], metric: str) -> int:
     return int(ok[metric].isna().sum())
 
 
+def _failed_and_pending(runs: Any, point: Dict[str, Any]) -> Tuple[int, int]:
+    """The point's runs that failed in the simulation (a failure a diagnosis rerun ran past
+    left out, as in `failed`) and those not ended yet (queued or running): why a side of a row
+    has fewer runs than seeds — the supplement's hatched cells, or runs still to come."""
+    sel = _select(runs, point)
+    if not len(sel) or "state" not in sel:
+        return 0, 0
+    kind = sel["failure_kind"].fillna("") if "failure_kind" in sel else ""
+    failed = (sel["state"] == "failed") & kind.isin(st.SIMULATION_FAILURES) & ~st._ran_past(sel)
+    pending = sel["state"].isin(["queued", "running"])
+    return int(failed.sum()), int(pending.sum())
+
+
 def _beyond_run(runs: Any, point: Dict[str, Any], metric: str) -> int:
     """Of _no_value's runs, those whose Eq. 1 fit converged with τ_f longer than the run."""
     sel = _select(runs, point)
@@ -306,6 +319,11 @@ def evaluate(items: List[TrendSpec], data_root: os.PathLike,
                        no_value_high=_no_value(runs, high, t.metric),
                        beyond_run_low=0 if level else _beyond_run(runs, low, t.metric),
                        beyond_run_high=_beyond_run(runs, high, t.metric))
+            for side, pt in (("low", low), ("high", high)):
+                if level and side == "low":
+                    continue
+                nf, npend = _failed_and_pending(runs, pt)
+                row.update({f"failed_{side}": nf, f"pending_{side}": npend})
             row.update(n_low=len(xl), n_high=len(xh), median_low=trends.median(xl),
                        median_high=trends.median(xh),
                        numerics_differ=numerics_differ(runs, low, high)
@@ -367,6 +385,13 @@ def markdown(table: Any) -> str:
             else:
                 why = "the metric has no value"
             verdict += f" (succeeded runs without a value: {', '.join(missing)}: {why})"
+        if verdict == "too few runs" and r["metric"] != "failed":
+            for what, key in (("failed in the simulation", "failed"),
+                              ("not ended yet", "pending")):
+                n = [f"{int(r.get(f'{key}_{side}') or 0)} {side}" for side in ("low", "high")
+                     if (r.get(f"{key}_{side}") or 0) > 0]
+                if n:
+                    verdict += f" ({what}: {', '.join(n)})"
         differ = r.get("numerics_differ")
         if isinstance(differ, str) and differ:
             verdict += f" (the two ensembles ran different numerics: {differ})"
@@ -428,7 +453,9 @@ def write(items: List[TrendSpec], data_root: os.PathLike, out: os.PathLike,
         "interval; *agrees* when the interval excludes 0 on the supplement's side (for "
         "`none`: lies within the band; for `below`/`above`: the median's interval lies on "
         "the stated side of the level), *disagrees* when it excludes it on the other, *not "
-        "resolved* otherwise; no verdict from fewer than 3 runs a side. Source: *caption* — "
+        "resolved* otherwise; no verdict from fewer than 3 runs a side (such a row says how "
+        "many of a side's runs failed in the simulation — the supplement's hatched cells — "
+        "or have not ended). Source: *caption* — "
         "stated in the supplement's figure caption; *implied* — follows from a stated "
         "result (named in the statement); *none* — drawn, no trend stated.\n\n"
         + (f"Regenerated from the studies' committed data by `{command}`.\n\n"

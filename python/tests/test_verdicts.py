@@ -161,6 +161,21 @@ def test_too_few_runs_give_no_verdict(tmp_path):
     t = vd.evaluate(vd.load(f), tmp_path / "data")
     assert list(t["verdict"]) == ["too few runs", "agrees"]
     assert t["n_high"].iloc[0] == 2
+    # The row says why it is short: a failure in the simulation (the supplement's hatched
+    # cells), or a run not ended yet; a failure outside the simulation is neither.
+    assert "too few runs (failed in the simulation: 1 high) |" in vd.markdown(t)
+    runs_csv = tmp_path / "data" / "syn" / "data" / "runs.csv"
+    r = pd.read_csv(runs_csv)
+    at = (r["cells.tau_p_s"] == 2400) & (r["cells.alpha"] == 0.3)
+    r.loc[at & (r["seed"] == 3), "failure_kind"] = "engine-error"
+    r.loc[at & (r["seed"] == 2), "state"] = "running"
+    r.loc[(r["cells.tau_p_s"] == 150) & (r["cells.alpha"] == 0.3) & (r["seed"] == 1),
+          "state"] = "queued"
+    r.to_csv(runs_csv, index=False)
+    t = vd.evaluate(vd.load(f), tmp_path / "data")
+    assert (t["failed_high"].iloc[0], t["pending_high"].iloc[0], t["pending_low"].iloc[0]) == \
+        (0, 1, 1)
+    assert "too few runs (not ended yet: 1 low, 1 high) |" in vd.markdown(t)
 
 
 def test_runs_without_a_fit_are_named_where_they_leave_too_few(tmp_path):
