@@ -5,7 +5,7 @@ the pair's cells are at the origin — both buried (no free surface), both on th
 one of each — from a run's snapshots (foam-run with snapshot_every_s > 0).
 
     bench/msrd_by_depth.py SNAPSHOT_DIR [--radius-um R] [--free-below F] [--touch-um D]
-                           [--engine-summary summary.json] [--csv OUT.csv]
+                           [--engine-summary summary.json] [--csv OUT.csv] [--layers]
 
 The snapshots carry meshes, not the engine's contact list, so contact is read from geometry:
 a vertex of cell i touches cell j when it lies within D of j's surface (default 0.5 µm, a
@@ -115,30 +115,74 @@ def contacts(pts, vcell, tri, x, n, touch_um, reach_um):
 CLASSES = ("all", "buried-buried", "buried-surface", "surface-surface")
 
 
+LAYERS = ("all", "depth-0", "depth-1", "depth-2+")
+
+
+def depths(pairs, free, free_below):
+    """Each cell's depth in the contact graph: 0 on the surface (free fraction ≥ free_below), 1
+    buried next to a surface cell, 2 buried with buried neighbours only, and so on (cells with
+    no path to the surface: the largest depth found + 1)."""
+    n = len(free)
+    d = np.where(np.asarray(free) >= free_below, 0, -1)
+    nbr = [[] for _ in range(n)]
+    for i, j in pairs:
+        nbr[i].append(j)
+        nbr[j].append(i)
+    front = list(np.flatnonzero(d == 0))
+    while front:
+        nxt = []
+        for i in front:
+            for j in nbr[i]:
+                if d[j] < 0:
+                    d[j] = d[i] + 1
+                    nxt.append(j)
+        front = nxt
+    d[d < 0] = d.max() + 1 if d.max() >= 0 else 0
+    return d
+
+
+def _pooled(xs, pairs_at, classify, classes, first_origin):
+    nl = len(xs)
+    sums = {c: np.zeros(nl) for c in classes}
+    counts = {c: np.zeros(nl, dtype=int) for c in classes}
+    for o in range(first_origin, nl):
+        if len(pairs_at[o]) == 0:
+            continue
+        p = np.asarray(pairs_at[o])
+        cls = classify(o, p)
+        rel0 = xs[o, p[:, 0]] - xs[o, p[:, 1]]
+        for lag in range(nl - o):
+            rel = xs[o + lag, p[:, 0]] - xs[o + lag, p[:, 1]]
+            d2 = np.sum((rel - rel0) ** 2, axis=1)
+            for c in classes:
+                sums[c][lag] += d2[cls[c]].sum()
+                counts[c][lag] += int(cls[c].sum())
+    return sums, counts
+
+
 def msrd_by_class(xs, pairs_at, free_at, free_below, first_origin=0):
     """Summed squared relative displacements and pair counts per lag (in samples) and class.
     xs: (samples, cells, 3) centroids; pairs_at[o]: the pairs in contact at sample o; a cell is
     buried at o when free_at[o] < free_below. Every origin–pair counts once (the engine's
     pooling); origins before sample first_origin are left out."""
-    nl = len(xs)
-    sums = {c: np.zeros(nl) for c in CLASSES}
-    counts = {c: np.zeros(nl, dtype=int) for c in CLASSES}
-    for o in range(first_origin, nl):
-        if len(pairs_at[o]) == 0:
-            continue
-        p = np.asarray(pairs_at[o])
+    def classify(o, p):
         b = np.asarray(free_at[o]) < free_below
         nb = b[p[:, 0]].astype(int) + b[p[:, 1]].astype(int)
-        cls = {"all": np.ones(len(p), bool), "buried-buried": nb == 2,
-               "buried-surface": nb == 1, "surface-surface": nb == 0}
-        rel0 = xs[o, p[:, 0]] - xs[o, p[:, 1]]
-        for lag in range(nl - o):
-            rel = xs[o + lag, p[:, 0]] - xs[o + lag, p[:, 1]]
-            d2 = np.sum((rel - rel0) ** 2, axis=1)
-            for c in CLASSES:
-                sums[c][lag] += d2[cls[c]].sum()
-                counts[c][lag] += int(cls[c].sum())
-    return sums, counts
+        return {"all": np.ones(len(p), bool), "buried-buried": nb == 2,
+                "buried-surface": nb == 1, "surface-surface": nb == 0}
+    return _pooled(xs, pairs_at, classify, CLASSES, first_origin)
+
+
+def msrd_by_layer(xs, pairs_at, free_at, free_below, first_origin=0):
+    """As msrd_by_class, the pairs split by the depth (`depths`) of the pair's shallower cell at
+    the origin: depth 0 touches the surface, depth 2+ is a pair of cells neither of which
+    touches a surface cell — the bulk deeper than one layer."""
+    def classify(o, p):
+        d = depths(pairs_at[o], free_at[o], free_below)
+        m = np.minimum(d[p[:, 0]], d[p[:, 1]])
+        return {"all": np.ones(len(p), bool), "depth-0": m == 0, "depth-1": m == 1,
+                "depth-2+": m >= 2}
+    return _pooled(xs, pairs_at, classify, LAYERS, first_origin)
 
 
 def mixing(lags, y):
@@ -165,6 +209,10 @@ def main():
                     help="only time origins at or after this time (e.g. once the doublet has "
                          "fused: the MSRD without the fusion's own flow); the engine's curve "
                          "pools every origin, so --engine-summary compares only at 0")
+    ap.add_argument("--layers", action="store_true",
+                    help="split the pairs by depth in the contact graph instead (depth 0: a "
+                         "surface cell in the pair; 1: buried, one next to the surface; 2+: "
+                         "the bulk deeper than one layer)")
     args = ap.parse_args()
 
     files = sorted(args.snapshots.glob("snap_*.vtp"))
@@ -224,10 +272,17 @@ def main():
         sys.exit(f"msrd_by_depth: --origins-from {args.origins_from}: fewer than 3 snapshots from there")
     if first:
         print(f"origins from t = {ts[first]:.0f} s ({len(ts) - first} of them)")
-    sums, counts = msrd_by_class(xs, pairs_at, free_at, args.free_below, first)
+    if args.layers:
+        d0 = depths(pairs_at[0], free_at[0], args.free_below)
+        print("cells by depth at t = 0: " + ", ".join(
+            f"{k}: {int((d0 == k).sum())}" for k in range(int(d0.max()) + 1)))
+        sums, counts = msrd_by_layer(xs, pairs_at, free_at, args.free_below, first)
+        classes = LAYERS
+    else:
+        sums, counts = msrd_by_class(xs, pairs_at, free_at, args.free_below, first)
+        classes = CLASSES
     curve = {c: np.where(counts[c] > 0, sums[c] / np.maximum(counts[c], 1), np.nan) / r**2
-             for c in CLASSES}
-    classes = CLASSES
+             for c in classes}
     nl = len(ts) - first  # the lags some origin reaches
 
     eng = None

@@ -148,3 +148,35 @@ def test_mixing_interpolates_where_the_curve_crosses_one():
     lags = np.arange(0.0, 3000.0, 100.0)
     assert mbd.mixing(lags, lags / 1234.0) == pytest.approx(1234.0)
     assert mbd.mixing(lags, lags / 1e6) is None
+
+
+def test_depths_count_layers_from_the_surface_through_the_contact_graph():
+    # a 5 × 5 × 5 grid of face-touching cells: the outer shell is the surface (98 cells), the
+    # next shell buried next to it (26), the middle one two layers down
+    centres = list(itertools.product(range(5), range(5), range(5)))
+    index = {c: k for k, c in enumerate(centres)}
+    pairs = [(index[a], index[b]) for a, b in itertools.combinations(centres, 2)
+             if np.abs(np.subtract(a, b)).sum() == 1]
+    shell = np.array([min(min(c), 4 - max(c)) for c in centres])
+    free = np.where(shell == 0, 0.3, 0.0)
+    d = mbd.depths(pairs, free, 0.05)
+    assert list(d) == list(shell)
+    assert [(d == k).sum() for k in range(3)] == [98, 26, 1]
+    # a buried cluster cut off from the surface lies deeper than everything reached
+    d = mbd.depths([(0, 1), (2, 3)], np.array([0.5, 0.0, 0.0, 0.0]), 0.05)
+    assert list(d) == [0, 1, 2, 2]
+
+
+def test_msrd_by_layer_splits_by_the_shallower_cells_depth():
+    # a chain surface(0) – buried(1) – buried(2) – buried(3): pairs (0,1) at depth 0, (1,2) at
+    # depth 1, (2,3) at depth 2; only cell 3 moves, at unit speed along z
+    xs = np.zeros((4, 4, 3))
+    xs[:, 3, 2] = np.arange(4)
+    free = [np.array([0.5, 0.0, 0.0, 0.0])] * 4
+    pairs = [[(0, 1), (1, 2), (2, 3)]] * 4
+    sums, counts = mbd.msrd_by_layer(xs, pairs, free, 0.05)
+    assert list(counts["depth-0"]) == list(counts["depth-1"]) == list(counts["depth-2+"]) \
+        == [4, 3, 2, 1]
+    assert np.all(sums["depth-0"] == 0.0) and np.all(sums["depth-1"] == 0.0)
+    assert sums["depth-2+"] / counts["depth-2+"] == pytest.approx(np.arange(4.0) ** 2)
+    assert list(counts["all"]) == [12, 9, 6, 3]
