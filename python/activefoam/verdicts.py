@@ -228,12 +228,9 @@ def _values(runs: Any, point: Dict[str, Any], metric: str) -> List[float]:
     if not len(sel):
         return []
     if metric == "failed":
-        # A failure a diagnosis rerun ran past (study.py, [[diagnose]]) is those numerics', not
-        # the point's: left out, as a run that did not end.
-        ended = sel[sel["state"].isin(["succeeded", "failed"]) & ~st._ran_past(sel)]
-        return [1.0 if (s == "failed" and f in st.SIMULATION_FAILURES) else 0.0
-                for s, f in zip(ended["state"], ended["failure_kind"].fillna(""))
-                if s == "succeeded" or f in st.SIMULATION_FAILURES]
+        failed = _simulation_failed(sel)
+        ok = (sel["state"] == "succeeded") & ~st._ran_past(sel)
+        return [1.0 if f else 0.0 for f, o in zip(failed, ok) if f or o]
     if metric not in sel:
         return []
     return [float(x) for x in sel[metric] if x == x]
@@ -249,17 +246,24 @@ def _no_value(runs: Any, point: Dict[str, Any], metric: str) -> int:
     return int(ok[metric].isna().sum())
 
 
+def _simulation_failed(sel: Any) -> Any:
+    """Per run: failed in the simulation itself (the supplement's hatched cells). A failure a
+    diagnosis rerun ran past (study.py, [[diagnose]]) is those numerics', not the point's: left
+    out, as a run that did not end."""
+    kind = sel["failure_kind"].fillna("") if "failure_kind" in sel else ""
+    return ((sel["state"] == "failed") & kind.isin(st.SIMULATION_FAILURES)
+            & ~st._ran_past(sel))
+
+
 def _failed_and_pending(runs: Any, point: Dict[str, Any]) -> Tuple[int, int]:
-    """The point's runs that failed in the simulation (a failure a diagnosis rerun ran past
-    left out, as in `failed`) and those not ended yet (queued or running): why a side of a row
-    has fewer runs than seeds — the supplement's hatched cells, or runs still to come."""
+    """The point's runs that failed in the simulation and those not ended yet (queued or
+    running): why a side of a row has fewer runs than seeds — the supplement's hatched cells,
+    or runs still to come."""
     sel = _select(runs, point)
     if not len(sel) or "state" not in sel:
         return 0, 0
-    kind = sel["failure_kind"].fillna("") if "failure_kind" in sel else ""
-    failed = (sel["state"] == "failed") & kind.isin(st.SIMULATION_FAILURES) & ~st._ran_past(sel)
     pending = sel["state"].isin(["queued", "running"])
-    return int(failed.sum()), int(pending.sum())
+    return int(_simulation_failed(sel).sum()), int(pending.sum())
 
 
 def _beyond_run(runs: Any, point: Dict[str, Any], metric: str) -> int:

@@ -51,6 +51,8 @@ class SpheroidCache {
   explicit SpheroidCache(std::string dir) : dir_(std::move(dir)) {}
   const std::string& dir() const { return dir_; }
   std::optional<PreparedSpheroid> load(const SceneSpec& prep) const;
+  // Whether a file for `prep` is there (not read: load() still checks it).
+  bool holds(const SceneSpec& prep) const;
   // Throws std::runtime_error if the directory cannot be created or written.
   void store(const SceneSpec& prep, const PreparedSpheroid& s) const;
 

@@ -204,6 +204,11 @@ std::optional<PreparedSpheroid> SpheroidCache::load(const SceneSpec& prep) const
   }
 }
 
+bool SpheroidCache::holds(const SceneSpec& prep) const {
+  std::error_code ec;
+  return fs::is_regular_file(cacheFile(dir_, prep), ec);
+}
+
 void SpheroidCache::store(const SceneSpec& prep, const PreparedSpheroid& s) const {
   std::error_code ec;
   fs::create_directories(dir_, ec);
@@ -324,8 +329,7 @@ CellSet buildFusionCells(const SceneSpec& spec, const SpheroidCache* cache, cons
     if (!(limit > prep.numerics.max_volume_error)) return prepareSpheroid(prep, cache, obs);
     SceneSpec looser = prep;
     looser.numerics.max_volume_error = limit;
-    if (cache && !cache->load(prep))
-      if (cache->load(looser)) return prepareSpheroid(looser, cache, obs);
+    if (cache && cache->holds(looser)) return prepareSpheroid(looser, cache, obs);
     try {
       return prepareSpheroid(prep, cache, obs);
     } catch (const PrepFailed& e) {
