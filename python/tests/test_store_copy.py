@@ -14,14 +14,21 @@ from conftest import TINY_FUSION, Foamd
 SPEC = 'seed = 3\nduration_s = 3600\n' + TINY_FUSION
 
 
-def _wait(client, jid, pred, timeout=240):
-    deadline = time.monotonic() + timeout
+def _wait(client, jid, pred, timeout=240, cap=1800):
+    # A job that moves is waited for (the suite may share its cores with other work: a total
+    # deadline failed it under load); one that stops moving for `timeout` s is a failure.
+    start = last_move = time.monotonic()
+    seen = None
     while True:
         info = client.job(jid).info()
         if pred(info):
             return info
-        assert time.monotonic() < deadline, f"job {jid}: {_state_name(info.state)} after " \
-            f"{timeout} s"
+        now = time.monotonic()
+        if (info.state, info.progress) != seen:
+            seen, last_move = (info.state, info.progress), now
+        assert now - last_move < timeout and now - start < cap, \
+            f"job {jid}: {_state_name(info.state)} at {info.progress:.1%}, unchanged for " \
+            f"{now - last_move:.0f} s ({now - start:.0f} s in all)"
         time.sleep(0.2)
 
 
