@@ -63,7 +63,7 @@ STUDY_KEYS = {"name", "title", "base", "preset", "seeds", "x", "x_label", "x_log
 FITNESS_KEYS = {"key", "reference", "metrics"}
 TOP_KEYS = {"study", "spec", "grid", "fitness", "share", "diagnose"}
 DIAGNOSE_KEYS = {"name", "title", "spec", "kinds"}
-SHARE_KEYS = {"file", "this", "that"}
+SHARE_KEYS = {"file", "this", "that", "seeds"}
 PRESETS = {"draft", "standard", "reference"}
 
 # Per-run metrics of a fusion study: name → (label, where it comes from).
@@ -132,14 +132,27 @@ class Run:
 @dataclass
 class Share:
     """A point this study has in common with another study (same base, [spec] and preset): its
-    runs take that study's jobs at `that` point instead of running again."""
+    runs take that study's jobs at `that` point instead of running again — at every seed, or
+    at `seeds` only (a point whose first seeds are one study's runs and a later seed another's:
+    the studies sharing it ran different seed lists)."""
     other: "Study"
     this: Dict[str, Any]
     that: Dict[str, Any]
     index: int
+    seeds: Optional[List[int]] = None
 
-    def covers(self, point: Dict[str, Any]) -> bool:
-        return _same_point(point, self.this)
+    def covers(self, point: Dict[str, Any], seed: Optional[int] = None) -> bool:
+        """Whether this share holds the point (at `seed`, when given)."""
+        return _same_point(point, self.this) and (
+            seed is None or self.seeds is None or seed in self.seeds)
+
+    def overlaps(self, other: "Share") -> bool:
+        """Whether the two shares claim one run: the same point at a seed both cover."""
+        if not _same_point(self.this, other.this):
+            return False
+        if self.seeds is None or other.seeds is None:
+            return True
+        return bool(set(self.seeds) & set(other.seeds))
 
 
 @dataclass
@@ -388,7 +401,8 @@ def _load_diagnosis(study: Study, i: int, d: Any) -> Diagnosis:
 
 def _load_share(study: Study, i: int, sh: Any) -> Share:
     """[[share]]: file = another study file (relative to this one), this = one of this study's
-    points, that = the same run's point in the other study. Both studies must submit the same
+    points, that = the same run's point in the other study, seeds (optional) = the seeds of this
+    study at which the two are one run (default: all). Both studies must submit the same
     base, [spec] and preset, so that a job of one is a run of the other; the keys each point
     leaves to the base are checked against the jobs' resolved specs when the jobs are matched."""
     where = f"share[{i}]"
@@ -429,9 +443,26 @@ def _load_share(study: Study, i: int, sh: Any) -> Share:
                       or not _same(other.spec[k], study.spec[k]))
         raise StudyError(f"{where}.file: {other.name} sets other [spec] keys or preset "
                          f"({', '.join(diff) or 'preset'}); a job of it is not a run of this study")
-    if any(sh2.covers(this) for sh2 in study.shares):
-        raise StudyError(f"{where}.this: {this} is shared twice")
-    return Share(other=other, this=this, that=that, index=i)
+    seeds = sh.get("seeds")
+    if seeds is not None:
+        if (not isinstance(seeds, list) or not seeds
+                or not all(isinstance(x, int) and not isinstance(x, bool) for x in seeds)
+                or len(set(seeds)) != len(seeds)):
+            raise StudyError(f"{where}.seeds: a list of distinct seeds of study.seeds, got "
+                             f"{seeds!r}")
+        mine = [x for x in seeds if x not in study.seeds]
+        if mine:
+            raise StudyError(f"{where}.seeds: {mine} not in study.seeds {study.seeds}")
+        theirs = [x for x in seeds if x not in other.seeds]
+        if theirs:
+            raise StudyError(f"{where}.seeds: {other.name} does not run seeds {theirs} "
+                             f"(its seeds: {other.seeds})")
+    new = Share(other=other, this=this, that=that, index=i,
+                seeds=None if seeds is None else list(seeds))
+    if any(sh2.overlaps(new) for sh2 in study.shares):
+        raise StudyError(f"{where}.this: {this} is shared twice"
+                         + (f" at one of seeds {seeds}" if seeds is not None else ""))
+    return new
 
 
 # ---- matching jobs to runs -------------------------------------------------------------------
@@ -543,7 +574,7 @@ def _jobs_by_run(study: Study, jobs: Sequence[Any]) -> Tuple[Dict[int, List[Any]
 
 
 def _share_of(study: Study, run: Run) -> Optional[Share]:
-    return next((sh for sh in study.shares if sh.covers(run.point)), None)
+    return next((sh for sh in study.shares if sh.covers(run.point, run.seed)), None)
 
 
 def _share_base_verified(study: Study, sh: Share, own_specs: List[Tuple[Run, Dict]]) -> bool:
@@ -610,7 +641,7 @@ def _shared_jobs(study: Study, client: Any, own: Dict[int, List[Any]]) -> Dict[i
         other_runs = sh.other.runs()
         for i, run in enumerate(runs):
             mine = own.get(i, [])
-            if not sh.covers(run.point) or any(_state_name(j.state) != "cancelled"
+            if not sh.covers(run.point, run.seed) or any(_state_name(j.state) != "cancelled"
                                                 for j in mine):
                 continue
             k_other = next((k for k, r in enumerate(other_runs)
@@ -2037,10 +2068,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             print(f"study {study.name}: {len(study.points())} points × {len(study.seeds)} seeds "
                   f"= {len(runs)} runs, tag {study.tag}")
             for p in study.points():
-                sh = next((x for x in study.shares if x.covers(p)), None)
-                print("  " + ", ".join(f"{k}={v}" for k, v in p.items()) +
-                      (f"  (shared: {sh.other.name}'s " +
-                       ", ".join(f"{k}={v}" for k, v in sh.that.items()) + ")" if sh else ""))
+                held = [x for x in study.shares if x.covers(p)]
+                print("  " + ", ".join(f"{k}={v}" for k, v in p.items()) + "".join(
+                    f"  (shared: {sh.other.name}'s " +
+                    ", ".join(f"{k}={v}" for k, v in sh.that.items()) +
+                    (f" at seeds {sh.seeds}" if sh.seeds is not None else "") + ")"
+                    for sh in held))
             return 0
         carried = None
         if getattr(args, "with_data", None):

@@ -845,6 +845,74 @@ def test_a_share_whose_runs_differ_is_an_error_naming_the_key(tmp_path):
         st.submit_missing(taup, foamd)
 
 
+def _split_share_studies(tmp: Path):
+    """τ_p's 600 s point is α's run at seeds 1–2 and β's (α's twin with seed 3) at seed 3."""
+    _shared_studies(tmp)
+    (tmp / "beta.toml").write_text((tmp / "alpha.toml").read_text().replace(
+        'name = "alpha"', 'name = "beta"').replace("seeds = [1, 2]", "seeds = [3]"))
+    text = (tmp / "taup.toml").read_text().replace("seeds = [1, 2]", "seeds = [1, 2, 3]")
+    (tmp / "taup.toml").write_text(text + textwrap.dedent("""\
+        seeds = [1, 2]
+        [[share]]
+        file = "beta.toml"
+        this = { "cells.tau_p_s" = 600 }
+        that = { "cells.alpha" = 0.4375 }
+        seeds = [3]
+        """))
+    return st.load(tmp / "taup.toml")
+
+
+def test_a_point_shared_with_two_studies_by_seed_takes_each_ones_job(tmp_path):
+    # A study with a seed more than the one it shares its base point with takes that seed's
+    # run from a third study that runs it, instead of running it a second time.
+    taup = _split_share_studies(tmp_path)
+    foamd = _FakeFoamd({"alpha": 0.4375, "tau_p_s": 600})
+    _alpha_jobs(foamd)
+    spec = {"seed": 3, "duration_s": 240, "cells": {"alpha": 0.4375, "tau_p_s": 600},
+            "numerics": {"remesh_on_surface": True}}
+    foamd.add("study:beta", _FakeJob("j-b0.4375-3", 3, spec))
+    assert st.submit_missing(taup, foamd) == (3, 3)
+    assert sorted((s["tag"], s["cells.tau_p_s"], s["seed"]) for s in foamd.submitted) == [
+        ("study:taup", "150", "1"), ("study:taup", "150", "2"), ("study:taup", "150", "3")]
+    found, source, _ = st._run_jobs(taup, foamd)
+    shared = {taup.runs()[i].seed: (found[i][0].id, source[i]) for i in source}
+    assert shared == {1: ("j-a0.4375-1", "alpha"), 2: ("j-a0.4375-2", "alpha"),
+                      3: ("j-b0.4375-3", "beta")}
+    assert st.submit_missing(taup, foamd) == (0, 6)
+    # Neither study has run it yet: each seed goes in as its owner's run.
+    foamd = _FakeFoamd({"alpha": 0.4375, "tau_p_s": 600})
+    assert st.submit_missing(taup, foamd) == (6, 0)
+    assert sorted((s["tag"], s["seed"]) for s in foamd.submitted
+                  if s.get("cells.tau_p_s") != "150") == [
+        ("study:alpha", "1"), ("study:alpha", "2"), ("study:beta", "3")]
+    r = _run(["check", str(tmp_path / "taup.toml")])
+    assert r.returncode == 0 and "alpha's cells.alpha=0.4375 at seeds [1, 2]" in r.stdout \
+        and "beta's cells.alpha=0.4375 at seeds [3]" in r.stdout, r.stdout + r.stderr
+
+
+@pytest.mark.parametrize("seeds, message", [
+    ("[4]", "share[1].seeds: [4] not in study.seeds [1, 2, 3]"),
+    ("[2]", "share[1].seeds: beta does not run seeds [2] (its seeds: [3])"),
+    ('"3"', "share[1].seeds: a list of distinct seeds"),
+])
+def test_bad_share_seeds_exit_2_naming_the_key(tmp_path, seeds, message):
+    _split_share_studies(tmp_path)
+    f = tmp_path / "taup.toml"
+    f.write_text(f.read_text().replace("seeds = [3]\n", f"seeds = {seeds}\n"))
+    r = _run(["check", str(f)])
+    assert r.returncode == 2 and message in r.stderr, r.stdout + r.stderr
+
+
+def test_a_point_shared_twice_at_one_seed_is_an_error(tmp_path):
+    _split_share_studies(tmp_path)
+    f = tmp_path / "taup.toml"
+    # The first share covers every seed, so the second's seed 3 is claimed twice.
+    f.write_text(f.read_text().replace("seeds = [1, 2]\n[[share]]", "[[share]]"))
+    r = _run(["check", str(f)])
+    assert r.returncode == 2 and "share[1].this: {'cells.tau_p_s': 600} is shared twice at " \
+        "one of seeds [3]" in r.stderr, r.stdout + r.stderr
+
+
 @pytest.mark.parametrize("share, message", [
     ('file = "nope.toml"\nthis = { "cells.tau_p_s" = 600 }\nthat = { "cells.alpha" = 0.4375 }',
      "share[0].file: study: no such file"),
