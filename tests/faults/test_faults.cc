@@ -55,9 +55,11 @@ std::vector<std::string> samplesWithoutWallTime(const Foamd& d, const std::strin
 }  // namespace
 
 // kill -9 at random moments while a queue of three jobs runs on one worker (each ~1 s of wall
-// time, checkpoints every 200 simulated seconds, so most kills land mid-run): after the last
-// restart every job ends succeeded with the samples of an uninterrupted run, bit for bit (wall time
-// aside), each time once. The seed of the moments is printed for a rerun (FOAM_KILL_SEED).
+// time, checkpoints every 200 simulated seconds): after the last restart every job ends succeeded
+// with the samples of an uninterrupted run, bit for bit (wall time aside), each time once. Each
+// kill waits for a job to start in that incarnation and then for a random moment, so that kills
+// land mid-run however fast the host is (a fixed window from the start let a fast host finish the
+// whole queue between two kills). The seed of the moments is printed for a rerun (FOAM_KILL_SEED).
 TEST(Faults, KillDashNineAtRandomMomentsOfAThreeJobQueue) {
   const fs::path dir = tempDir();
   const int port = freePort();
@@ -65,12 +67,6 @@ TEST(Faults, KillDashNineAtRandomMomentsOfAThreeJobQueue) {
   if (const char* s = std::getenv("FOAM_KILL_SEED")) seed = std::stoull(s);
   SCOPED_TRACE("FOAM_KILL_SEED=" + std::to_string(seed));
   std::mt19937_64 rng(seed);
-  // Kill windows grow until the kills have hit running jobs and one has resumed from a
-  // checkpoint: a slower build (sanitizers) needs longer ones for the same coverage.
-  int window_ms = 1200;
-  auto moment = [&] {
-    return std::chrono::milliseconds(std::uniform_int_distribution<int>(50, window_ms)(rng));
-  };
   const std::vector<std::string> flags{"--checkpoint-every-s", "200"};
   auto submit = [](const Foamd& d, int job_seed, const std::string& tag) {
     const std::string cmd = d.foam() +
@@ -85,30 +81,45 @@ TEST(Faults, KillDashNineAtRandomMomentsOfAThreeJobQueue) {
     }
     return std::string();
   };
-  std::vector<std::string> ids;
-  {
-    Foamd d(dir / "foamd.db", port, 1, flags);
-    for (int s = 1; s <= 3; ++s) ids.push_back(submit(d, s, "killed"));
-    for (const auto& id : ids) ASSERT_FALSE(id.empty());
-    std::this_thread::sleep_for(moment());
-    d.stop(SIGKILL);
-  }
   std::string log;
   auto count = [&](const std::string& what) {
     std::size_t n = 0;
     for (auto p = log.find(what); p != std::string::npos; p = log.find(what, p + 1)) ++n;
     return n;
   };
+  // Attempts begun, from scratch or from a checkpoint.
+  auto starts = [&] { return count(": starting (") + count(": resuming from checkpoint at"); };
+  // Waits (up to 10 s) for a job to start after `started_before` starts in the log, then for a
+  // random moment of up to half a job's wall time, and kills. False when no job started: the queue
+  // has drained.
+  auto killWhileRunning = [&](Foamd& d, std::size_t started_before) {
+    const auto until = std::chrono::steady_clock::now() + 10s;
+    bool started = false;
+    while (!started && std::chrono::steady_clock::now() < until) {
+      log = readAll(dir / "foamd.log");
+      started = starts() > started_before;
+      if (!started) std::this_thread::sleep_for(5ms);
+    }
+    if (started)
+      std::this_thread::sleep_for(
+          std::chrono::milliseconds(std::uniform_int_distribution<int>(20, 500)(rng)));
+    d.stop(SIGKILL);
+    log = readAll(dir / "foamd.log");
+    return started;
+  };
+  std::vector<std::string> ids;
+  {
+    Foamd d(dir / "foamd.db", port, 1, flags);
+    for (int s = 1; s <= 3; ++s) ids.push_back(submit(d, s, "killed"));
+    for (const auto& id : ids) ASSERT_FALSE(id.empty());
+    killWhileRunning(d, 0);
+  }
   for (int k = 0; k < 5 || (k < 12 && (count("were running when foamd stopped") < 2 ||
                                        count("resuming from checkpoint") < 1));
        ++k) {
-    {
-      Foamd d(dir / "foamd.db", port, 1, flags);
-      std::this_thread::sleep_for(moment());
-      d.stop(SIGKILL);
-    }
-    log = readAll(dir / "foamd.log");
-    if (k >= 4) window_ms = window_ms * 3 / 2;
+    const std::size_t started_before = starts();
+    Foamd d(dir / "foamd.db", port, 1, flags);
+    if (!killWhileRunning(d, started_before)) break;
   }
   Foamd d(dir / "foamd.db", port, 1, flags);
   // The kills must have hit running jobs, and some of those must have resumed from a checkpoint
