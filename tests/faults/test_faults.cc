@@ -55,11 +55,12 @@ std::vector<std::string> samplesWithoutWallTime(const Foamd& d, const std::strin
 }  // namespace
 
 // kill -9 at random moments while a queue of three jobs runs on one worker (each ~1 s of wall
-// time, checkpoints every 200 simulated seconds): after the last restart every job ends succeeded
-// with the samples of an uninterrupted run, bit for bit (wall time aside), each time once. Each
-// kill waits for a job to start in that incarnation and then for a random moment, so that kills
-// land mid-run however fast the host is (a fixed window from the start let a fast host finish the
-// whole queue between two kills). The seed of the moments is printed for a rerun (FOAM_KILL_SEED).
+// time, checkpoints every 200 simulated seconds, 60 a job): after the last restart every job ends
+// succeeded with the samples of an uninterrupted run, bit for bit (wall time aside), each time
+// once. Each kill waits for a job to start in that incarnation and then for a random moment, so
+// that kills land mid-run however fast the host is (a fixed window from the start let a fast host
+// finish the whole queue between two kills). The seed of the moments is printed for a rerun
+// (FOAM_KILL_SEED).
 TEST(Faults, KillDashNineAtRandomMomentsOfAThreeJobQueue) {
   const fs::path dir = tempDir();
   const int port = freePort();
@@ -70,7 +71,7 @@ TEST(Faults, KillDashNineAtRandomMomentsOfAThreeJobQueue) {
   const std::vector<std::string> flags{"--checkpoint-every-s", "200"};
   auto submit = [](const Foamd& d, int job_seed, const std::string& tag) {
     const std::string cmd = d.foam() +
-                            " submit --scene cell --set duration_s=6000 --set sample_every_s=400"
+                            " submit --scene cell --set duration_s=12000 --set sample_every_s=800"
                             " --set numerics.triangles_per_cell=80 --set snapshot_every_s=0"
                             " --set seed=" +
                             std::to_string(job_seed) + " --tag " + tag + " 2>/dev/null";
@@ -140,7 +141,7 @@ TEST(Faults, KillDashNineAtRandomMomentsOfAThreeJobQueue) {
     EXPECT_EQ(sh(d.foam() + " watch " + ref + " -q 2>/dev/null").rc, 0);
     const std::vector<std::string> clean = samplesWithoutWallTime(d, ref);
     const std::vector<std::string> killed = samplesWithoutWallTime(d, ids[s - 1]);
-    ASSERT_EQ(clean.size(), 17u);  // the header and t = 0, 400, ..., 6000 s
+    ASSERT_EQ(clean.size(), 17u);  // the header and t = 0, 800, ..., 12000 s
     EXPECT_EQ(killed, clean) << "job " << ids[s - 1] << " (seed " << s << ")";
   }
   d.stop(SIGTERM);
