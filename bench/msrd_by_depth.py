@@ -6,6 +6,7 @@ one of each — from a run's snapshots (foam-run with snapshot_every_s > 0).
 
     bench/msrd_by_depth.py SNAPSHOT_DIR [--radius-um R] [--free-below F] [--touch-um D]
                            [--engine-summary summary.json] [--csv OUT.csv] [--layers]
+                           [--less-rotation]
 
 The snapshots carry meshes, not the engine's contact list, so contact is read from geometry:
 a vertex of cell i touches cell j when it lies within D of j's surface (default 0.5 µm, a
@@ -14,7 +15,9 @@ point–triangle distance; the adhesion's range h0 is ~0.06 µm, the contact's o
 touch no cell, and it is buried below F (default 0.05). --engine-summary compares the proxy's
 all-pairs curve with the engine's own MSRD (the run's summary.json): the proxy is read only
 where the two agree. Prints, per lag, the MSRD / r² of each class with its pair count, and
-the mixing time (MSRD = r²) of each class.
+the mixing time (MSRD = r²) of each class. --less-rotation prints instead all pairs' MSRD as it
+is and with the aggregate's rigid rotation between origin and lag taken out (a doublet that
+turns as a body moves every pair's relative vector without any cell changing its neighbours).
 """
 import argparse
 import json
@@ -185,6 +188,43 @@ def msrd_by_layer(xs, pairs_at, free_at, free_below, first_origin=0):
     return _pooled(xs, pairs_at, classify, LAYERS, first_origin)
 
 
+def best_rotation(p, q):
+    """The rotation R (3 × 3, det +1) that best carries the points p onto q about their
+    centroids (least squares, Kabsch)."""
+    pc = p - p.mean(axis=0)
+    qc = q - q.mean(axis=0)
+    u, _, vt = np.linalg.svd(pc.T @ qc)
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    return vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+
+
+def msrd_less_rotation(xs, pairs_at, first_origin=0):
+    """As msrd_by_class's "all", and the same with the aggregate's rigid rotation taken out:
+    between each origin o and o + lag every pair's relative vector at o is first turned by the
+    rotation that best carries all the cells' centroids at o onto those at o + lag. A rigidly
+    turning aggregate moves every pair's relative vector (|Δ|² = 2|d|²(1 − cos φ)) with no cell
+    changing its neighbours; what is left is the motion relative to that turn. Returns the
+    summed squared displacements (raw, less the rotation), the pair counts and the summed
+    rotation angles (degrees, one per origin) per lag, and the origin counts."""
+    nl = len(xs)
+    raw, less, angle = np.zeros(nl), np.zeros(nl), np.zeros(nl)
+    counts, origins = np.zeros(nl, dtype=int), np.zeros(nl, dtype=int)
+    for o in range(first_origin, nl):
+        if len(pairs_at[o]) == 0:
+            continue
+        p = np.asarray(pairs_at[o])
+        rel0 = xs[o, p[:, 0]] - xs[o, p[:, 1]]
+        for lag in range(nl - o):
+            rel = xs[o + lag, p[:, 0]] - xs[o + lag, p[:, 1]]
+            rot = best_rotation(xs[o], xs[o + lag])
+            raw[lag] += np.sum((rel - rel0) ** 2)
+            less[lag] += np.sum((rel - rel0 @ rot.T) ** 2)
+            angle[lag] += np.degrees(np.arccos(np.clip((np.trace(rot) - 1.0) / 2.0, -1.0, 1.0)))
+            counts[lag] += len(p)
+            origins[lag] += 1
+    return raw, less, counts, angle, origins
+
+
 def mixing(lags, y):
     """The lag where y first reaches 1 (linear between samples), or None."""
     above = np.flatnonzero(y >= 1.0)
@@ -209,6 +249,10 @@ def main():
                     help="only time origins at or after this time (e.g. once the doublet has "
                          "fused: the MSRD without the fusion's own flow); the engine's curve "
                          "pools every origin, so --engine-summary compares only at 0")
+    ap.add_argument("--less-rotation", action="store_true",
+                    help="instead of the classes: all pairs' MSRD as it is and with the "
+                         "aggregate's rigid rotation between origin and lag taken out, and the "
+                         "mean angle it turned")
     ap.add_argument("--layers", action="store_true",
                     help="split the pairs by depth in the contact graph instead (depth 0: a "
                          "surface cell in the pair; 1: buried, one next to the surface; 2+: "
@@ -272,6 +316,34 @@ def main():
         sys.exit(f"msrd_by_depth: --origins-from {args.origins_from}: fewer than 3 snapshots from there")
     if first:
         print(f"origins from t = {ts[first]:.0f} s ({len(ts) - first} of them)")
+    if args.less_rotation:
+        raw, less, counts, angle, origins = msrd_less_rotation(xs, pairs_at, first)
+        nl = len(ts) - first
+        has = counts > 0
+        y_raw = np.where(has, raw / np.maximum(counts, 1), np.nan) / r**2
+        y_less = np.where(has, less / np.maximum(counts, 1), np.nan) / r**2
+        turn = np.where(origins > 0, angle / np.maximum(origins, 1), np.nan)
+        print()
+        print("| lag (s) | origins | MSRD / r² | less the rotation / r² | share of the rotation "
+              "| turned (°, mean over origins) |")
+        print("|---|---|---|---|---|---|")
+        show = sorted(set(np.unique(np.round(np.geomspace(1, nl - 1, 14)).astype(int))))
+        for k in show:
+            share = 1.0 - y_less[k] / y_raw[k] if y_raw[k] > 0 else float("nan")
+            print(f"| {lags[k]:.0f} | {origins[k]} | {y_raw[k]:.3g} | {y_less[k]:.3g} | "
+                  f"{share:.0%} | {turn[k]:.1f} |")
+        print()
+        for name, y in (("as it is", y_raw), ("less the rotation", y_less)):
+            mt = mixing(lags, y)
+            print(f"mixing time, {name}: " + (f"{mt:.0f} s" if mt is not None
+                                              else f"not reached in {lags[nl - 1]:.0f} s"))
+        if args.csv:
+            with open(args.csv, "w") as f:
+                f.write("lag_s,origins,msrd_r2,msrd_less_rotation_r2,turned_deg\n")
+                for k in range(nl):
+                    f.write(f"{lags[k]:.6g},{origins[k]},{y_raw[k]:.6g},{y_less[k]:.6g},"
+                            f"{turn[k]:.6g}\n")
+        return
     if args.layers:
         d0 = depths(pairs_at[0], free_at[0], args.free_below)
         print("cells by depth at t = 0: " + ", ".join(

@@ -24,13 +24,21 @@
 //   - the cortex's dissipation of v less its one-ring mean (vertex-scale jitter);
 //   - medium drag's and friction's dissipation of each cell's translation alone;
 //   - the RMS speed of the cell centroids and of their motion relative to their contacting
-//     neighbours' centroids, µm/min, and the MSRD from t = 0 (pairs in contact then).
+//     neighbours' centroids, µm/min, and the MSRD from t = 0 (pairs in contact then);
+//   - the aggregate as a body: the net force and the net torque (about its centroid) of the
+//     forces at the step's start, nN and nN·µm (the terms are balanced: both should vanish), the
+//     rigid part of v (translation speed, µm/h, and angular speed, °/h: the area-weighted
+//     least-squares V + ω × (x − x̄)), and, from the cells' centroids, how far the aggregate's
+//     centre has moved since the first sample (µm) and the angle it has turned (°, the rotation
+//     that best carries the centroids then onto those now) — remeshing included, which the
+//     step's v is not. An aggregate without active forces has nothing to move or turn it.
 //
 //   OMP_NUM_THREADS=1 build/release/bench/study_dissipation CACHE_DIR n_cells seed T_s sample_s
 //       integrator:Δt:preconditioner[:ε_CG] l_eta_1[:key=value…][,l_eta_2…] [key=value …]
 //
 // The key=value settings at the end apply to every configuration and to the preparation; those
 // after a configuration's L_η/r to it alone (0.5:cells.eta_m=0.1), the aggregate unchanged.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -77,7 +85,8 @@ int main(int argc, char** argv) {
       "p_forces,p_active,p_medium_affine,p_cortex_affine,p_friction_t_affine,p_friction_n_affine,"
       "p_cortex_rest,p_friction_t_rest,p_cortex_vertex_scale,p_medium_translation,"
       "p_friction_t_translation,p_friction_n_translation,v_centroid_um_min,v_relative_um_min,"
-      "msrd_um2,unique_contacts,wall_s\n");
+      "msrd_um2,unique_contacts,wall_s,f_net_nN,torque_net_nN_um,v_rigid_um_h,omega_deg_h,"
+      "drift_um,turned_deg\n");
   for (const bench::Config& config : configs) {
     const double l_eta = config.l_eta;
     bench::SchemeConfig scheme;
@@ -102,6 +111,7 @@ int main(int argc, char** argv) {
     springs_only.xi_tangential = 0.0;
     const ContactFriction springs(springs_only);
     const ActiveMigration act(s.cells, s.seed);
+    std::vector<Vec3> first_centroids;  // the cells' centroids at the first sample
     auto sample = [&]() -> bool {
       sim.detect();
       // The step's start: copies, since the step changes them.
@@ -228,15 +238,69 @@ int main(int argc, char** argv) {
         rel2 += (vc[c] - mean / static_cast<double>(nb[c].size())).squaredNorm();
         ++rel_n;
       }
+      // The aggregate as a body: net force and torque of f, the rigid part of v.
+      Vec3 xbar = Vec3::Zero(), vbar = Vec3::Zero(), f_net = Vec3::Zero(), torque = Vec3::Zero();
+      double wsum = 0;
+      for (int i = 0; i < nv; ++i) {
+        const double w = g0.vertex_area[i];
+        xbar += w * c0.x.col(i);
+        vbar += w * v.segment<3>(3 * i);
+        wsum += w;
+      }
+      xbar /= wsum;
+      vbar /= wsum;
+      Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
+      Vec3 ang = Vec3::Zero();
+      for (int i = 0; i < nv; ++i) {
+        const double w = g0.vertex_area[i];
+        const Vec3 rx = c0.x.col(i) - xbar;
+        f_net += f.col(i);
+        torque += rx.cross(Vec3(f.col(i)));
+        inertia += w * (rx.squaredNorm() * Eigen::Matrix3d::Identity() - rx * rx.transpose());
+        ang += w * rx.cross(Vec3(v.segment<3>(3 * i)) - vbar);
+      }
+      const Vec3 omega = inertia.ldlt().solve(ang);
+      // Since the first sample, from the cells' centroids (the remesher's moves included).
+      std::vector<Vec3> cen(nc, Vec3::Zero());
+      {
+        std::vector<double> cw(nc, 0.0);
+        for (int i = 0; i < nv; ++i) {
+          const int c = c0.vertex_cell[i];
+          cen[c] += g0.vertex_area[i] * c0.x.col(i);
+          cw[c] += g0.vertex_area[i];
+        }
+        for (int c = 0; c < nc; ++c) cen[c] /= cw[c];
+      }
+      if (first_centroids.empty()) first_centroids = cen;
+      double drift = 0, turned = 0;
+      if (static_cast<int>(first_centroids.size()) == nc) {
+        Vec3 m0 = Vec3::Zero(), m1 = Vec3::Zero();
+        for (int c = 0; c < nc; ++c) {
+          m0 += first_centroids[c];
+          m1 += cen[c];
+        }
+        m0 /= nc;
+        m1 /= nc;
+        Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
+        for (int c = 0; c < nc; ++c) h += (first_centroids[c] - m0) * (cen[c] - m1).transpose();
+        const Eigen::JacobiSVD<Eigen::Matrix3d> svd(h, Eigen::ComputeFullU | Eigen::ComputeFullV);
+        const double d = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1 : 1;
+        const Eigen::Matrix3d rot =
+            svd.matrixV() * Eigen::Vector3d(1, 1, d).asDiagonal() * svd.matrixU().transpose();
+        drift = (m1 - m0).norm();
+        turned = std::acos(std::clamp((rot.trace() - 1) / 2, -1.0, 1.0)) * 180 / M_PI;
+      }
       const double wall =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       std::printf(
           "%s,%g,%.6g,%g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%."
           "6g,"
-          "%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.1f\n",
+          "%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.1f,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n",
           config.label.c_str(), l_eta, s.cells.xi, plain.t, pm, pc, pt, pn, ps, pf, pa, pm_a, pc_a,
           pt_a, pn_a, pc_r, pt_r, pc_ring, pm_m, pt_m, pn_m, 60 * std::sqrt(v2 / nc),
-          rel_n ? 60 * std::sqrt(rel2 / rel_n) : 0.0, msrd.msrd(k), history.normalized(), wall);
+          rel_n ? 60 * std::sqrt(rel2 / rel_n) : 0.0, msrd.msrd(k), history.normalized(), wall,
+          f_net.norm(), torque.norm(), 3600 * vbar.norm(), 3600 * omega.norm() * 180 / M_PI, drift,
+          turned);
       std::fflush(stdout);
       ++k;
       return true;

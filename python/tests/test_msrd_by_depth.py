@@ -180,3 +180,39 @@ def test_msrd_by_layer_splits_by_the_shallower_cells_depth():
     assert np.all(sums["depth-0"] == 0.0) and np.all(sums["depth-1"] == 0.0)
     assert sums["depth-2+"] / counts["depth-2+"] == pytest.approx(np.arange(4.0) ** 2)
     assert list(counts["all"]) == [12, 9, 6, 3]
+
+
+def _rotation(axis, deg):
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    t = np.radians(deg)
+    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + np.sin(t) * k + (1 - np.cos(t)) * k @ k
+
+
+def test_best_rotation_recovers_a_turn_and_ignores_a_shift():
+    rng = np.random.default_rng(3)
+    p = rng.normal(size=(12, 3))
+    rot = _rotation([1, 2, -0.5], 37.0)
+    got = mbd.best_rotation(p, p @ rot.T + [4.0, -1.0, 2.0])
+    assert np.allclose(got, rot, atol=1e-12)
+    assert np.isclose(np.linalg.det(got), 1.0)
+
+
+def test_a_rigidly_turning_aggregate_has_msrd_but_none_less_the_rotation():
+    rng = np.random.default_rng(4)
+    x0 = rng.normal(scale=3.0, size=(10, 3))
+    pairs = [(i, j) for i in range(10) for j in range(i + 1, 10)
+             if np.linalg.norm(x0[i] - x0[j]) < 6]
+    assert len(pairs) > 5
+    # 2° a sample about a fixed axis, and a drift of the whole
+    xs = np.array([x0 @ _rotation([0.3, -0.5, 0.8], 2.0 * k).T + 0.7 * k for k in range(6)])
+    raw, less, counts, angle, origins = mbd.msrd_less_rotation(xs, [pairs] * 6)
+    assert counts[3] == len(pairs) * 3 and origins[3] == 3
+    assert raw[3] > 1e-3 * counts[3]
+    assert np.allclose(less, 0.0, atol=1e-18)
+    assert np.allclose(angle[1:] / origins[1:], 2.0 * np.arange(1, 6), atol=1e-9)
+    # without a turn, the two agree: relative motion is kept whole
+    ys = xs[0] + rng.normal(scale=0.2, size=(6, 10, 3)) * np.arange(6)[:, None, None]
+    raw2, less2, _, _, _ = mbd.msrd_less_rotation(ys, [pairs] * 6)
+    assert np.all(less2 <= raw2 + 1e-12)
+    assert less2[5] > 0.5 * raw2[5]
