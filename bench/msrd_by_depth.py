@@ -236,29 +236,9 @@ def mixing(lags, y):
     return lags[k - 1] + (1.0 - y[k - 1]) / (y[k] - y[k - 1]) * (lags[k] - lags[k - 1])
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("snapshots", type=Path)
-    ap.add_argument("--radius-um", type=float, default=None,
-                    help="r for MSRD / r² (default: the run's spec.json beside the folder)")
-    ap.add_argument("--free-below", type=float, default=0.05)
-    ap.add_argument("--touch-um", type=float, default=0.5)
-    ap.add_argument("--engine-summary", type=Path, default=None)
-    ap.add_argument("--csv", type=Path, default=None)
-    ap.add_argument("--origins-from", type=float, default=0.0, metavar="SECONDS",
-                    help="only time origins at or after this time (e.g. once the doublet has "
-                         "fused: the MSRD without the fusion's own flow); the engine's curve "
-                         "pools every origin, so --engine-summary compares only at 0")
-    ap.add_argument("--less-rotation", action="store_true",
-                    help="instead of the classes: all pairs' MSRD as it is and with the "
-                         "aggregate's rigid rotation between origin and lag taken out, and the "
-                         "mean angle it turned")
-    ap.add_argument("--layers", action="store_true",
-                    help="split the pairs by depth in the contact graph instead (depth 0: a "
-                         "surface cell in the pair; 1: buried, one next to the surface; 2+: "
-                         "the bulk deeper than one layer)")
-    args = ap.parse_args()
-
+def read_geometry(args):
+    """Each snapshot's time, cell centroids, contacting pairs and free fractions (cached beside
+    the snapshots)."""
     files = sorted(args.snapshots.glob("snap_*.vtp"))
     if len(files) < 3:
         sys.exit(f"msrd_by_depth: {args.snapshots}: fewer than 3 snapshots")
@@ -300,6 +280,61 @@ def main():
         cache.write_bytes(pickle.dumps(fresh))
     except OSError:
         pass
+    return r, ts, xs, pairs_at, free_at, touch
+
+
+def save_geometry(path, r, ts, xs, pairs_at, free_at):
+    """What the MSRD is computed from, without the meshes: a few tens of kB for a day's run (the
+    snapshots are tens of MB, and a saved campaign store keeps none)."""
+    counts = np.array([len(p) for p in pairs_at])
+    flat = np.array([q for p in pairs_at for q in p], dtype=int).reshape(-1, 2)
+    np.savez_compressed(path, r=r, ts=np.asarray(ts), xs=np.asarray(xs), pair_counts=counts,
+                        pairs=flat, free=np.asarray(free_at))
+
+
+def load_geometry(path, radius_um=None):
+    g = np.load(path)
+    bounds = np.concatenate([[0], np.cumsum(g["pair_counts"])])
+    pairs_at = [[tuple(q) for q in g["pairs"][bounds[k]:bounds[k + 1]]]
+                for k in range(len(g["ts"]))]
+    r = float(g["r"]) if radius_um is None else radius_um
+    return r, list(g["ts"]), list(g["xs"]), pairs_at, list(g["free"])
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("snapshots", type=Path)
+    ap.add_argument("--radius-um", type=float, default=None,
+                    help="r for MSRD / r² (default: the run's spec.json beside the folder)")
+    ap.add_argument("--free-below", type=float, default=0.05)
+    ap.add_argument("--touch-um", type=float, default=0.5)
+    ap.add_argument("--engine-summary", type=Path, default=None)
+    ap.add_argument("--csv", type=Path, default=None)
+    ap.add_argument("--origins-from", type=float, default=0.0, metavar="SECONDS",
+                    help="only time origins at or after this time (e.g. once the doublet has "
+                         "fused: the MSRD without the fusion's own flow); the engine's curve "
+                         "pools every origin, so --engine-summary compares only at 0")
+    ap.add_argument("--save-geometry", type=Path, default=None, metavar="FILE.npz",
+                    help="also write what the MSRD is computed from (centroids, contacts, free "
+                         "fractions a snapshot) to FILE.npz; give FILE.npz instead of the "
+                         "snapshot folder to compute from it")
+    ap.add_argument("--less-rotation", action="store_true",
+                    help="instead of the classes: all pairs' MSRD as it is and with the "
+                         "aggregate's rigid rotation between origin and lag taken out, and the "
+                         "mean angle it turned")
+    ap.add_argument("--layers", action="store_true",
+                    help="split the pairs by depth in the contact graph instead (depth 0: a "
+                         "surface cell in the pair; 1: buried, one next to the surface; 2+: "
+                         "the bulk deeper than one layer)")
+    args = ap.parse_args()
+
+    if args.snapshots.suffix == ".npz":
+        r, ts, xs, pairs_at, free_at = load_geometry(args.snapshots, args.radius_um)
+        touch = args.touch_um
+    else:
+        r, ts, xs, pairs_at, free_at, touch = read_geometry(args)
+    if args.save_geometry:
+        save_geometry(args.save_geometry, r, ts, xs, pairs_at, free_at)
     ts = np.array(ts)
     xs = np.array(xs)
     dt = float(np.mean(np.diff(ts)))

@@ -31,7 +31,10 @@
 //     least-squares V + ω × (x − x̄)), and, from the cells' centroids, how far the aggregate's
 //     centre has moved since the first sample (µm) and the angle it has turned (°, the rotation
 //     that best carries the centroids then onto those now) — remeshing included, which the
-//     step's v is not. An aggregate without active forces has nothing to move or turn it.
+//     step's v is not. An aggregate without active forces has nothing to move or turn it;
+//   - the torque the medium drag exerts on v (nN·µm) and, as shares along it (> 0 drives the turn
+//     the medium resists), the cortex viscosity's, the contact friction's and the contact
+//     springs' implicit part's: Γ v = F with F torque-free, so they sum to the medium's.
 //
 //   OMP_NUM_THREADS=1 build/release/bench/study_dissipation CACHE_DIR n_cells seed T_s sample_s
 //       integrator:Δt:preconditioner[:ε_CG] l_eta_1[:key=value…][,l_eta_2…] [key=value …]
@@ -72,6 +75,21 @@ double quadratic(const ForceTerm& term, const StepContext& ctx, const Eigen::Vec
   return v.dot(y);
 }
 
+// The torque about xbar of a term's dissipative forces on v, Σ (x_i − x̄) × (Γ_term v)_i: what the
+// term takes out of (or, with the opposite sign, puts into) the aggregate's turning.
+Vec3 torqueOf(const ForceTerm& term, const StepContext& ctx, const Eigen::VectorXd& v,
+              const Vec3& xbar) {
+  FrictionOperator op;
+  op.reset(ctx.cells.numVertices(), ctx.cells.topology_version);
+  term.addFriction(ctx, op);
+  Eigen::VectorXd y(v.size());
+  op.apply(v.data(), y.data());
+  Vec3 t = Vec3::Zero();
+  for (int i = 0; i < ctx.cells.numVertices(); ++i)
+    t += (Vec3(ctx.cells.x.col(i)) - xbar).cross(Vec3(y.segment<3>(3 * i)));
+  return t;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -86,7 +104,8 @@ int main(int argc, char** argv) {
       "p_cortex_rest,p_friction_t_rest,p_cortex_vertex_scale,p_medium_translation,"
       "p_friction_t_translation,p_friction_n_translation,v_centroid_um_min,v_relative_um_min,"
       "msrd_um2,unique_contacts,wall_s,f_net_nN,torque_net_nN_um,v_rigid_um_h,omega_deg_h,"
-      "drift_um,turned_deg\n");
+      "drift_um,turned_deg,torque_medium_nN_um,torque_cortex_nN_um,torque_friction_nN_um,"
+      "torque_springs_nN_um\n");
   for (const bench::Config& config : configs) {
     const double l_eta = config.l_eta;
     bench::SchemeConfig scheme;
@@ -260,6 +279,16 @@ int main(int argc, char** argv) {
         ang += w * rx.cross(Vec3(v.segment<3>(3 * i)) - vbar);
       }
       const Vec3 omega = inertia.ldlt().solve(ang);
+      // Which term turns it: Γ v = F and F exerts no torque, so the medium's torque on v is the
+      // others' with the opposite sign. Each printed as its share along the medium's (signed:
+      // > 0 drives the turn the medium resists).
+      CellParams both = s.cells;
+      const ContactFriction fric_all(both);
+      const Vec3 tq_m = torqueOf(medium, plain, v, xbar);
+      const Vec3 axis = tq_m.norm() > 0 ? Vec3(tq_m.normalized()) : Vec3::UnitX();
+      const double tq_c = -torqueOf(cortex, plain, v, xbar).dot(axis);
+      const double tq_f = -torqueOf(fric_all, plain, v, xbar).dot(axis);
+      const double tq_s = stiffness_dt > 0 ? -torqueOf(springs, stiff, v, xbar).dot(axis) : 0.0;
       // Since the first sample, from the cells' centroids (the remesher's moves included).
       std::vector<Vec3> cen(nc, Vec3::Zero());
       {
@@ -295,12 +324,12 @@ int main(int argc, char** argv) {
       std::printf(
           "%s,%g,%.6g,%g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%."
           "6g,"
-          "%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.1f,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n",
+          "%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.1f,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n",
           config.label.c_str(), l_eta, s.cells.xi, plain.t, pm, pc, pt, pn, ps, pf, pa, pm_a, pc_a,
           pt_a, pn_a, pc_r, pt_r, pc_ring, pm_m, pt_m, pn_m, 60 * std::sqrt(v2 / nc),
           rel_n ? 60 * std::sqrt(rel2 / rel_n) : 0.0, msrd.msrd(k), history.normalized(), wall,
           f_net.norm(), torque.norm(), 3600 * vbar.norm(), 3600 * omega.norm() * 180 / M_PI, drift,
-          turned);
+          turned, tq_m.norm(), tq_c, tq_f, tq_s);
       std::fflush(stdout);
       ++k;
       return true;

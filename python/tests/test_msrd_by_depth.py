@@ -216,3 +216,15 @@ def test_a_rigidly_turning_aggregate_has_msrd_but_none_less_the_rotation():
     raw2, less2, _, _, _ = mbd.msrd_less_rotation(ys, [pairs] * 6)
     assert np.all(less2 <= raw2 + 1e-12)
     assert less2[5] > 0.5 * raw2[5]
+
+
+def test_saved_geometry_reads_back_as_it_was(tmp_path):
+    ts = [0.0, 3600.0, 7200.0]
+    xs = [np.arange(12.0).reshape(4, 3) + k for k in range(3)]
+    pairs_at = [[(0, 1), (1, 2)], [], [(0, 3)]]
+    free_at = [np.array([0.5, 0.0, 0.2, 1.0])] * 3
+    mbd.save_geometry(tmp_path / "g.npz", 8.88, ts, xs, pairs_at, free_at)
+    r, ts2, xs2, pairs2, free2 = mbd.load_geometry(tmp_path / "g.npz")
+    assert r == 8.88 and ts2 == ts
+    assert [list(map(tuple, p)) for p in pairs2] == pairs_at
+    assert np.array_equal(np.array(xs2), np.array(xs)) and np.array_equal(free2, free_at)
