@@ -31,7 +31,8 @@
 //     least-squares V + ω × (x − x̄)), and, from the cells' centroids, how far the aggregate's
 //     centre has moved since the first sample (µm) and the angle it has turned (°, the rotation
 //     that best carries the centroids then onto those now) — remeshing included, which the
-//     step's v is not. An aggregate without active forces has nothing to move or turn it;
+//     step's v is not. Without active forces the forces exert no net force or torque, yet the
+//     aggregate turns: through the dissipative couplings, the next columns;
 //   - the torque the medium drag exerts on v (nN·µm) and, as shares along it (> 0 drives the turn
 //     the medium resists), the cortex viscosity's, the contact friction's and the contact
 //     springs' implicit part's: Γ v = F with F torque-free, so they sum to the medium's.
@@ -130,6 +131,7 @@ int main(int argc, char** argv) {
     springs_only.xi_tangential = 0.0;
     const ContactFriction springs(springs_only);
     const ActiveMigration act(s.cells, s.seed);
+    const ContactFriction fric_all(s.cells);
     std::vector<Vec3> first_centroids;  // the cells' centroids at the first sample
     auto sample = [&]() -> bool {
       sim.detect();
@@ -282,8 +284,6 @@ int main(int argc, char** argv) {
       // Which term turns it: Γ v = F and F exerts no torque, so the medium's torque on v is the
       // others' with the opposite sign. Each printed as its share along the medium's (signed:
       // > 0 drives the turn the medium resists).
-      CellParams both = s.cells;
-      const ContactFriction fric_all(both);
       const Vec3 tq_m = torqueOf(medium, plain, v, xbar);
       const Vec3 axis = tq_m.norm() > 0 ? Vec3(tq_m.normalized()) : Vec3::UnitX();
       const double tq_c = -torqueOf(cortex, plain, v, xbar).dot(axis);
