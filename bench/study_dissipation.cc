@@ -35,7 +35,8 @@
 //     aggregate turns: through the dissipative couplings, the next columns;
 //   - the torque the medium drag exerts on v (nN·µm) and, as shares along it (> 0 drives the turn
 //     the medium resists), the cortex viscosity's, the contact friction's and the contact
-//     springs' implicit part's: Γ v = F with F torque-free, so they sum to the medium's.
+//     springs' implicit part's: Γ v = F with F torque-free, so they sum to the medium's up to
+//     the solve's residual (a fifth of it at ε_CG 1e-2, ≤ 6 % at 1e-4: docs/science/jam-day/).
 //
 //   OMP_NUM_THREADS=1 build/release/bench/study_dissipation CACHE_DIR n_cells seed T_s sample_s
 //       integrator:Δt:preconditioner[:ε_CG] l_eta_1[:key=value…][,l_eta_2…] [key=value …]
