@@ -272,7 +272,10 @@ PreparedSpheroid prepareSpheroid(const SceneSpec& prep, const SpheroidCache* cac
   const LoopResult loop = runSteps(sim, total, obs.cancel, [&](const StepReport& r) {
     if (!r.ok() || clock.ticks() % window != 0) return true;
     const double now = rg();
-    const double rate = std::abs(now - rg_prev) / now / kWindowS;
+    // A one-cell spheroid (a 2 × 1 fusion: the cell doublet) has no aggregate to compact: its
+    // radius of gyration is round-off, and dividing by it made its rate anything from 0 to inf.
+    const double rate =
+        prep.scene_params.n_cells > 1 ? std::abs(now - rg_prev) / now / kWindowS : 0.0;
     rg_prev = now;
     out.compaction_rate_per_s = rate;
     log("  relaxing: t = " + formatNumber(sim.time()) + " s, radius of gyration " +
