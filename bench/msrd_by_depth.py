@@ -240,8 +240,8 @@ def read_geometry(args):
     """Each snapshot's time, cell centroids, contacting pairs and free fractions (cached beside
     the snapshots)."""
     files = sorted(args.snapshots.glob("snap_*.vtp"))
-    if len(files) < 3:
-        sys.exit(f"msrd_by_depth: {args.snapshots}: fewer than 3 snapshots")
+    if not files:
+        sys.exit(f"msrd_by_depth: {args.snapshots}: no snapshots (snap_*.vtp)")
     r = args.radius_um
     if r is None:
         spec = args.snapshots.parent / "spec.json"
@@ -301,9 +301,35 @@ def load_geometry(path, radius_um=None):
     return r, list(g["ts"]), list(g["xs"]), pairs_at, list(g["free"])
 
 
+def merge_geometry(parts):
+    """Pieces of one run, each (r, ts, xs, pairs_at, free_at), as one in time order: a run that
+    spans sessions keeps only its last piece's snapshots in the store (a saved store keeps none),
+    so each piece is saved as it ends and the day is put together from them. A snapshot in two
+    pieces (the same time) is taken once; pieces of runs with other radii or cell counts are
+    refused."""
+    r = parts[0][0]
+    by_t = {}
+    for pr, ts, xs, pairs_at, free_at in parts:
+        if pr != r:
+            raise ValueError(f"pieces with r = {r} and {pr} µm: not one run")
+        for t, x, p, f in zip(ts, xs, pairs_at, free_at):
+            if np.shape(x) != np.shape(parts[0][2][0]):
+                raise ValueError(f"a snapshot at t = {t:g} s has {len(x)} cells, the first "
+                                 f"{len(parts[0][2][0])}: not one run")
+            if t in by_t and not np.array_equal(by_t[t][0], x):
+                raise ValueError(f"two different snapshots at t = {t:g} s: not one run")
+            by_t.setdefault(float(t), (x, p, f))
+    ts = sorted(by_t)
+    return (r, ts, [by_t[t][0] for t in ts], [by_t[t][1] for t in ts],
+            [by_t[t][2] for t in ts])
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("snapshots", type=Path)
+    ap.add_argument("snapshots", type=Path, nargs="+",
+                    help="the run's snapshot folder or --save-geometry files; several pieces "
+                         "of one run (e.g. saved before a campaign stop and after its end) "
+                         "are put together in time order")
     ap.add_argument("--radius-um", type=float, default=None,
                     help="r for MSRD / r² (default: the run's spec.json beside the folder)")
     ap.add_argument("--free-below", type=float, default=0.05)
@@ -328,11 +354,26 @@ def main():
                          "the bulk deeper than one layer)")
     args = ap.parse_args()
 
-    if args.snapshots.suffix == ".npz":
-        r, ts, xs, pairs_at, free_at = load_geometry(args.snapshots, args.radius_um)
-        touch = args.touch_um
-    else:
-        r, ts, xs, pairs_at, free_at, touch = read_geometry(args)
+    parts = []
+    touch = args.touch_um
+    for src in args.snapshots:
+        if src.suffix == ".npz":
+            parts.append(load_geometry(src, args.radius_um))
+        else:
+            one = argparse.Namespace(**{**vars(args), "snapshots": src})
+            *part, touch = read_geometry(one)
+            parts.append(tuple(part))
+    try:
+        r, ts, xs, pairs_at, free_at = merge_geometry(parts)
+    except ValueError as e:
+        sys.exit(f"msrd_by_depth: {e}")
+    if len(ts) < 3:
+        sys.exit("msrd_by_depth: fewer than 3 snapshots")
+    if len(parts) > 1:
+        gaps = np.diff(ts)
+        if np.ptp(gaps) > 1e-6 * max(gaps):
+            sys.exit(f"msrd_by_depth: the pieces leave a gap (snapshots {min(gaps):g} to "
+                     f"{max(gaps):g} s apart): the lags need evenly spaced snapshots")
     if args.save_geometry:
         save_geometry(args.save_geometry, r, ts, xs, pairs_at, free_at)
     ts = np.array(ts)

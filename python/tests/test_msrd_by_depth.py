@@ -228,3 +228,33 @@ def test_saved_geometry_reads_back_as_it_was(tmp_path):
     assert r == 8.88 and ts2 == ts
     assert [list(map(tuple, p)) for p in pairs2] == pairs_at
     assert np.array_equal(np.array(xs2), np.array(xs)) and np.array_equal(free2, free_at)
+
+
+def test_pieces_of_a_run_put_together_are_the_run(tmp_path):
+    rng = np.random.default_rng(7)
+    ts = [3600.0 * k for k in range(7)]
+    xs = [rng.normal(size=(5, 3)) for _ in ts]
+    pairs_at = [[(0, k % 5), (1, 2)] for k in range(7)]
+    free_at = [rng.uniform(size=5) for _ in ts]
+    whole = (8.88, ts, xs, pairs_at, free_at)
+    # saved before a stop (0–3 h) and after the end (3–6 h: the 3 h snapshot in both), given
+    # in either order
+    first = (8.88, ts[:4], xs[:4], pairs_at[:4], free_at[:4])
+    last = (8.88, ts[3:], xs[3:], pairs_at[3:], free_at[3:])
+    mbd.save_geometry(tmp_path / "a.npz", *first)
+    mbd.save_geometry(tmp_path / "b.npz", *last)
+    for order in (["a", "b"], ["b", "a"]):
+        r, ts2, xs2, pairs2, free2 = mbd.merge_geometry(
+            [mbd.load_geometry(tmp_path / f"{n}.npz") for n in order])
+        assert r == 8.88 and ts2 == ts
+        assert np.array_equal(np.array(xs2), np.array(xs))
+        assert [list(map(tuple, p)) for p in pairs2] == pairs_at
+        assert np.array_equal(np.array(free2), np.array(free_at))
+    other = list(xs[3:])
+    other[0] = other[0] + 1.0
+    with pytest.raises(ValueError, match="two different snapshots at t = 10800"):
+        mbd.merge_geometry([first, (8.88, ts[3:], other, pairs_at[3:], free_at[3:])])
+    with pytest.raises(ValueError, match="r = 8.88 and 9"):
+        mbd.merge_geometry([first, (9.0, ts[3:], xs[3:], pairs_at[3:], free_at[3:])])
+    with pytest.raises(ValueError, match="has 4 cells"):
+        mbd.merge_geometry([first, (8.88, [25200.0], [xs[0][:4]], [[]], [free_at[0][:4]])])
