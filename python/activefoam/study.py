@@ -78,7 +78,20 @@ METRICS = {
     "msrd_end_over_r2": "MSRD at the end / r²",
     "unique_contacts_end": "unique contacts (normalised)",
     "mixing_time_s": "mixing time (s, capped at the run)",
+    "mixing_time_less_rotation_s": "mixing time less the aggregate's turn (s, capped)",
 }
+# Metrics that only runs of a newer engine report (its final values): a study's tables show them
+# only where some run has one. The MSRD less the aggregate's rigid turn (engine tree after
+# 3edd4479): near the jam a doublet turning as a body passes r² with no cell changing its
+# neighbours (docs/science/jam-day).
+OPTIONAL_METRICS = {"mixing_time_less_rotation_s"}
+
+
+def shown_metrics(runs: Any, metrics: Sequence[str] = tuple(METRICS)) -> List[str]:
+    """METRICS less the optional ones that no run of `runs` has."""
+    import numpy as np
+    return [m for m in metrics if m not in OPTIONAL_METRICS
+            or (m in runs and bool(np.isfinite(np.asarray(runs[m], dtype=float)).any()))]
 FITNESS_METRICS = ["theta_end_deg", "theta_last_hour_deg", "shape_index_end",
                    "shape_index_last_hour", "msrd_end_over_r2", "unique_contacts_end",
                    "theta_eq_deg", "tau_f_s"]
@@ -1293,9 +1306,10 @@ def derive_metrics(study: Study, runs: Any, samples: Any, msrd: Any) -> Any:
     tau_p = runs["cells.tau_p_s"] if "cells.tau_p_s" in runs else float(
         study.spec.get("cells.tau_p_s", 600.0))
     runs["tau_f_over_tau_p"] = runs["tau_f_s"] / tau_p
-    if "mixing_time_s" not in runs:
-        runs["mixing_time_s"] = math.nan
-    runs["mixing_time_s"] = np.where(ok, runs["mixing_time_s"], math.nan)
+    for name in ("mixing_time_s", "mixing_time_less_rotation_s"):
+        if name not in runs:
+            runs[name] = math.nan
+        runs[name] = np.where(ok, runs[name], math.nan)
     return runs
 
 
@@ -1318,8 +1332,9 @@ def study_radius(study: Study) -> float:
 
 def summary_table(study: Study, runs: Any, metrics: Sequence[str] = tuple(METRICS)) -> Any:
     """Per grid point: runs, succeeded, failed (with their failure kinds), and per metric n,
-    median, q25, q75 over seeds."""
+    median, q25, q75 over seeds (an optional metric only where some run has it)."""
     import pandas as pd
+    metrics = shown_metrics(runs, metrics)
     keys = study.swept_keys()
     out = []
     for point in study.points():
@@ -1424,7 +1439,8 @@ def summary_markdown(study: Study, table: Any) -> str:
     """The summary as a readable table: per point, runs (succeeded / failed, with the failure
     kinds) and each metric as median [q25, q75] over its n runs."""
     keys = study.swept_keys()
-    head = (keys + ["runs", "ok", "failed"] + [METRICS[m] for m in METRICS] +
+    shown = [m for m in METRICS if f"{m}_median" in table]
+    head = (keys + ["runs", "ok", "failed"] + [METRICS[m] for m in shown] +
             ["steps redone", "largest volume error"])
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for _, r in table.iterrows():
@@ -1434,7 +1450,7 @@ def summary_markdown(study: Study, table: Any) -> str:
                   f"{r['failed']}" + (f" ({r['failures']}" + (f"; {past} ran past on a "
                                                                "diagnosis rerun" if past else "")
                                       + ")" if r["failed"] else "")]
-        for m in METRICS:
+        for m in shown:
             med = r[f"{m}_median"]
             cells.append("—" if math.isnan(med) else
                          f"{med:.3g} [{r[f'{m}_q25']:.3g}, {r[f'{m}_q75']:.3g}] ({r[f'{m}_n']})")

@@ -381,6 +381,28 @@ def test_theta_and_shape_index_over_the_last_hour_are_the_plateau_the_end_wander
     assert {"theta_last_hour_deg", "shape_index_last_hour"} <= set(st.FITNESS_METRICS)
 
 
+def test_the_mixing_time_less_the_turn_is_shown_only_where_a_run_reports_it(tmp_path):
+    study = _alpha_study(tmp_path)
+    samples = pd.DataFrame(columns=["job_id", "t_s"] + st.SAMPLE_COLUMNS)
+    msrd = pd.DataFrame(columns=["job_id", "lag_s", "msrd_um2"])
+    old = pd.DataFrame([{"job_id": j, "state": "succeeded", "cells.alpha": a,
+                         "mixing_time_s": 5000.0} for j, a in (("a", 0.4375), ("b", 0.6))])
+    runs = st.derive_metrics(study, old, samples, msrd)
+    table = st.summary_table(study, runs)
+    assert "mixing_time_less_rotation_s_median" not in table
+    assert st.METRICS["mixing_time_less_rotation_s"] not in st.summary_markdown(study, table)
+    new = old.assign(mixing_time_less_rotation_s=[7000.0, 9000.0],
+                     state=["succeeded", "failed"])
+    runs = st.derive_metrics(study, new, samples, msrd)
+    # A failed run's value is not counted, as for every metric.
+    assert math.isnan(runs.set_index("job_id").loc["b", "mixing_time_less_rotation_s"])
+    table = st.summary_table(study, runs).set_index("cells.alpha")
+    assert table.loc[0.4375, "mixing_time_less_rotation_s_median"] == 7000.0
+    assert table.loc[0.4375, "mixing_time_less_rotation_s_n"] == 1
+    md = st.summary_markdown(study, table.reset_index())
+    assert st.METRICS["mixing_time_less_rotation_s"] in md and "7e+03 [7e+03, 7e+03] (1)" in md
+
+
 def test_an_eq1_fit_longer_than_its_run_is_not_counted_and_is_listed(tmp_path):
     # fig8's p_a r/2γ = 0.33, α = 0.75 seed 2: θ rising 36° → 83° over 6 h, Eq. 1 "converged" at
     # θ_eq = 138°, τ_f = 44 442 s — an extrapolation the engine's fit accepts (τ_f ≤ 10× span).

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
 #include <string>
 #include <vector>
@@ -394,9 +395,14 @@ TEST(FusionScene, SamplesFitsAndResumeFromCheckpoint) {
       << a.outcome << ": " << a.outcome_why;
   EXPECT_EQ(cols.back(), "contact_area_ab_um2");
   for (const Sample& x : full) EXPECT_GT(x.values.back(), 0) << "t=" << x.values[0];
-  bool has_mixing = false;
-  for (const auto& [name, v] : a.final_values) has_mixing |= name == "mixing_time_s";
-  EXPECT_TRUE(has_mixing);
+  std::map<std::string, double> fin(a.final_values.begin(), a.final_values.end());
+  for (const char* k :
+       {"mixing_time_s", "mixing_time_less_rotation_s", "mixing_less_rotation_reached",
+        "msrd_end_less_rotation_um2", "turn_end_deg"})
+    EXPECT_TRUE(fin.count(k)) << k;
+  EXPECT_TRUE(std::isfinite(fin["msrd_end_less_rotation_um2"]));
+  EXPECT_GE(fin["turn_end_deg"], 0);
+  EXPECT_LE(fin["turn_end_deg"], 180);
   // Two preparations of 10 s (no 60 s window): preparing, compact or not, stored.
   EXPECT_EQ(logs.size(), 6u);
 

@@ -99,11 +99,22 @@ class MsrdTracker {
   double msrd(int lag) const;
   std::vector<double> msrdCurve() const;  // lags 0 … numSamples() − 1
 
+  // As msrd(lag), with the aggregate's rigid rotation between origin and lag taken out: each
+  // pair's relative vector at the origin is first turned by the rotation that best carries all
+  // the cells' centroids at the origin onto those at origin + lag (least squares about the
+  // centroids, Kabsch). A doublet turning as a body moves every pair's relative vector with no
+  // cell changing its neighbours — S13's non-central cortex coupling turns ours 0.5–2.4° an
+  // hour, which alone takes a non-motile doublet past r² within a day (docs/science/jam-day).
+  double msrdLessRotation(int lag) const;
+  // The angle of that rotation, degrees, averaged over the origins; NaN as msrd.
+  double turnDeg(int lag) const;
+
   struct Mixing {
     double time_s = 0;     // lag where MSRD first reaches r² (linear between samples)
     bool reached = false;  // false: never reached; time_s is then the run length (capped)
   };
   Mixing mixingTime(double r_um) const;
+  Mixing mixingTimeLessRotation(double r_um) const;  // the same on msrdLessRotation
 
   // The tracker's samples as bytes (checkpoints) and back; restore throws std::invalid_argument
   // on malformed bytes.
@@ -112,6 +123,14 @@ class MsrdTracker {
 
  private:
   std::vector<int> origins() const;
+  // Σ over origin–pairs of the squared relative displacement (less the best rotation when
+  // `less_rotation`), the origin–pair count, Σ over origins of the angle (rad) and the origins.
+  struct LagSums {
+    double sum = 0, angle = 0;
+    long pairs = 0, origins = 0;
+  };
+  LagSums lagSums(int lag, bool less_rotation) const;
+  Mixing mixingOf(double r_um, bool less_rotation) const;
   int max_origins_;
   std::vector<double> t_;
   std::vector<std::vector<Vec3>> x_;

@@ -249,21 +249,67 @@ std::vector<int> MsrdTracker::origins() const {
   return o;
 }
 
-double MsrdTracker::msrd(int lag) const {
+namespace {
+
+// The rotation R (det +1) that best carries the points p onto q about their centroids, in the
+// least-squares sense (Kabsch): q_i − q̄ ≈ R (p_i − p̄).
+Eigen::Matrix3d bestRotation(const std::vector<Vec3>& p, const std::vector<Vec3>& q) {
+  const int n = static_cast<int>(p.size());
+  Vec3 pm = Vec3::Zero(), qm = Vec3::Zero();
+  for (int i = 0; i < n; ++i) {
+    pm += p[i];
+    qm += q[i];
+  }
+  pm /= n;
+  qm /= n;
+  Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
+  for (int i = 0; i < n; ++i) h += (p[i] - pm) * (q[i] - qm).transpose();
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(h, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Matrix3d v = svd.matrixV(), u = svd.matrixU();
+  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
+  if ((v * u.transpose()).determinant() < 0) d(2, 2) = -1;
+  return v * d * u.transpose();
+}
+
+}  // namespace
+
+MsrdTracker::LagSums MsrdTracker::lagSums(int lag, bool less_rotation) const {
+  LagSums s;
   const int n = numSamples();
-  if (lag < 0 || lag >= n) return kNaN;
-  double sum = 0;
-  long count = 0;
+  if (lag < 0 || lag >= n) return s;
   for (int o : origins()) {
     if (o + lag >= n) break;
+    if (pairs_[o].empty()) continue;
     const auto& x0 = x_[o];
     const auto& x1 = x_[o + lag];
-    for (const auto& [i, j] : pairs_[o]) {
-      sum += ((x1[i] - x1[j]) - (x0[i] - x0[j])).squaredNorm();
-      ++count;
+    Eigen::Matrix3d rot = Eigen::Matrix3d::Identity();
+    if (less_rotation) {
+      rot = bestRotation(x0, x1);
+      s.angle += std::acos(std::clamp((rot.trace() - 1.0) / 2.0, -1.0, 1.0));
     }
+    for (const auto& [i, j] : pairs_[o]) {
+      const Vec3 d0 = x0[i] - x0[j];
+      s.sum += ((x1[i] - x1[j]) - (less_rotation ? Vec3(rot * d0) : d0)).squaredNorm();
+      ++s.pairs;
+    }
+    ++s.origins;
   }
-  return count ? sum / count : kNaN;
+  return s;
+}
+
+double MsrdTracker::msrd(int lag) const {
+  const LagSums s = lagSums(lag, false);
+  return s.pairs ? s.sum / s.pairs : kNaN;
+}
+
+double MsrdTracker::msrdLessRotation(int lag) const {
+  const LagSums s = lagSums(lag, true);
+  return s.pairs ? s.sum / s.pairs : kNaN;
+}
+
+double MsrdTracker::turnDeg(int lag) const {
+  const LagSums s = lagSums(lag, true);
+  return s.origins ? s.angle / s.origins * 180.0 / M_PI : kNaN;
 }
 
 std::vector<double> MsrdTracker::msrdCurve() const {
@@ -273,13 +319,21 @@ std::vector<double> MsrdTracker::msrdCurve() const {
 }
 
 MsrdTracker::Mixing MsrdTracker::mixingTime(double r_um) const {
+  return mixingOf(r_um, false);
+}
+
+MsrdTracker::Mixing MsrdTracker::mixingTimeLessRotation(double r_um) const {
+  return mixingOf(r_um, true);
+}
+
+MsrdTracker::Mixing MsrdTracker::mixingOf(double r_um, bool less_rotation) const {
   Mixing m;
   const int n = numSamples();
   m.time_s = lagTime(std::max(n - 1, 0));
   const double target = r_um * r_um;
   double prev = 0;
   for (int k = 1; k < n; ++k) {
-    const double v = msrd(k);
+    const double v = less_rotation ? msrdLessRotation(k) : msrd(k);
     if (!std::isfinite(v)) continue;
     if (v >= target) {
       // Linear between lag k − 1 (MSRD prev < r²) and lag k.

@@ -354,6 +354,14 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
     const MsrdTracker::Mixing mix = fs.msrd.mixingTime(spec.cells.radius_mean_um);
     sum.final_values.emplace_back("mixing_time_s", mix.time_s);
     sum.final_values.emplace_back("mixing_reached", mix.reached ? 1 : 0);
+    // The same with the aggregate's rigid turn taken out (MsrdTracker::msrdLessRotation): near
+    // the jam a turning doublet passes r² with no cell changing its neighbours.
+    const MsrdTracker::Mixing mix_lr = fs.msrd.mixingTimeLessRotation(spec.cells.radius_mean_um);
+    sum.final_values.emplace_back("mixing_time_less_rotation_s", mix_lr.time_s);
+    sum.final_values.emplace_back("mixing_less_rotation_reached", mix_lr.reached ? 1 : 0);
+    const int last = fs.msrd.numSamples() - 1;
+    sum.final_values.emplace_back("msrd_end_less_rotation_um2", fs.msrd.msrdLessRotation(last));
+    sum.final_values.emplace_back("turn_end_deg", fs.msrd.turnDeg(last));
     sum.final_values.emplace_back("spheroid_radius_um", fs.R_um);
     const char* ab[2] = {"a", "b"};
     for (int k = 0; k < 2; ++k) {
