@@ -56,6 +56,7 @@ def main(argv=None):
                    set(runs[runs[args.key] == args.candidate]["seed"]))
     if not seeds:
         sys.exit("paired_over_time: no seed ran both settings to success")
+    data = data[data["seed"].isin(seeds)]  # the reference's median over the pairs alone
 
     print(f"{args.key} = {args.candidate} − {args.reference}, seeds {', '.join(map(str, seeds))}\n")
     for metric in metrics:
