@@ -66,8 +66,9 @@ BENCHMARK(BM_NarrowPhase<ContactQuadrature::Dunavant7>);
 void BM_NarrowPhaseLaw(benchmark::State& state) {
   const auto pairs = facingPairs(4096);
   ContactLaw law;
-  law.within_prisms = state.range(0) >= 1;
-  law.prisms_overlap_only = state.range(0) == 2;
+  law.kind = state.range(0) == 0   ? ContactLawKind::Supplement
+             : state.range(0) == 1 ? ContactLawKind::Prisms
+                                   : ContactLawKind::PrismsOverlap;
   size_t i = 0;
   for (auto _ : state) {
     const auto& [a, b] = pairs[i++ & 4095];

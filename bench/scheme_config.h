@@ -1,5 +1,4 @@
-// A study driver's step configuration, "integrator:Δt:preconditioner[:ε_CG[:φ]]" (φ: the contact
-// law's numerics.contact_max_facing_deg), applied to a spec.
+// A study driver's step configuration, "integrator:Δt:preconditioner[:ε_CG]", applied to a spec.
 // The integrator is any of numerics.integrator, or "ros2-centroid": ros2 with contact-implicit's
 // one spring per pair in W instead of the consistent stiffness, a variant no spec can name
 // (docs/science/motion-convergence.md measures it).
@@ -28,19 +27,17 @@ struct SchemeConfig {
 // Sets the configuration's keys on `spec` (not resolved); returns the error text, empty if none.
 inline std::string applySchemeConfig(const std::string& config, SceneSpec& spec,
                                      SchemeConfig& out) {
-  std::string integrator, dt, pre, tol, facing;
+  std::string integrator, dt, pre, tol;
   std::stringstream parts(config);
   std::getline(parts, integrator, ':');
   std::getline(parts, dt, ':');
   std::getline(parts, pre, ':');
   std::getline(parts, tol, ':');
-  std::getline(parts, facing, ':');  // numerics.contact_max_facing_deg (optional)
   out.ros2_centroid = integrator == "ros2-centroid";
   if (out.ros2_centroid) integrator = "ros2";
   std::vector<std::pair<std::string, std::string>> fields = {
       {"numerics.integrator", integrator}, {"numerics.dt_s", dt}, {"numerics.preconditioner", pre}};
   if (!tol.empty()) fields.emplace_back("numerics.cg_tol", tol);
-  if (!facing.empty()) fields.emplace_back("numerics.contact_max_facing_deg", facing);
   for (const auto& [key, text] : fields) {
     const bool number = key != "numerics.integrator" && key != "numerics.preconditioner";
     if (const auto error =

@@ -1,4 +1,4 @@
-// The contact law's facing bound (numerics.contact_max_facing_deg) on the supplement's
+// The contact law (numerics.contact_law) on the supplement's
 // calibration: passive doublets of equal cells settle at θ_c = arccos α (Fig. 7E;
 // docs/validation.md). The bound drops triangle pairs whose normals are more than φ from
 // antiparallel; at a junction those are the pairs at its rim, which is where the doublet's angle
@@ -29,7 +29,7 @@ using namespace activefoam;
 int main(int argc, char** argv) {
   std::vector<std::string> laws;
   for (int i = 1; i < argc; ++i) laws.emplace_back(argv[i]);
-  if (laws.empty()) laws = {"90", "75", "60", "45"};
+  if (laws.empty()) laws = {"90", "prisms", "overlap"};
   struct Case {
     double alpha, duration_s;
   };
@@ -41,15 +41,18 @@ int main(int argc, char** argv) {
     for (const std::string& law : laws) {
       const bool overlap = law == "overlap";
       const bool prisms = law == "prisms" || overlap;
-      const double phi = prisms ? 90 : std::atof(law.c_str());
+      if (!prisms && std::atof(law.c_str()) != 90) {
+        std::fprintf(stderr, "the facing bound is retired: give 90, prisms or overlap\n");
+        return 2;
+      }
       SceneSpec s;
       s.scene = SceneKind::Doublet;
       s.cells.radius_gamma_k = 0;
       s.cells.p_a = 0;
       s.cells.alpha = c.alpha;
-      s.numerics.contact_max_facing_deg = phi;
-      s.numerics.contact_within_prisms = prisms;
-      s.numerics.contact_prisms_overlap_only = overlap;
+      s.numerics.contact_law = overlap  ? ContactLawKind::PrismsOverlap
+                               : prisms ? ContactLawKind::Prisms
+                                        : ContactLawKind::Supplement;
       if (!validate(s).empty()) {
         std::fprintf(stderr, "invalid spec at α = %g, %s\n", c.alpha, law.c_str());
         return 2;

@@ -71,7 +71,11 @@ int main(int argc, char** argv) {
   spec.scene = SceneKind::Fusion;
   spec.seed = seed;
   spec.scene_params.n_cells = n;
-  applyPreset(spec.numerics, FidelityPreset::Draft);
+  // The retired draft preset's step (contact-implicit, Δt 0.5 s, ε_CG 1e-2, the law).
+  spec.numerics.integrator = IntegratorKind::ContactImplicit;
+  spec.numerics.dt_s = 0.5;
+  spec.numerics.cg_tol = 1e-2;
+  spec.numerics.contact_law = ContactLawKind::Supplement;
   spec = resolve(spec);
   CellSet cells = buildFusionCells(spec, &cache);
   // A fusing aggregate: `relax_s` of draft steps from the touching spheroids.

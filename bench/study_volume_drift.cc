@@ -266,14 +266,12 @@ int main(int argc, char** argv) {
           "worst_distance_um,worst_force_nN,deep_apart_force_nN,area_um2,area_deep_um2,"
           "area_mid_um2,area_shallow_um2,prisms_keep_deep_um2,prisms_keep_mid_um2,"
           "prisms_keep_shallow_um2,deep_false,deep_false_force_nN,deep_false_max_nN\n";
-  // What numerics.contact_within_prisms would keep of this step's pairs, by the pair's mean gap
+  // What numerics.contact_law = prisms would keep of this step's pairs, by the pair's mean gap
   // under the run's law: deeper than 0.3 µm, 0.3 µm to 0, 0 to h0.
   ContactLaw prisms;
   prisms.k = spec.cells.k_contact;
   prisms.h0 = contactRangeH0(spec.cells);
-  prisms.facing_dot = contactFacingDot(spec.numerics);
-  prisms.max_overlap = spec.numerics.contact_max_overlap_um;
-  prisms.within_prisms = true;
+  prisms.kind = ContactLawKind::Prisms;
   auto scanStep = [&](const StepReport& r) {
     const CellSet& c = sim.cells();
     int deep = 0, apart = 0;

@@ -138,7 +138,10 @@ void Pool::workerLoop() {
 
 void Pool::runJob(const Claimed& claimed, Running& flag) {
   const std::string id = claimed.job.id();
-  SpecParseResult parsed = parseSpecText(claimed.job.spec_json(), SpecFormat::Json);
+  SpecParseOptions as_record;
+  as_record.record = true;
+  SpecParseResult parsed =
+      parseSpecText(claimed.job.spec_json(), SpecFormat::Json, recordBase(), as_record);
   if (!parsed.ok()) {
     store_.finish(id, v1::JOB_STATE_FAILED, "exception",
                   "stored spec does not parse: " + parsed.errors.front().str(), {}, 0, 0);

@@ -11,8 +11,8 @@
 namespace activefoam::client {
 namespace {
 
-// "preset draft (Δt 0.5 s, 320 triangles, ε_CG 0.01), chosen for the accuracy target contact
-// angle ≤ 2°" from a job's resolved spec.
+// "preset standard (contact-implicit-consistent, Δt 1 s, 320 triangles, ε_CG 0.01, contact law
+// prisms-overlap), chosen for the accuracy target contact angle ≤ 2°" from a job's resolved spec.
 std::string fidelityText(const std::string& spec_json) {
   try {
     const nlohmann::json spec = nlohmann::json::parse(spec_json);
@@ -20,7 +20,15 @@ std::string fidelityText(const std::string& spec_json) {
     std::ostringstream os;
     os << "preset " << n.value("preset", std::string("?")) << " (" << n.value("integrator", "")
        << ", Δt " << n.value("dt_s", 0.0) << " s, " << n.value("triangles_per_cell", 0)
-       << " triangles, ε_CG " << n.value("cg_tol", 0.0) << ")";
+       << " triangles, ε_CG " << n.value("cg_tol", 0.0);
+    // Records of earlier versions have no contact_law: theirs was the supplement's unless their
+    // two switches said otherwise.
+    std::string law = n.value("contact_law", std::string());
+    if (law.empty())
+      law = !n.value("contact_within_prisms", false)         ? "supplement"
+            : n.value("contact_prisms_overlap_only", false) ? "prisms-overlap"
+                                                            : "prisms";
+    os << ", contact law " << law << ")";
     // Unset targets are null in a resolved spec.
     const nlohmann::json a = spec.value("accuracy", nlohmann::json::object());
     const bool angle = a.contains("contact_angle_deg") && a["contact_angle_deg"].is_number();

@@ -69,10 +69,18 @@ std::string_view trim(std::string_view s) {
 // node, what kind it is and its value.
 class Walker {
  public:
-  Walker(SceneSpec& spec, SpecParseResult& result) : spec_(spec), result_(result) {}
+  Walker(SceneSpec& spec, SpecParseResult& result, bool record = false)
+      : spec_(spec), result_(result), record_(record) {}
 
   void leaf(const std::string& key, const SpecValue& value) {
-    if (const SpecField* f = findField(key); !f) {
+    const SpecField* f = findField(key);
+    // A record's labels only name the values it holds (a retired preset's among them).
+    if (f && record_ && f->label) return;
+    if (!f) {
+      if (auto retired = setRetiredField(spec_, key, value)) {
+        if (*retired) result_.errors.push_back(**retired);
+        return;
+      }
       if (isGroup(key))
         error(key, "expected a table, got " + describe(value));
       else
@@ -144,6 +152,7 @@ class Walker {
 
   SceneSpec& spec_;
   SpecParseResult& result_;
+  bool record_;
 };
 
 // ---- TOML --------------------------------------------------------------------------------------
@@ -322,7 +331,7 @@ SpecParseResult parseSpecJson(const nlohmann::json& doc, const SceneSpec& base,
          std::string("expected a JSON object at the top level, got ") + doc.type_name()});
     return result;
   }
-  Walker w(spec, result);
+  Walker w(spec, result, options.record);
   walkJson(doc, "", w);
   return finish(std::move(spec), std::move(result), options);
 }
@@ -530,7 +539,7 @@ SpecParseResult parseSpecText(std::string_view text, SpecFormat format, const Sc
     return result;
   }
   SceneSpec spec = base;
-  Walker w(spec, result);
+  Walker w(spec, result, options.record);
   walkToml(doc, "", w);
   return finish(std::move(spec), std::move(result), options);
 }
@@ -604,59 +613,30 @@ std::vector<SpecError> checkSceneKeys(const SceneSpec& spec, const std::vector<s
   const SceneSpec default_cells = resolve(plain);
   plain.cells = spec.cells;
   const SceneSpec defaults = resolve(plain);
-  constexpr SceneKind kCell = SceneKind::Cell, kDoublet = SceneKind::Doublet,
-                      kSpheroid = SceneKind::Spheroid, kFusion = SceneKind::Fusion;
-  // Which scenes read each key (engine/src/scene: scenes.cc, spheroid.cc; Simulation::init builds
-  // adhesion, contact friction and motility only where there are contacts, in scenes of more than
-  // one cell), and the field whose value says whether it was set (a reduced key sets another).
-  struct Users {
-    std::string_view key, field;
-    std::vector<SceneKind> scenes;
+  // Which scenes read each key is the key table's (SpecField::scenes). A reduced key is judged
+  // by the absolute one it sets (resolve clears it).
+  auto judgedBy = [](std::string_view key) -> std::string_view {
+    if (key == "cells.pa_reduced") return "cells.p_a";
+    if (key == "cells.l_eta_reduced") return "cells.xi";
+    return key;
   };
-  const std::vector<SceneKind> contacts = {kDoublet, kSpheroid, kFusion};
-  const std::vector<Users> users = {
-      {"scene.axes_ratio", "scene.axes_ratio", {kCell}},
-      {"scene.gap_um", "scene.gap_um", {kDoublet, kFusion}},
-      {"scene.n_cells", "scene.n_cells", {kSpheroid, kFusion}},
-      {"scene.n_cells_a", "scene.n_cells_a", {kFusion}},
-      {"scene.n_cells_b", "scene.n_cells_b", {kFusion}},
-      {"scene.prep_dt_s", "scene.prep_dt_s", {kFusion}},
-      {"scene.prep_max_s", "scene.prep_max_s", {kFusion}},
-      {"scene.prep_min_s", "scene.prep_min_s", {kFusion}},
-      {"scene.compact_rate_per_s", "scene.compact_rate_per_s", {kFusion}},
-      {"scene.allow_uncompacted", "scene.allow_uncompacted", {kFusion}},
-      {"scene.polarity_from_preparation", "scene.polarity_from_preparation", {kFusion}},
-      {"cells.alpha", "cells.alpha", contacts},
-      {"cells.k_contact", "cells.k_contact", contacts},
-      {"cells.xi", "cells.xi", contacts},
-      {"cells.xi_normal", "cells.xi_normal", contacts},
-      {"cells.xi_tangential", "cells.xi_tangential", contacts},
-      {"cells.p_a", "cells.p_a", contacts},
-      {"cells.tau_p_s", "cells.tau_p_s", contacts},
-      {"cells.pa_reduced", "cells.p_a", contacts},
-      {"cells.l_eta_reduced", "cells.xi", contacts},
-      {"numerics.contact_quadrature", "numerics.contact_quadrature", contacts},
-      {"numerics.max_penetration_um", "numerics.max_penetration_um", contacts},
-      {"numerics.max_oscillating_steps", "numerics.max_oscillating_steps", contacts},
-      {"numerics.contact_max_facing_deg", "numerics.contact_max_facing_deg", contacts},
-      {"numerics.contact_max_overlap_um", "numerics.contact_max_overlap_um", contacts},
-      {"numerics.contact_within_prisms", "numerics.contact_within_prisms", contacts},
-      {"numerics.contact_prisms_overlap_only", "numerics.contact_prisms_overlap_only", contacts}};
   std::vector<SpecError> errors;
   std::vector<std::string_view> seen;
-  for (const std::string& key : keys)
-    for (const Users& u : users) {
-      if (key != u.key || std::find(seen.begin(), seen.end(), u.key) != seen.end()) continue;
-      seen.push_back(u.key);
-      if (std::find(u.scenes.begin(), u.scenes.end(), scene) != u.scenes.end()) continue;
-      const SceneSpec& reference = u.field.substr(0, 6) == "cells." ? default_cells : defaults;
-      if (getField(spec, u.field) == getField(reference, u.field)) continue;
-      std::string list;
-      for (SceneKind k : u.scenes) list += (list.empty() ? "" : ", ") + std::string(toString(k));
-      errors.push_back({key, "not used by the " + std::string(toString(scene)) +
-                                 " scene (only by: " + list +
-                                 "); remove it, or run the scene it belongs to"});
-    }
+  for (const std::string& key : keys) {
+    const SpecField* f = findField(key);
+    if (!f || f->readBy(scene) || std::find(seen.begin(), seen.end(), f->key) != seen.end())
+      continue;
+    seen.push_back(f->key);
+    const std::string_view field = judgedBy(f->key);
+    const SceneSpec& reference = field.substr(0, 6) == "cells." ? default_cells : defaults;
+    if (getField(spec, field) == getField(reference, field)) continue;
+    std::string list;
+    for (SceneKind k : {SceneKind::Cell, SceneKind::Doublet, SceneKind::Spheroid, SceneKind::Fusion})
+      if (f->readBy(k)) list += (list.empty() ? "" : ", ") + std::string(toString(k));
+    errors.push_back({key, "not used by the " + std::string(toString(scene)) +
+                               " scene (only by: " + list +
+                               "); remove it, or run the scene it belongs to"});
+  }
   return errors;
 }
 

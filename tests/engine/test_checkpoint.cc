@@ -40,7 +40,7 @@ TEST(Checkpoint, SimulationStateRoundTripsBitExactly) {
       std::memcmp(a.cells().x.data(), b.cells().x.data(), sizeof(double) * a.cells().x.size()), 0);
 }
 
-// With numerics.remesh_rescue the checkpoint carries the count of rescued remeshes (the summary's
+// With numerics.remesh_repair = rescue the checkpoint carries the count of rescued remeshes (the summary's
 // proof that a run without any has the bits of a run without the key), and the resumed run goes
 // on bit for bit; a state saved without the key is another spec's. (A doublet needs no rescue:
 // the count is 0 here; the rescue itself is Remesh.ALockedCellIsRepairedByTheRescue's.) Likewise
@@ -89,7 +89,8 @@ void expectCountRoundTrips(T NumericsParams::*key, T on,
 }  // namespace
 
 TEST(Checkpoint, TheRemeshRescuesCountRoundTrips) {
-  expectCountRoundTrips(&NumericsParams::remesh_rescue, true, &Simulation::remeshRescues);
+  expectCountRoundTrips(&NumericsParams::remesh_repair, RemeshRepair::Rescue,
+                        &Simulation::remeshRescues);
 }
 
 TEST(Checkpoint, TheRemeshKeptOutCountRoundTrips) {

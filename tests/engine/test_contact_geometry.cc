@@ -175,22 +175,17 @@ GridReference gridIntegrate(const Tri3& a, const Tri3& b, const ContactLaw& law,
       const double sA = na.dot(a[0] - X) / na.dot(n), sB = nb.dot(b[0] - X) / nb.dot(n);
       const double g = sB - sA;
       if (!(g < law.h0)) continue;
-      // ContactLaw::within_prisms: B's point over A and A's point over B (with
-      // prisms_overlap_only, only where they overlap, g < 0).
-      if (law.within_prisms && (!law.prisms_overlap_only || g < 0) &&
+      // The prisms laws: B's point over A and A's point over B (prisms-overlap: only where they
+      // overlap, g < 0).
+      if ((law.kind == ContactLawKind::Prisms || (law.kind == ContactLawKind::PrismsOverlap && g < 0)) &&
           !(over(a, X + sB * n) && over(b, X + sA * n)))
         continue;
       r.g_min = std::min(r.g_min, g);
       r.g_max = std::max(r.g_max, g);
-      // P = k max(g, −c) with c = law.max_overlap > 0 (the energy density's linear continuation
-      // below −c), else k g.
-      const double c = law.max_overlap;
-      const bool saturated = c > 0 && g < -c;
-      const double P = law.k * (saturated ? -c : g);
+      const double P = law.k * g;
       r.area += dA;
       r.int_p += P * dA;
-      r.energy +=
-          (saturated ? 0.5 * law.k * c * c - law.k * c * (g + c) : 0.5 * law.k * g * g) * dA;
+      r.energy += 0.5 * law.k * g * g * dA;
       for (int k = 0; k < 3; ++k) {
         r.wa[k] += P * la[k] * dA;
         r.wb[k] += P * lb[k] * dA;
@@ -828,83 +823,7 @@ TEST(ContactNarrowPhase, NearlyPerpendicularFacingTrianglesAreFiniteAndConsisten
   }
 }
 
-// numerics.contact_max_overlap_um: P = k max(g, −c). A pair nowhere deeper than c keeps its
-// bits; a deeper one matches the brute-force grid integral of the saturated law (force, nodal
-// weights, energy), its normal force is minus its energy's gradient, its pressure never exceeds
-// k max(c, h0), and its mean gap is the true one (what the penetration guard reads).
-TEST(ContactNarrowPhase, ASaturatedPressureMatchesTheGridAndItsEnergy) {
-  std::mt19937 rng(47);
-  int split = 0, kept = 0, fd = 0, gridded = 0;
-  for (int trial = 0; trial < 200; ++trial) {
-    const bool unlimited_range = trial % 2 == 1;  // no h0 clip: the energy is differentiable
-    ContactLaw plain;
-    if (unlimited_range) plain.h0 = 1e3;
-    ContactLaw capped = plain;
-    capped.max_overlap = 0.1;
-    const Pair pr = randomFacingPair(rng, -0.3, 0.1, 0.5);
-    for (ContactQuadrature q : {ContactQuadrature::Exact, ContactQuadrature::Dunavant7}) {
-      ContactMoments mp, mc;
-      const TriangleContact p = computeTriangleContact(pr.a, pr.b, plain, q, &mp);
-      const TriangleContact c = computeTriangleContact(pr.a, pr.b, capped, q, &mc);
-      ASSERT_EQ(p.active, c.active);
-      if (!c.active) continue;
-      ASSERT_TRUE(allFinite(c));
-      EXPECT_NEAR(c.mean_gap, p.mean_gap, 1e-12 * (std::abs(p.mean_gap) + 1)) << trial;
-      EXPECT_EQ(c.area, p.area);
-      // Whether the polygon reaches deeper than c, from the independent grid (its samples miss
-      // the polygon's corners by up to a cell: pairs within 0.01 µm of c are not classified).
-      const double g_min = gridIntegrate(pr.a, pr.b, plain, 200).g_min;
-      if (g_min > -0.1 + 0.01) {
-        // Nowhere deeper than c: the same bits as the plain law.
-        EXPECT_EQ(c.force, p.force) << trial;
-        EXPECT_EQ(c.energy, p.energy) << trial;
-        for (int i = 0; i < 3; ++i) {
-          EXPECT_EQ(c.force_weight_a[i], p.force_weight_a[i]) << trial;
-          EXPECT_EQ(c.force_weight_b[i], p.force_weight_b[i]) << trial;
-        }
-        EXPECT_TRUE(mc.ab == mp.ab && mc.aa == mp.aa && mc.bb == mp.bb) << trial;
-        ++kept;
-        continue;
-      }
-      if (g_min > -0.1 - 0.01) continue;
-      ++split;
-      const double fn = c.force.dot(c.normal);
-      EXPECT_LE(std::abs(fn), capped.k * std::max(0.1, capped.h0) * c.area * (1 + 1e-12));
-      // Where g < −c the pressure k g (repulsive, negative) is raised to −k c: ∫P only grows.
-      EXPECT_GT(fn, p.force.dot(p.normal));
-      // The grid's samples miss a polygon's edges by up to a cell: a sliver of 1e-5 µm² is 25 %
-      // off in area on it, so only polygons the grid resolves are compared with it.
-      if (q == ContactQuadrature::Exact && c.area > 0.02) {
-        ++gridded;
-        const GridReference r = gridIntegrate(pr.a, pr.b, capped, 800);
-        const double scale = capped.k * c.area * 0.3;
-        EXPECT_NEAR(fn, r.int_p, 1e-2 * scale) << trial;
-        EXPECT_NEAR(c.energy, r.energy, 1e-2 * scale * 0.3) << trial;
-        for (int i = 0; i < 3; ++i) {
-          EXPECT_NEAR(c.force_weight_a[i], r.wa[i], 1e-2 * scale) << trial;
-          EXPECT_NEAR(c.force_weight_b[i], r.wb[i], 1e-2 * scale) << trial;
-        }
-      }
-      if (unlimited_range) {
-        const double ds = 1e-5;
-        auto energyAt = [&](double s) {
-          Tri3 moved = pr.a;
-          for (Vec3& x : moved) x += s * c.normal;
-          return computeTriangleContact(moved, pr.b, capped, q).energy;
-        };
-        const double dEds = (energyAt(ds) - energyAt(-ds)) / (2 * ds);
-        EXPECT_NEAR(-dEds, fn, 1e-6 * (std::abs(fn) + capped.k * c.area * 1e-3)) << trial;
-        ++fd;
-      }
-    }
-  }
-  EXPECT_GT(split, 40);
-  EXPECT_GT(kept, 20);
-  EXPECT_GT(fd, 20);
-  EXPECT_GT(gridded, 30);
-}
-
-// numerics.contact_within_prisms: a pair's polygon keeps only the points where B's point lies
+// numerics.contact_law = prisms: a pair's polygon keeps only the points where B's point lies
 // over A and A's over B. The pair that started the runaway of step fitness's seed 8 at Δt 0.5 s
 // (cells 20 and 27 at t = 4 099.5 s; docs/science/motion-convergence.md): two triangles 0.19 µm
 // apart at n̂_A·n̂_B = −0.13 whose planes cross beside them read a mean gap of −1.85 µm over
@@ -920,7 +839,7 @@ TEST(ContactNarrowPhase, WithinPrismsTheObliquePairThatBlewUpSeed8IsApart) {
   EXPECT_NEAR(plain.mean_gap, -1.854, 1e-3);
   EXPECT_NEAR(plain.area, 0.4449, 1e-3);
   ContactLaw prisms = law;
-  prisms.within_prisms = true;
+  prisms.kind = ContactLawKind::Prisms;
   for (ContactQuadrature q : kAllQuadratures) {
     const TriangleContact c = computeTriangleContact(a, b, prisms, q);
     EXPECT_FALSE(c.active);
@@ -937,7 +856,7 @@ TEST(ContactNarrowPhase, WithinPrismsTheObliquePairThatBlewUpSeed8IsApart) {
 TEST(ContactNarrowPhase, WithinPrismsMatchesTheGridAndKeepsParallelPairs) {
   ContactLaw plain;
   ContactLaw prisms;
-  prisms.within_prisms = true;
+  prisms.kind = ContactLawKind::Prisms;
   std::mt19937 rng(11);
   int gridded = 0, clipped = 0;
   for (int trial = 0; trial < 300; ++trial) {
@@ -971,7 +890,7 @@ TEST(ContactNarrowPhase, WithinPrismsACornerPressedIntoAFaceStillRepels) {
   if (triNormal(b).z() > 0) std::swap(b[1], b[2]);
   ASSERT_LT(triNormal(a).dot(triNormal(b)), -0.5);
   ContactLaw prisms;
-  prisms.within_prisms = true;
+  prisms.kind = ContactLawKind::Prisms;
   const TriangleContact plain =
       computeTriangleContact(a, b, ContactLaw{}, ContactQuadrature::Exact);
   const TriangleContact c = computeTriangleContact(a, b, prisms, ContactQuadrature::Exact);
@@ -984,7 +903,7 @@ TEST(ContactNarrowPhase, WithinPrismsACornerPressedIntoAFaceStillRepels) {
   EXPECT_NEAR(c.force.dot(c.normal), r.int_p, 2e-2 * std::abs(r.int_p));
 }
 
-// ContactLaw::prisms_overlap_only: the prisms bound only the overlapping part (g < 0), the
+// numerics.contact_law = prisms-overlap: the prisms bound only the overlapping part (g < 0), the
 // adhesive part (0 ≤ g < h0) is kept whole. Seed 8's oblique pair, all of it read as overlap, is
 // apart (no repulsion of micrometres); random pairs match the grid, whose points are kept by the
 // same rule; a pair with no overlap is the plain law's bit for bit, an antiparallel one to
@@ -992,9 +911,9 @@ TEST(ContactNarrowPhase, WithinPrismsACornerPressedIntoAFaceStillRepels) {
 TEST(ContactNarrowPhase, PrismsOnTheOverlapOnlyKeepTheAdhesivePartWhole) {
   ContactLaw plain;
   ContactLaw all = plain;
-  all.within_prisms = true;
+  all.kind = ContactLawKind::Prisms;
   ContactLaw overlap = all;
-  overlap.prisms_overlap_only = true;
+  overlap.kind = ContactLawKind::PrismsOverlap;
   {
     const auto [a, b] = seed8ObliquePair();
     ContactLaw law = overlap;
@@ -1038,7 +957,7 @@ TEST(ContactNarrowPhase, PrismsOnTheOverlapOnlyKeepTheAdhesivePartWhole) {
     const double scale = overlap.k * c.area * 0.4;
     // Pairs in two pieces: what else the step reads — the mean gap, the centroid (friction's
     // barycentrics), the friction and stiffness moments — against the grid, for every rule
-    // that is exact for them; and with a saturated pressure (each piece split again at −c).
+    // that is exact for them.
     if (!(r.g_min < -0.01 && r.g_max > 0.01)) continue;
     ++two_pieces;
     EXPECT_NEAR(c.mean_gap, r.int_p / (overlap.k * r.area), 2e-2 * 0.4) << trial;
@@ -1048,15 +967,6 @@ TEST(ContactNarrowPhase, PrismsOnTheOverlapOnlyKeepTheAdhesivePartWhole) {
       computeTriangleContact(pr.a, pr.b, overlap, q, &m);
       for (int i = 0; i < 9; ++i) EXPECT_NEAR(m.ab[i], r.ab[i], 2e-2 * c.area) << trial;
     }
-    ContactLaw saturated = overlap;
-    saturated.max_overlap = 0.1;
-    const TriangleContact cs =
-        computeTriangleContact(pr.a, pr.b, saturated, ContactQuadrature::Exact);
-    const GridReference rs = gridIntegrate(pr.a, pr.b, saturated, 500);
-    EXPECT_NEAR(cs.area, c.area, 1e-9 * c.area) << trial;
-    EXPECT_NEAR(cs.force.dot(cs.normal), rs.int_p, 1e-2 * scale) << trial;
-    EXPECT_NEAR(cs.energy, rs.energy, 1e-2 * scale * 0.4) << trial;
-    EXPECT_NEAR(cs.mean_gap, c.mean_gap, 1e-9) << trial;  // the true gap, whatever the cap
   }
   EXPECT_GT(gridded, 60);
   EXPECT_GT(differs, 20);
@@ -1108,57 +1018,6 @@ TEST(ContactNarrowPhase, PrismsOnTheOverlapOnlyKeepTheAdhesivePartWhole) {
   EXPECT_LT(c.force.dot(c.normal), 0);
   const GridReference r = gridIntegrate(a, b, overlap, 1000);
   EXPECT_NEAR(c.force.dot(c.normal), r.int_p, 2e-2 * std::abs(r.int_p));
-}
-
-// numerics.contact_max_facing_deg: the law's facing bound drops the pairs whose normals are
-// further than φ from antiparallel — the nearly perpendicular ones above, whose "gap" along the
-// bisector is no separation — and leaves every other pair's result bit for bit.
-TEST(ContactNarrowPhase, TheFacingBoundDropsOnlyPairsBeyondIt) {
-  ContactLaw bounded;
-  NumericsParams n;
-  n.contact_max_facing_deg = 60;
-  bounded.facing_dot = contactFacingDot(n);
-  EXPECT_NEAR(bounded.facing_dot, -0.5, 1e-15);
-  n.contact_max_facing_deg = 90;
-  EXPECT_EQ(contactFacingDot(n), 0.0);  // exactly: today's test n̂_A·n̂_B < 0
-  const ContactLaw law;
-  // B's normal at angle ψ from A's antiparallel: active under the bound only for ψ < 60°.
-  const Tri3 a{Vec3(-1, -1, 0), Vec3(1, -1, 0), Vec3(0, 1, 0)};
-  int dropped = 0, kept = 0;
-  for (double psi_deg : {0.0, 20.0, 45.0, 59.0, 61.0, 75.0, 89.0}) {
-    const double psi = psi_deg * M_PI / 180;
-    const Vec3 nb(std::sin(psi), 0, -std::cos(psi));
-    const Vec3 u(0, 1, 0), w = nb.cross(u);
-    const Vec3 p(0.1, 0, 0.02);
-    Tri3 b{p - 0.5 * u - 0.5 * w, p + 0.5 * u - 0.5 * w, p + 0.6 * w};
-    if (triNormal(b).dot(nb) < 0) std::swap(b[1], b[2]);
-    const TriangleContact all = computeTriangleContact(a, b, law, ContactQuadrature::Exact);
-    const TriangleContact some = computeTriangleContact(a, b, bounded, ContactQuadrature::Exact);
-    ASSERT_TRUE(all.active) << psi_deg;
-    if (psi_deg < 60) {
-      ++kept;
-      EXPECT_TRUE(some.active) << psi_deg;
-      EXPECT_EQ(some.area, all.area);
-      EXPECT_EQ(some.force, all.force);
-      EXPECT_EQ(some.force_weight_a, all.force_weight_a);
-      EXPECT_EQ(some.mean_gap, all.mean_gap);
-    } else {
-      ++dropped;
-      EXPECT_FALSE(some.active) << psi_deg;
-      EXPECT_EQ(some.force, Vec3::Zero());
-    }
-  }
-  EXPECT_EQ(kept, 4);
-  EXPECT_EQ(dropped, 3);
-  // On random facing pairs tilted by less than 0.5 rad the bound changes nothing.
-  std::mt19937 gen(7);
-  for (int k = 0; k < 200; ++k) {
-    const Pair pr = randomFacingPair(gen, -0.05, 0.05, 0.5);
-    const TriangleContact x = computeTriangleContact(pr.a, pr.b, law, ContactQuadrature::Exact);
-    const TriangleContact y = computeTriangleContact(pr.a, pr.b, bounded, ContactQuadrature::Exact);
-    EXPECT_EQ(x.active, y.active);
-    EXPECT_EQ(x.force, y.force);
-  }
 }
 
 // ---- 6. quadratures --------------------------------------------------------------------------

@@ -148,23 +148,18 @@ TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
   EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
   // Nor the contact law's experimental bounds: a run with one starts from its reference's
   // aggregates (they are prepared under the law as DESIGN.md states it).
-  other.numerics.contact_max_facing_deg = 60;
-  other.numerics.contact_max_overlap_um = 0.3;
-  other.numerics.contact_within_prisms = true;
-  other.numerics.contact_prisms_overlap_only = true;
-  EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
-  EXPECT_EQ(spheroidPrepSpec(other, 3, 11).numerics.contact_max_facing_deg, 90);
-  EXPECT_EQ(spheroidPrepSpec(other, 3, 11).numerics.contact_max_overlap_um, 0);
-  EXPECT_FALSE(spheroidPrepSpec(other, 3, 11).numerics.contact_within_prisms);
-  EXPECT_FALSE(spheroidPrepSpec(other, 3, 11).numerics.contact_prisms_overlap_only);
-  // Nor the remesher's rescue of locked cells.
-  other.numerics.remesh_rescue = true;
-  EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
-  EXPECT_FALSE(spheroidPrepSpec(other, 3, 11).numerics.remesh_rescue);
-  // Nor the rebuild of cells the rescue cannot repair.
-  other.numerics.remesh_rebuild = true;
-  EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
-  EXPECT_FALSE(spheroidPrepSpec(other, 3, 11).numerics.remesh_rebuild);
+  for (ContactLawKind law :
+       {ContactLawKind::Supplement, ContactLawKind::Prisms, ContactLawKind::PrismsOverlap}) {
+    other.numerics.contact_law = law;
+    EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
+    EXPECT_EQ(spheroidPrepSpec(other, 3, 11).numerics.contact_law, ContactLawKind::Supplement);
+  }
+  // Nor the remesher's repairs of locked cells.
+  for (RemeshRepair r : {RemeshRepair::None, RemeshRepair::Rescue, RemeshRepair::RescueRebuild}) {
+    other.numerics.remesh_repair = r;
+    EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
+    EXPECT_EQ(spheroidPrepSpec(other, 3, 11).numerics.remesh_repair, RemeshRepair::None);
+  }
   // Nor the collapses' keep-out.
   other.numerics.remesh_keep_out_um = 0.75;
   EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));

@@ -489,20 +489,20 @@ TEST(Remesh, TheRebuildChangesNothingWhereNoTriangleIsLeftSmall) {
   EXPECT_EQ(dented.tri, before.tri);
 }
 
-// The simulation counts a rebuild (numerics.remesh_rebuild) over the run, and a checkpoint of a
+// The simulation counts a rebuild (numerics.remesh_repair = rescue-rebuild) over the run, and a checkpoint of a
 // run with the key carries the count, the key being in its fingerprint; with the key off the same
 // cell keeps its mesh.
 TEST(Remesh, TheSimulationCountsARebuildAndItsCheckpointKeepsIt) {
   const ObjCell cell =
       readObjCell(std::string(ENGINE_TEST_DATA) + "/locked-cell-rescue-refused.obj");
   SceneSpec s = activefoam::testing::cellSpec(1.0, 320);
-  s.numerics.remesh_rescue = true;
+  s.numerics.remesh_repair = RemeshRepair::Rescue;
   s = resolve(s);
   CellSet cells;
   cells.addCell(cell.mesh, cell.radius);
   for (const bool key : {false, true}) {
     SceneSpec k = s;
-    k.numerics.remesh_rebuild = key;
+    k.numerics.remesh_repair = key ? RemeshRepair::RescueRebuild : RemeshRepair::Rescue;
     Simulation sim(k, cells);
     sim.remeshAll();
     EXPECT_EQ(sim.remeshRescues(), 1) << key;

@@ -54,8 +54,7 @@ inline SceneSpec studiesStep(SceneSpec s) {
   s.numerics.integrator = IntegratorKind::ContactImplicitConsistent;
   s.numerics.dt_s = 1.0;
   s.numerics.cg_tol = 1e-2;
-  s.numerics.contact_within_prisms = true;
-  s.numerics.contact_prisms_overlap_only = true;
+  s.numerics.contact_law = ContactLawKind::PrismsOverlap;
   EXPECT_TRUE(validate(s).empty());
   return resolve(s);
 }

@@ -217,8 +217,7 @@ TEST(Threads, RemeshWithTheRescueAndTheRebuildIsBitIdenticalForAnyThreadCount) {
   const auto locked = activefoam::testing::readObjCell(std::string(ENGINE_TEST_DATA) +
                                                        "/locked-cell-rescue-refused.obj");
   SceneSpec s = cellSpec(1.0, 320);
-  s.numerics.remesh_rescue = true;
-  s.numerics.remesh_rebuild = true;
+  s.numerics.remesh_repair = RemeshRepair::RescueRebuild;
   s = resolve(s);
   CellSet cells;
   const double r = 8.88;
@@ -250,8 +249,7 @@ TEST(Threads, RemeshWithKeepOutKeepsThePressedCellOutAndIsBitIdenticalForAnyThre
   const auto b = activefoam::testing::readObjCell(data + "/pressed-pair-B.obj");
   SceneSpec s = fusion2x4();
   s.numerics.triangles_per_cell = 320;  // the run's (A_m and A_M scale with it)
-  s.numerics.remesh_rescue = true;
-  s.numerics.remesh_rebuild = true;
+  s.numerics.remesh_repair = RemeshRepair::RescueRebuild;
   CellSet cells;
   cells.addCell(a.mesh, a.radius);
   cells.addCell(b.mesh, b.radius);

@@ -96,7 +96,7 @@ TEST(Cli, PresetsAndAccuracyTargetsAreRecordedAndUnstableStepsRefused) {
   }
   ASSERT_EQ(r.rc, 0) << r.out;
   Proc show = sh(d.foam() + " show " + firstLine(r.out));
-  EXPECT_NE(show.out.find("fidelity:  preset draft (contact-implicit, Δt 0.5 s, 320 triangles"),
+  EXPECT_NE(show.out.find("fidelity:  preset standard (contact-implicit-consistent, Δt 1 s, 320 triangles"),
             std::string::npos)
       << show.out;
   EXPECT_NE(show.out.find("chosen for the accuracy target contact angle ≤ 2°"), std::string::npos)
@@ -105,7 +105,7 @@ TEST(Cli, PresetsAndAccuracyTargetsAreRecordedAndUnstableStepsRefused) {
   r = sh(base + " --preset reference --set numerics.triangles_per_cell=80 2>/dev/null");
   ASSERT_EQ(r.rc, 0) << r.out;
   show = sh(d.foam() + " show " + firstLine(r.out));
-  EXPECT_NE(show.out.find("preset reference (contact-implicit, Δt 0.1 s, 80 triangles"),
+  EXPECT_NE(show.out.find("preset reference (contact-implicit-consistent, Δt 0.25 s, 80 triangles"),
             std::string::npos)
       << show.out;
 

@@ -157,8 +157,7 @@ TEST(SpecConvert, ContactAndMotilityKeysOnASingleCellAreRefused) {
         "cells.xi_tangential=0.1", "cells.p_a=0", "cells.tau_p_s=60", "cells.pa_reduced=0.5",
         "cells.l_eta_reduced=1", "numerics.contact_quadrature=centroid",
         "numerics.max_penetration_um=0.5", "numerics.max_oscillating_steps=5",
-        "numerics.contact_max_facing_deg=60", "numerics.contact_max_overlap_um=0.3",
-        "numerics.contact_within_prisms=true"}) {
+        "numerics.contact_law=prisms"}) {
     const std::string key = std::string(set).substr(0, std::string(set).find('='));
     ConvertResult r = convertSpec(v1::SceneSpec{}, "", {"scene=cell", set});
     ASSERT_FALSE(r.ok()) << set;
@@ -173,38 +172,40 @@ TEST(SpecConvert, ContactAndMotilityKeysOnASingleCellAreRefused) {
   // The cell's own keys, a preset, and a resolved cell spec listing every key at its default.
   ConvertResult r = convertSpec(v1::SceneSpec{}, "",
                                 {"scene=cell", "cells.gamma=0.6", "cells.eta=4",
-                                 "numerics.preset=draft", "numerics.dt_s=0.2"});
+                                 "numerics.preset=reference", "numerics.dt_s=0.2"});
   EXPECT_TRUE(r.ok()) << errorText(r.errors);
   SceneSpec cell;
   cell.scene = SceneKind::Cell;
   cell.cells.gamma = 0.7;
-  applyPreset(cell.numerics, FidelityPreset::Draft);
+  applyPreset(cell.numerics, FidelityPreset::Reference);
   EXPECT_TRUE(activefoam::checkSceneKeys(
                   resolve(cell), {"cells.alpha", "cells.xi_normal", "cells.pa_reduced",
                                   "numerics.contact_quadrature", "numerics.max_penetration_um"})
                   .empty());
 }
 
-// numerics.contact_prisms_overlap_only (proto field 22) reaches the engine from the typed
-// message and from settings; without the prisms it is refused by name.
-TEST(SpecConvert, ThePrismsOverlapOnlyTravelsAndNeedsThePrisms) {
+// numerics.contact_law (proto field 26) reaches the engine from the typed message and from
+// settings, and so do the two switches of earlier versions (fields 21, 22), as the law they
+// named; it is the scenes with contacts' only.
+TEST(SpecConvert, TheContactLawTravelsAndSoDoItsEarlierSwitches) {
   v1::SceneSpec typed;
-  typed.mutable_numerics()->set_contact_within_prisms(true);
-  typed.mutable_numerics()->set_contact_prisms_overlap_only(true);
+  typed.mutable_numerics()->set_contact_law(v1::CONTACT_LAW_PRISMS);
   ConvertResult r = convertSpec(typed, "", {"scene=doublet"});
   ASSERT_TRUE(r.ok()) << errorText(r.errors);
-  EXPECT_TRUE(r.spec->numerics.contact_prisms_overlap_only);
-  r = convertSpec(v1::SceneSpec{}, "",
-                  {"scene=doublet", "numerics.contact_prisms_overlap_only=true"});
+  EXPECT_EQ(r.spec->numerics.contact_law, ContactLawKind::Prisms);
+  v1::SceneSpec old;
+  old.mutable_numerics()->set_contact_within_prisms(false);
+  old.mutable_numerics()->set_contact_prisms_overlap_only(false);
+  r = convertSpec(old, "", {"scene=doublet"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_EQ(r.spec->numerics.contact_law, ContactLawKind::Supplement);
+  r = convertSpec(v1::SceneSpec{}, "", {"scene=doublet", "numerics.contact_law=supplement"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_EQ(r.spec->numerics.contact_law, ContactLawKind::Supplement);
+  EXPECT_EQ(toProto(*r.spec).numerics().contact_law(), v1::CONTACT_LAW_SUPPLEMENT);
+  r = convertSpec(v1::SceneSpec{}, "", {"scene=cell", "numerics.contact_law=prisms"});
   ASSERT_FALSE(r.ok());
-  EXPECT_EQ(r.errors[0].field, "numerics.contact_prisms_overlap_only");
-  r = convertSpec(v1::SceneSpec{}, "",
-                  {"scene=cell", "numerics.contact_within_prisms=true",
-                   "numerics.contact_prisms_overlap_only=true"});
-  ASSERT_FALSE(r.ok());
-  EXPECT_TRUE(std::any_of(r.errors.begin(), r.errors.end(), [](const SpecError& e) {
-    return e.field == "numerics.contact_prisms_overlap_only";
-  })) << errorText(r.errors);
+  EXPECT_EQ(r.errors[0].field, "numerics.contact_law");
 }
 
 TEST(SpecConvert, ThePolarityFromThePreparationTravelsAndIsTheFusionsOnly) {
@@ -221,32 +222,26 @@ TEST(SpecConvert, ThePolarityFromThePreparationTravelsAndIsTheFusionsOnly) {
   EXPECT_EQ(r.errors[0].field, "scene.polarity_from_preparation");
 }
 
-// numerics.remesh_rescue and remesh_rebuild (proto fields 23, 24) reach the engine from the typed
-// message and from settings, in every scene (every scene remeshes).
-TEST(SpecConvert, TheRemeshersRescueAndRebuildTravel) {
-  for (const bool rebuild : {false, true}) {
-    const std::string key = rebuild ? "numerics.remesh_rebuild" : "numerics.remesh_rescue";
-    const auto on = [&](const ConvertResult& r) {
-      return rebuild ? r.spec->numerics.remesh_rebuild : r.spec->numerics.remesh_rescue;
-    };
-    v1::SceneSpec typed;
-    if (rebuild)
-      typed.mutable_numerics()->set_remesh_rebuild(true);
-    else
-      typed.mutable_numerics()->set_remesh_rescue(true);
-    ConvertResult r = convertSpec(typed, "", {"scene=cell"});
-    ASSERT_TRUE(r.ok()) << errorText(r.errors);
-    EXPECT_TRUE(on(r)) << key;
-    r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion", key + "=true"});
-    ASSERT_TRUE(r.ok()) << errorText(r.errors);
-    EXPECT_TRUE(on(r)) << key;
-    r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion"});
-    ASSERT_TRUE(r.ok()) << errorText(r.errors);
-    EXPECT_FALSE(on(r)) << key;
-  }
+// numerics.remesh_repair (proto field 27) reaches the engine from the typed message and from
+// settings, in every scene (every scene remeshes); the switches of earlier versions (fields 23,
+// 24) read as the policy they named.
+TEST(SpecConvert, TheRemeshRepairTravelsAndSoDoItsEarlierSwitches) {
+  v1::SceneSpec typed;
+  typed.mutable_numerics()->set_remesh_repair(v1::REMESH_REPAIR_RESCUE);
+  ConvertResult r = convertSpec(typed, "", {"scene=cell"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_EQ(r.spec->numerics.remesh_repair, RemeshRepair::Rescue);
+  v1::SceneSpec old;
+  old.mutable_numerics()->set_remesh_rescue(false);
+  old.mutable_numerics()->set_remesh_rebuild(false);
+  r = convertSpec(old, "", {"scene=cell"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_EQ(r.spec->numerics.remesh_repair, RemeshRepair::None);
+  r = convertSpec(v1::SceneSpec{}, "", {"scene=fusion"});
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  EXPECT_EQ(r.spec->numerics.remesh_repair, RemeshRepair::RescueRebuild);
 }
 
-// numerics.remesh_keep_out_um (proto field 25) likewise; a negative depth is refused naming it.
 TEST(SpecConvert, TheRemeshKeepOutTravels) {
   v1::SceneSpec typed;
   typed.mutable_numerics()->set_remesh_keep_out_um(0.75);
@@ -308,10 +303,10 @@ TEST(SpecConvert, AnAccuracyTargetPicksAPresetAndTheStoredSpecRecordsIt) {
   m.mutable_accuracy()->set_contact_angle_deg(2);
   const ConvertResult r = convertSpec(m);
   ASSERT_TRUE(r.ok()) << errorText(r.errors);
-  EXPECT_EQ(r.spec->numerics.preset, FidelityPreset::Draft);
-  EXPECT_EQ(r.spec->numerics.dt_s, presetInfo(FidelityPreset::Draft).dt_s);
+  EXPECT_EQ(r.spec->numerics.preset, FidelityPreset::Standard);
+  EXPECT_EQ(r.spec->numerics.dt_s, presetInfo(FidelityPreset::Standard).dt_s);
   const v1::SceneSpec stored = toProto(*r.spec);
-  EXPECT_EQ(stored.numerics().preset(), v1::FIDELITY_PRESET_DRAFT);
+  EXPECT_EQ(stored.numerics().preset(), v1::FIDELITY_PRESET_STANDARD);
   EXPECT_EQ(stored.accuracy().contact_angle_deg(), 2);
   const ConvertResult again = convertSpec(stored);  // a re-queued job reads it back
   ASSERT_TRUE(again.ok()) << errorText(again.errors);
@@ -324,7 +319,7 @@ TEST(SpecConvert, AnAccuracyTargetPicksAPresetAndTheStoredSpecRecordsIt) {
   p.mutable_numerics()->set_preset(v1::FIDELITY_PRESET_REFERENCE);
   const ConvertResult ref = convertSpec(p, "", {"numerics.dt_s=0.2"});
   ASSERT_TRUE(ref.ok()) << errorText(ref.errors);
-  EXPECT_EQ(ref.spec->numerics.triangles_per_cell, 1280);
+  EXPECT_EQ(ref.spec->numerics.cg_tol, 1e-3);
   EXPECT_EQ(ref.spec->numerics.dt_s, 0.2);
 
   m.mutable_accuracy()->set_trajectory_deg(0.01);  // finer than any preset

@@ -21,19 +21,13 @@ struct ContactLaw {
   // detectContacts also integrates each pair's ContactMoments (the consistent stiffness, which
   // only ros2 uses; ~27 more products per quadrature point in the narrow phase).
   bool stiffness_moments = false;
-  // A pair touches only when n̂_A·n̂_B < facing_dot: 0 for every facing pair, −cos φ for pairs
-  // within φ of antiparallel (numerics.contact_max_facing_deg).
-  double facing_dot = 0;
-  // The pressure is k max(g, −max_overlap) (numerics.contact_max_overlap_um); 0: k g.
-  double max_overlap = 0;
-  // The contact polygon keeps only the points y whose point on B lies over A (inside A's prism
-  // along n̂_A) and whose point on A lies over B (numerics.contact_within_prisms): a nearly
-  // perpendicular pair whose planes cross beside its triangles reads micrometres of "overlap"
-  // along the bisector where neither triangle is over the other.
-  bool within_prisms = false;
-  // With within_prisms, only the overlapping part (g < 0) is restricted to the prisms; the
-  // adhesive part (0 ≤ g < h0) is kept whole.
-  bool prisms_overlap_only = false;
+  // Which part of the overlap polygon carries the pressure (numerics.contact_law). Prisms keeps
+  // only the points y whose point on B lies over A (inside A's prism along n̂_A) and whose point
+  // on A lies over B: a nearly perpendicular pair whose planes cross beside its triangles reads
+  // micrometres of "overlap" along the bisector where neither triangle is over the other.
+  // PrismsOverlap restricts only the overlapping part (g < 0) so; the adhesive part (0 ≤ g < h0),
+  // where the junctions' rims are, stays whole.
+  ContactLawKind kind = ContactLawKind::Supplement;
 };
 
 // ∫ λ^A_i λ^B_k dS, ∫ λ^A_i λ^A_j dS, ∫ λ^B_k λ^B_l dS (row-major 3 × 3) over a pair's contact

@@ -47,10 +47,10 @@ struct RunSummary {
   double wall_s = 0;
   double cg_iters_mean = 0;
   std::int64_t remesh_ops = 0;  // splits + collapses + flips over the run
-  // Cell remeshes that ran the rescue (numerics.remesh_rescue): 0 means the bits of the run
+  // Cell remeshes that ran the rescue (numerics.remesh_repair): 0 means the bits of the run
   // without the key.
   std::int64_t remesh_rescues = 0;
-  // Cell meshes rebuilt (numerics.remesh_rebuild): 0 means the bits of the run without the key.
+  // Cell meshes rebuilt (numerics.remesh_repair = rescue-rebuild): 0 means the bits of the run without the key.
   std::int64_t remesh_rebuilds = 0;
   // Collapses and rebuilds refused for entering a neighbour (numerics.remesh_keep_out_um): 0
   // means the bits of the run without the key.

@@ -48,16 +48,17 @@ struct CellParams {
   friend bool operator==(const CellParams&, const CellParams&) = default;
 };
 
-// The defaults are the `standard` preset's values.
+// The defaults are the `standard` preset's values: the step the figure studies were validated at
+// (docs/science/presets.md).
 struct NumericsParams {
   // Setting the preset (setField "numerics.preset") sets dt_s, integrator, cg_tol,
-  // preconditioner, triangles_per_cell and contact_quadrature to its values, except those set
-  // explicitly (`pinned`), in whatever order the keys arrive.
+  // preconditioner, triangles_per_cell, contact_quadrature and contact_law to its values, except
+  // those set explicitly (`pinned`), in whatever order the keys arrive.
   FidelityPreset preset = FidelityPreset::Standard;
   PresetPins pinned;
-  double dt_s = 0.1;
-  IntegratorKind integrator = IntegratorKind::ContactImplicit;
-  double cg_tol = 1e-3;
+  double dt_s = 1.0;
+  IntegratorKind integrator = IntegratorKind::ContactImplicitConsistent;
+  double cg_tol = 1e-2;
   std::int64_t cg_max_iter = 1000;
   PreconditionerKind preconditioner = PreconditionerKind::BlockJacobi;
   std::int64_t triangles_per_cell = 320;      // 80 | 320 | 1280
@@ -68,58 +69,37 @@ struct NumericsParams {
   // a smoothed vertex is projected back onto its ring, and the volume smoothing changed is
   // restored by one normal offset of the whole cell. false: smoothing corrected the volume by
   // moving the vertex along its normal, by up to half an edge, which at a contact pushed it into
-  // the neighbouring cell (the interpenetration guard stopped runs; earlier versions' behaviour).
+  // the neighbouring cell (the interpenetration guard stopped runs).
   bool remesh_on_surface = true;
-  // A cell's remesh that leaves a triangle below half of A_m runs again, allowing collapses that
-  // leave a vertex of valence 3 (remesh.h, RemeshParams::rescue). false: such collapses are
-  // always refused, which can lock a small triangle among vertices of valence 4 until it
-  // inverts (earlier versions' behaviour).
-  bool remesh_rescue = false;
-  // A cell's remesh that still leaves a triangle below half of A_m (after the rescue, when that
-  // is on) rebuilds the cell's mesh: a fresh icosphere of triangles_per_cell laid on its surface
-  // from its centroid (remesh.h, rebuildRadially). false: the cell keeps its mesh, and a sliver
-  // the remesher cannot remove can flatten until it inverts (earlier versions' behaviour).
-  bool remesh_rebuild = false;
+  // A triangle the remesher could not collapse (below half of A_m after a remesh): Rescue runs
+  // the cell's remesh again allowing collapses that leave a vertex of valence 3 (otherwise a
+  // small triangle can lock among vertices of valence 4 until it inverts); RescueRebuild then
+  // rebuilds a cell that still has one: a fresh icosphere laid on its surface from its centroid
+  // (remesh.h). Each repair changes only runs that need it; the reports count them.
+  RemeshRepair remesh_repair = RemeshRepair::RescueRebuild;
   // A collapse whose volume-preserving placement would put the merged vertex deeper than this
   // (µm) inside a cell this one touches (and deeper than the vertices it merges) is refused
-  // (remesh.h, RemeshParams::keep_out), and so is a rebuild (numerics.remesh_rebuild) that would
-  // put a touching cell's vertex that deep inside this one (RemeshParams::keep_out_points).
-  // 0: off, it is done, and a remesh can push a vertex of a
-  // pressed cell into its neighbour by more than the interpenetration guard allows, failing the
-  // step at every Δt (earlier versions' behaviour).
+  // (remesh.h, RemeshParams::keep_out), and so is a rebuild that would put a touching cell's
+  // vertex that deep inside this one (RemeshParams::keep_out_points). 0: off, and a remesh can
+  // push a vertex of a pressed cell into its neighbour by more than the interpenetration guard
+  // allows, failing the step at every Δt.
   double remesh_keep_out_um = 0;
   ContactQuadrature contact_quadrature = ContactQuadrature::Exact;
-  double max_volume_error = 0.05;  // |V − V*|/V* beyond this stops the run as failed
+  // |V − V*|/V* beyond this stops the run as failed. 20 %: at high motility the cells' volumes
+  // swing to 8–18 % and back within seconds in runs that go on (docs/science/presets.md); a run
+  // none of whose steps crosses 5 % has the same bits at 5 %.
+  double max_volume_error = 0.2;
   // Interpenetration of two cells (the area-weighted mean gap over their contact pairs) beyond
   // this stops the run as failed (cells passing through each other).
   double max_penetration_um = 1.0;
+  // Which part of a facing pair's overlap carries the contact pressure (spec_enums.h). The
+  // supplement's law reads micrometres of false overlap between nearly perpendicular triangles
+  // whose planes cross beside them; the overlap within prisms removes it (docs/numerics.md).
+  // Not applied in the spheroids' preparation.
+  ContactLawKind contact_law = ContactLawKind::PrismsOverlap;
   // Consecutive steps in which contacting vertices mostly reverse their velocity (the period-2
   // signature of an explicit scheme beyond its stability limit) before the run fails.
   std::int64_t max_oscillating_steps = 10;
-  // Triangle pairs touch only when their normals face each other within this angle of
-  // antiparallel (n̂_A·n̂_B < −cos φ). 90: every facing pair (n̂_A·n̂_B < 0), DESIGN.md's term 6.
-  // Nearly perpendicular pairs at junctions read gaps of micrometres along their bisector and
-  // gave forces 1000× the tissue's (docs/science/motion-convergence.md, "Correction"). Not
-  // applied in the spheroids' preparation.
-  double contact_max_facing_deg = 90;
-  // The overlap beyond which the contact pressure stops growing, µm: P = k max(g, −c), and
-  // where a pair is deeper than c it adds no stiffness. 0: P = k g for every g (DESIGN.md's term
-  // 6, the supplement's law). Nearly perpendicular pairs read overlaps of micrometres along their
-  // bisector; saturating the pressure there keeps the rims that a facing bound drops
-  // (docs/science/motion-convergence.md). Not applied in the spheroids' preparation.
-  double contact_max_overlap_um = 0;
-  // A pair's contact keeps only the part of its polygon where each triangle's point lies over
-  // the other triangle (inside its prism along its normal). false: the whole polygon of the
-  // projections onto the bisector plane (DESIGN.md's term 6, the supplement's law), where a
-  // nearly perpendicular pair whose planes cross beside the triangles reads an overlap of
-  // micrometres between triangles that are apart (docs/numerics.md). Not applied in the
-  // spheroids' preparation.
-  bool contact_within_prisms = false;
-  // With contact_within_prisms: only the overlapping part of the polygon (g < 0) is kept within
-  // the prisms, the adhesive part (0 ≤ g < h0) whole — the false overlaps are all at g < 0,
-  // while the junctions' rims, where the spheroid's surface angle is read, are adhesive. Not
-  // applied in the spheroids' preparation.
-  bool contact_prisms_overlap_only = false;
   // Adaptive time step (time_stepper.h): a step that fails one of the checks above is
   // undone and retried at half the length, down to dt_min_s (default Δt/64); after a run of good
   // steps Δt grows back. false: the first failed step ends the run (the studies measure that).
@@ -155,9 +135,8 @@ struct SceneParams {
   bool allow_uncompacted = false;
   // Fusion: each cell keeps the polarity its spheroid's preparation ended with, instead of one
   // drawn afresh at t = 0. A fresh draw moves every protrusion to a new side at once, and at high
-  // motility the cells swell past the volume guard within seconds (docs/science/fig8-pa1-probe/);
-  // false: the draw, as in earlier versions.
-  bool polarity_from_preparation = false;
+  // motility the cells swell past the volume guard within seconds (docs/science/presets.md).
+  bool polarity_from_preparation = true;
 
   friend bool operator==(const SceneParams&, const SceneParams&) = default;
 };
@@ -203,7 +182,26 @@ struct SpecField {
   std::string help;
   std::vector<std::string> choices;  // for Choice (and the allowed values of an Integer key)
   bool hi_open = false;              // true: [lo, hi) or (lo, hi)
-  std::string range() const;         // "(0, 10]" or "one of cell|doublet|..." for messages
+  // What every other list of keys would repeat, said once here:
+  // - `label`: the key only chooses other keys' values (the preset, the accuracy targets); two
+  //   specs that differ only in it run identically, and the fingerprint leaves it out.
+  // - `before`: the value that reproduces runs made before the key existed. The fingerprint
+  //   leaves the key out at it (earlier checkpoints and prepared spheroids stay valid), and a
+  //   record that lacks the key (an earlier job's resolved spec) reads at it. Empty: the key is
+  //   as old as the spec.
+  // - `prep`: how the spheroids' preparation treats the key (spheroidPrepSpec). Kept: it runs
+  //   with the run's value (the key shapes the aggregates). Fixed: with `prep_value` (unset for
+  //   an optional key when empty), so that runs differing only in it start from the same
+  //   aggregates. Own: the preparation sets it itself (its duration, Δt, scene).
+  // - `scenes`: which scenes read it (bit 1 << SceneKind); a spec that sets it for another scene
+  //   is told so.
+  bool label = false;
+  std::optional<SpecValue> before;
+  enum class Prep { Kept, Fixed, Own } prep = Prep::Kept;
+  std::optional<SpecValue> prep_value;
+  unsigned scenes = 0xF;
+  std::string range() const;  // "(0, 10]" or "one of cell|doublet|..." for messages
+  bool readBy(SceneKind k) const { return scenes & (1u << static_cast<unsigned>(k)); }
 };
 
 // Every key, in a stable order (the order of DESIGN.md §10).
@@ -259,11 +257,21 @@ SceneSpec resolve(const SceneSpec& spec);
 std::vector<SpecError> measuredUnstable(const SceneSpec& spec);
 
 // Every key's value in table order, as text: two specs with the same fingerprint run
-// identically (checkpoints and the spheroid cache compare it). numerics.preset and the
-// [accuracy] keys are left out: they only choose the values of other keys. numerics.adaptive and
-// numerics.dt_min_s are left out at their defaults (true, Δt/64): a run that never fails a step
-// runs as before they existed, so its checkpoints and prepared spheroids stay valid.
+// identically (checkpoints and the spheroid cache compare it). Labels are left out, and so is a
+// key at its `before` value (numerics.dt_min_s at its default Δt/64): a run of today's engine
+// at the settings of an earlier one keeps that one's checkpoints and prepared spheroids.
 std::string specFingerprint(const SceneSpec& spec);
+
+// A spec whose every key that has a `before` value holds it, the others their defaults: the base
+// on which an earlier job's record (its resolved spec) is read, so that keys added since read as
+// the run had them.
+SceneSpec recordBase();
+
+// Keys that exist no more. A record that holds one at the value that reproduces what runs now
+// (or, for those a key replaced, any value: it maps onto that key) reads; anything else is an
+// error naming what replaced it. Empty when `key` is no retired key.
+std::optional<std::optional<SpecError>> setRetiredField(SceneSpec& spec, std::string_view key,
+                                                        const SpecValue& value);
 
 // Levenshtein distance (for "did you mean" suggestions on unknown keys and tables).
 std::size_t editDistance(std::string_view a, std::string_view b);
@@ -280,12 +288,12 @@ struct PresetInfo {
   PreconditionerKind preconditioner;
   std::int64_t triangles_per_cell;
   ContactQuadrature contact_quadrature;
-  // Stated errors: the largest the speed/accuracy study measured (docs/study/doublet.md, against
-  // the Δt = 0.025 s, ε_CG = 1e-6, 1280-triangle reference) plus the study's noise floor, rounded
-  // up. tests/scenes/test_presets.cc checks that every preset meets them.
+  ContactLawKind contact_law;
+  // Stated errors on the doublet (the equilibrium contact angle against arccos α and the
+  // approach θ_c(t) against a finer run, tests/scenes/test_presets.cc, which checks that every
+  // preset meets them): what it measured, rounded up.
   double contact_angle_error_deg;      // equilibrium contact angle
   double trajectory_error_deg;         // RMS over the approach θ(t)
-  double doublet_wall_per_sim_hour_s;  // measured cost on the doublet (one core), for the table
 };
 
 // Every preset, cheapest first.
@@ -315,9 +323,6 @@ inline constexpr double kMaxSnapshots = 1.0e5;       // duration_s / snapshot_ev
 double tauShell(const CellParams& c);        // η / (2√3 γ)
 double adhesionW(const CellParams& c);       // w = (1 − α) γ
 double contactRangeH0(const CellParams& c);  // h0 = √(w / k_AB)
-// The facing bound of the contact law for numerics.contact_max_facing_deg: 0 at 90° (exactly:
-// every facing pair, as before the key), −cos φ below.
-double contactFacingDot(const NumericsParams& n);
 // The derived defaults, each computed here only: resolve() fills the unset keys with them, and
 // the engine's readers of a key that may be unset fall back on the same functions.
 double defaultTauKS(const CellParams& c);         // τ_K = 2 τ_shell

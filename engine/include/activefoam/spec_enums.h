@@ -13,8 +13,17 @@ enum class SceneKind { Cell, Doublet, Spheroid, Fusion };
 enum class IntegratorKind { SemiImplicit, ContactImplicit, Ros2, ContactImplicitConsistent };
 enum class PreconditionerKind { Jacobi, BlockJacobi, IncompleteCholesky };
 enum class ContactQuadrature { Exact, Dunavant7, Centroid };
-// Fidelity presets (issue 6, docs/study/): named numerics from the speed/accuracy study.
-enum class FidelityPreset { Draft, Standard, Reference };
+// Fidelity presets (docs/science/presets.md): named numerics, each measured.
+enum class FidelityPreset { Standard, Reference };
+// The contact law (docs/model.md, docs/numerics.md): which part of a facing pair's overlap
+// polygon carries the pressure. Supplement: all of it (the paper's law); Prisms: only where each
+// triangle lies over the other; PrismsOverlap: the overlapping part (g < 0) within the prisms, the
+// adhesive part whole.
+enum class ContactLawKind { Supplement, Prisms, PrismsOverlap };
+// What the remesher does about a triangle it could not collapse (docs/numerics.md): None leaves
+// it; Rescue runs the cell's remesh again allowing valence 3; RescueRebuild then rebuilds the
+// cell's mesh if a sliver is still there.
+enum class RemeshRepair { None, Rescue, RescueRebuild };
 
 // The spellings of the spec's Choice keys ("contact-implicit", "block-jacobi", ...).
 std::string_view toString(SceneKind);
@@ -22,5 +31,7 @@ std::string_view toString(IntegratorKind);
 std::string_view toString(PreconditionerKind);
 std::string_view toString(ContactQuadrature);
 std::string_view toString(FidelityPreset);
+std::string_view toString(ContactLawKind);
+std::string_view toString(RemeshRepair);
 
 }  // namespace activefoam

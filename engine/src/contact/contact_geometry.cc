@@ -30,7 +30,7 @@ inline double cross2(const Vec2& u, const Vec2& v) {
 }
 
 // Convex polygon with at most 3 + 11 vertices (a triangle clipped by the other's 3 edges, the
-// law's range and, with ContactLaw::within_prisms, the split at g = 0 and both triangles' 3 prism
+// law's range and, under the prisms laws, the split at g = 0 and both triangles' 3 prism
 // sides; each clip of a convex polygon adds at most one vertex), and slots to spare. One more
 // slot than the cap: a clip may write a vertex and a crossing before it checks the cap.
 constexpr int kMaxPolygon = 17;
@@ -253,42 +253,42 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
   return computeTriangleContact(a, b, triangleFrame(a), triangleFrame(b), law, quadrature, moments);
 }
 
-TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::array<Vec3, 3>& b,
-                                       const TriangleFrame& fa, const TriangleFrame& fb,
-                                       const ContactLaw& law, ContactQuadrature quadrature,
-                                       ContactMoments* moments, ContactOutputs outputs) {
-  TriangleContact out;
-  if (moments) *moments = ContactMoments{};
-  if (!fa.ok || !fb.ok) return out;
-  const Vec3& na = fa.normal;
-  const Vec3& nb = fb.normal;
-  if (!(na.dot(nb) < law.facing_dot)) return out;  // not facing (within the law's bound)
+namespace {
 
-  // Cheap early out before the projection (which costs more than the rest of a rejected pair):
-  // a corner a_i at distance d_i = n̂_B·(a_i − b_0) in front of B's plane has gap
-  // g = d_i / |n̂_B·n̂_AB| ≥ d_i there, so d_i ≥ h0 at all of A's corners implies the early out
-  // below (g ≥ h0 at A's corners); likewise for B's corners and A's plane. The margin of 1e-9 h0
-  // keeps the implication true through roundoff (~1e-14 µm here): it rejects only pairs the
-  // full test rejects, and the result is the same bit for bit.
-  const double h_safe = law.h0 * (1 + 1e-9);
+// A facing pair seen in the projection plane ⟂ n = n̂_AB: the basis, both triangles' projected
+// corners and the gap g(y), affine in y.
+struct PairFrame {
+  Vec3 n, e1, e2, o;
+  std::array<Vec2, 3> pa, pb;
+  // The line o + y + s n meets plane A at s_A(y) = sa0 + sa_grad·y, plane B likewise.
+  double sa0, sb0;
+  Vec2 sa_grad, sb_grad;
+  double g0;
+  Vec2 g_grad;
+  double gap(const Vec2& y) const { return g0 + g_grad.dot(y); }
+};
+
+// The frame of a facing pair, or false when the pair cannot touch within h0 (each early out
+// rejects only pairs the full clip would leave without a polygon of positive area).
+bool framePair(const std::array<Vec3, 3>& a, const std::array<Vec3, 3>& b, const Vec3& na,
+               const Vec3& nb, double h0, PairFrame& f) {
+  // A corner a_i at distance d_i = n̂_B·(a_i − b_0) in front of B's plane has gap
+  // g = d_i / |n̂_B·n̂_AB| ≥ d_i there, so d_i ≥ h0 at all of A's corners implies g ≥ h0 on the
+  // polygon; likewise for B's corners and A's plane. The margin of 1e-9 h0 keeps the
+  // implication true through roundoff (~1e-14 µm here), so the result is the same bits.
+  const double h_safe = h0 * (1 + 1e-9);
   if (nb.dot(a[0] - b[0]) >= h_safe && nb.dot(a[1] - b[0]) >= h_safe &&
       nb.dot(a[2] - b[0]) >= h_safe)
-    return out;
+    return false;
   if (na.dot(b[0] - a[0]) >= h_safe && na.dot(b[1] - a[0]) >= h_safe &&
       na.dot(b[2] - a[0]) >= h_safe)
-    return out;
-
-  // Contact normal and an orthonormal basis of the projection plane (e1 × e2 = n).
+    return false;
   const Vec3 n = (na - nb).normalized();  // |n̂_A − n̂_B| ≥ √2 for facing pairs
-
-  // Early out for triangles whose projections are disjoint (about half of the broad phase's
-  // candidates on a packed tissue): an edge of one triangle with the other's three corners
-  // strictly outside it separates them. For the projection P onto the plane ⟂ n,
-  // cross2(Pu, Pw) = n·(u × w), so the 2D side tests of the clip below are evaluated in 3D
-  // without projecting. Projected A runs counter-clockwise (n̂_A·n > 0), projected B clockwise.
-  // A pair this rejects would leave the clip an empty polygon (or one of roundoff area, which
-  // the area test below rejects as well).
-  // One branch for all six edges (the outcome is a coin flip for the branch predictor).
+  // Disjoint projections (about half of the broad phase's candidates on a packed tissue): an
+  // edge of one triangle with the other's three corners strictly outside it separates them.
+  // cross2(Pu, Pw) = n·(u × w) for the projection P, so the test runs in 3D without projecting.
+  // Projected A runs counter-clockwise (n̂_A·n > 0), projected B clockwise. One branch for all
+  // six edges (the outcome is a coin flip for the branch predictor).
   auto separation = [&](const std::array<Vec3, 3>& p, const std::array<Vec3, 3>& q, double sign) {
     double best = -1;
     for (int i = 0; i < 3; ++i) {
@@ -297,176 +297,134 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
     }
     return best;
   };
-  if (std::max(separation(a, b, -1.0), separation(b, a, 1.0)) > 0) return out;
+  if (std::max(separation(a, b, -1.0), separation(b, a, 1.0)) > 0) return false;
   int axis = 0;
   if (std::abs(n.y()) < std::abs(n[axis])) axis = 1;
   if (std::abs(n.z()) < std::abs(n[axis])) axis = 2;
-  const Vec3 e1 = Vec3::Unit(axis).cross(n).normalized();
-  const Vec3 e2 = n.cross(e1);
-  const Vec3 o = (a[0] + a[1] + a[2] + b[0] + b[1] + b[2]) / 6.0;
-
+  f.n = n;
+  f.e1 = Vec3::Unit(axis).cross(n).normalized();
+  f.e2 = n.cross(f.e1);
+  f.o = (a[0] + a[1] + a[2] + b[0] + b[1] + b[2]) / 6.0;
   auto project = [&](const Vec3& x) {
-    const Vec3 r = x - o;
-    return Vec2(r.dot(e1), r.dot(e2));
+    const Vec3 r = x - f.o;
+    return Vec2(r.dot(f.e1), r.dot(f.e2));
   };
-  const std::array<Vec2, 3> pa{project(a[0]), project(a[1]), project(a[2])};
-  const std::array<Vec2, 3> pb{project(b[0]), project(b[1]), project(b[2])};
-
-  // Gap: the line o + y + s n meets plane A at s_A(y) and plane B at s_B(y); both affine.
-  // n̂_A·n ≥ 1/√2 and n̂_B·n ≤ −1/√2, so the divisions are well conditioned.
+  f.pa = {project(a[0]), project(a[1]), project(a[2])};
+  f.pb = {project(b[0]), project(b[1]), project(b[2])};
+  // n̂_A·n ≥ 1/√2 and n̂_B·n ≤ −1/√2: the divisions are well conditioned.
   const double dna = na.dot(n), dnb = nb.dot(n);
-  const Vec3 ca = (a[0] + a[1] + a[2]) / 3.0 - o, cb = (b[0] + b[1] + b[2]) / 3.0 - o;
-  const double sa0 = na.dot(ca) / dna, sb0 = nb.dot(cb) / dnb;
-  const Vec2 sa_grad(-na.dot(e1) / dna, -na.dot(e2) / dna);
-  const Vec2 sb_grad(-nb.dot(e1) / dnb, -nb.dot(e2) / dnb);
-  const double g0 = sb0 - sa0;
-  const Vec2 g_grad = sb_grad - sa_grad;
-  auto gap = [&](const Vec2& y) { return g0 + g_grad.dot(y); };
+  const Vec3 ca = (a[0] + a[1] + a[2]) / 3.0 - f.o, cb = (b[0] + b[1] + b[2]) / 3.0 - f.o;
+  f.sa0 = na.dot(ca) / dna;
+  f.sb0 = nb.dot(cb) / dnb;
+  f.sa_grad = Vec2(-na.dot(f.e1) / dna, -na.dot(f.e2) / dna);
+  f.sb_grad = Vec2(-nb.dot(f.e1) / dnb, -nb.dot(f.e2) / dnb);
+  f.g0 = f.sb0 - f.sa0;
+  f.g_grad = f.sb_grad - f.sa_grad;
+  // g is affine and the polygon lies inside projected A (and B): g ≥ h0 at its corners means
+  // g ≥ h0 on the whole polygon.
+  if (f.gap(f.pa[0]) >= h0 && f.gap(f.pa[1]) >= h0 && f.gap(f.pa[2]) >= h0) return false;
+  if (f.gap(f.pb[0]) >= h0 && f.gap(f.pb[1]) >= h0 && f.gap(f.pb[2]) >= h0) return false;
+  return true;
+}
 
-  // Early out: g is affine and the polygon lies inside projected A, so g ≥ h0 at A's corners
-  // means g ≥ h0 on the whole polygon (the clip below would leave nothing of positive area).
-  // The same holds for B's corners.
-  if (gap(pa[0]) >= law.h0 && gap(pa[1]) >= law.h0 && gap(pa[2]) >= law.h0) return out;
-  if (gap(pb[0]) >= law.h0 && gap(pb[1]) >= law.h0 && gap(pb[2]) >= law.h0) return out;
-
-  // Clip projected A (counter-clockwise) by projected B (clockwise; walked reversed) ...
-  Polygon buf[2];
+// The supplement's polygon: projected A clipped by projected B and by the law's range g < h0.
+// The clips ping-pong between buf[0] and buf[1]; returns the index of the result.
+int overlapPolygon(const PairFrame& f, double h0, Polygon (&buf)[2]) {
   buf[0].n = 3;
-  for (int i = 0; i < 3; ++i) buf[0].v[i] = pa[i];
-  const std::array<Vec2, 3> qb{pb[0], pb[2], pb[1]};
+  for (int i = 0; i < 3; ++i) buf[0].v[i] = f.pa[i];
+  const std::array<Vec2, 3> qb{f.pb[0], f.pb[2], f.pb[1]};  // B reversed: counter-clockwise
   int cur = 0;
   for (int k = 0; k < 3 && buf[cur].n > 0; ++k, cur ^= 1) {
     const Vec2 q0 = qb[k], edge = qb[k == 2 ? 0 : k + 1] - qb[k];
     clipHalfPlane(buf[cur], buf[cur ^ 1], [&](const Vec2& y) { return cross2(edge, y - q0); });
   }
-  // ... and by the range of the law, g < h0.
-  clipHalfPlane(buf[cur], buf[cur ^ 1], [&](const Vec2& y) { return law.h0 - gap(y); });
-  cur ^= 1;
-  // The contact is one convex polygon, or two with ContactLaw::prisms_overlap_only: the adhesive
-  // part (g ≥ 0) whole and the overlapping part (g < 0) within the prisms. A polygon on one side
-  // of g = 0 is not split: both clips keep the points at g = 0, so a pair at g ≡ 0 (touching
-  // antiparallel faces) would be counted twice.
-  std::array<const Polygon*, 2> pieces{&buf[cur], nullptr};
-  Polygon adhesive;
-  bool clip_to_prisms = law.within_prisms;
-  if (law.within_prisms && law.prisms_overlap_only && buf[cur].n > 0) {
-    double g_lo = gap(buf[cur].v[0]), g_hi = g_lo;
-    for (int i = 1; i < buf[cur].n; ++i) {
-      const double g = gap(buf[cur].v[i]);
-      g_lo = std::min(g_lo, g);
-      g_hi = std::max(g_hi, g);
-    }
-    if (g_lo >= 0) {
-      clip_to_prisms = false;  // adhesive only: the law's polygon
-    } else if (g_hi > 0) {
-      clipHalfPlane(buf[cur], adhesive, [&](const Vec2& y) { return gap(y); });
-      clipHalfPlane(buf[cur], buf[cur ^ 1], [&](const Vec2& y) { return -gap(y); });
-      cur ^= 1;
-      pieces[1] = &adhesive;
-    }  // else overlapping only: all of it within the prisms
-  }
-  if (clip_to_prisms) {
-    // ... and to where B's point p_B(y) = o + y + s_B(y) n lies over A — inside A's prism along
-    // n̂_A: m·(p_B(y) − a_i) ≥ 0 for the inward edge normals m = n̂_A × (a_{i+1} − a_i) (n̂_A·(e ×
-    // w) = (n̂_A × e)·w, so the component of p_B along n̂_A drops out) — and A's point over B.
-    // Each is affine in y. Where n̂_B = −n̂_A the lines are A's and B's own projected edges: a
-    // pair of parallel triangles keeps its polygon.
-    auto overlie = [&](const std::array<Vec3, 3>& t, const Vec3& nt, double s0,
-                       const Vec2& s_grad) {
-      for (int i = 0; i < 3 && buf[cur].n > 0; ++i, cur ^= 1) {
-        const Vec3 m = nt.cross(t[i == 2 ? 0 : i + 1] - t[i]);
-        const double mn = m.dot(n);
-        const double c0 = m.dot(o - t[i]) + s0 * mn;
-        const Vec2 c(m.dot(e1) + s_grad.x() * mn, m.dot(e2) + s_grad.y() * mn);
-        clipHalfPlane(buf[cur], buf[cur ^ 1], [&](const Vec2& y) { return c0 + c.dot(y); });
-      }
-    };
-    overlie(a, na, sb0, sb_grad);
-    overlie(b, nb, sa0, sa_grad);
-    pieces[0] = &buf[cur];
-  }
-  double poly_area = 0;
-  for (const Polygon* poly : pieces) {
-    if (!poly) continue;
-    for (int t = 1; t + 1 < poly->n; ++t)
-      poly_area += 0.5 * cross2(poly->v[t] - poly->v[0], poly->v[t + 1] - poly->v[0]);
-  }
-  const double ref_area = std::max(std::abs(cross2(pa[1] - pa[0], pa[2] - pa[0])),
-                                   std::abs(cross2(pb[1] - pb[0], pb[2] - pb[0])));
-  if (!(poly_area > kEmptyPolygonRel * ref_area)) return out;
+  clipHalfPlane(buf[cur], buf[cur ^ 1], [&](const Vec2& y) { return h0 - f.gap(y); });
+  return cur ^ 1;
+}
 
-  const Barycentric lam_a(pa), lam_b(pb);
-  auto integrateOver = [&](const Polygon& p, double p_g0, const Vec2& p_grad, bool with_moments,
-                           Integrals& into) {
-    switch (quadrature) {
-      case ContactQuadrature::Exact:
-        integrateExact(p, p_g0, p_grad, lam_a, lam_b, with_moments, into);
-        break;
-      case ContactQuadrature::Dunavant7:
-        integrate(p, dunavant7Rule(), p_g0, p_grad, lam_a, lam_b, with_moments, into);
-        break;
-      case ContactQuadrature::Centroid:
-        integrate(p, centroidRule(), p_g0, p_grad, lam_a, lam_b, with_moments, into);
-        break;
+// The law "prisms": keep the points y where B's point p_B(y) = o + y + s_B(y) n lies over A —
+// inside A's prism along n̂_A: m·(p_B(y) − a_i) ≥ 0 for the inward edge normals
+// m = n̂_A × (a_{i+1} − a_i) (the component of p_B along n̂_A drops out) — and A's point over B.
+// Each condition is affine in y. Where n̂_B = −n̂_A the lines are the projected edges: a pair of
+// parallel triangles keeps its polygon.
+int clipToPrisms(const PairFrame& f, const std::array<Vec3, 3>& a, const std::array<Vec3, 3>& b,
+                 const Vec3& na, const Vec3& nb, Polygon (&buf)[2], int cur) {
+  auto overlie = [&](const std::array<Vec3, 3>& t, const Vec3& nt, double s0,
+                     const Vec2& s_grad) {
+    for (int i = 0; i < 3 && buf[cur].n > 0; ++i, cur ^= 1) {
+      const Vec3 m = nt.cross(t[i == 2 ? 0 : i + 1] - t[i]);
+      const double mn = m.dot(f.n);
+      const double c0 = m.dot(f.o - t[i]) + s0 * mn;
+      const Vec2 c(m.dot(f.e1) + s_grad.x() * mn, m.dot(f.e2) + s_grad.y() * mn);
+      clipHalfPlane(buf[cur], buf[cur ^ 1], [&](const Vec2& y) { return c0 + c.dot(y); });
     }
   };
-  Integrals I;
-  // With a saturated pressure (law.max_overlap = c > 0) the part of the polygon deeper than c
-  // integrates P at g = −c, a constant: its force weights ∫ λ (−c), no stiffness (dP/dg = 0),
-  // and the energy density's linear continuation ½ k c² − k c (g + c), so that the force stays
-  // the energy's gradient. The true gap still gives the mean gap (the penetration guard's).
-  // Each piece adds into I (a single piece's sums are its own: 0 + x is x).
-  double g_true = 0, deep_energy = 0;
-  for (const Polygon* piece : pieces) {
-    if (!piece || piece->n < 3) continue;
-    const Polygon& poly = *piece;
-    const double g_before = I.g;
-    bool split = false;
-    if (law.max_overlap > 0) {
-      double g_min = gap(poly.v[0]);
-      for (int i = 1; i < poly.n; ++i) g_min = std::min(g_min, gap(poly.v[i]));
-      split = g_min < -law.max_overlap;
-    }
-    if (split) {
-      const double c = law.max_overlap;
-      Polygon shallow, deep;
-      clipHalfPlane(poly, shallow, [&](const Vec2& y) { return gap(y) + c; });
-      clipHalfPlane(poly, deep, [&](const Vec2& y) { return -(gap(y) + c); });
-      // I.g2 (the energy's ½ k ∫ g²) stays the shallow part's: the deep part's energy is below.
-      if (shallow.n >= 3) integrateOver(shallow, g0, g_grad, moments != nullptr, I);
-      double piece_g = I.g - g_before;
-      if (deep.n >= 3) {
-        Integrals D;
-        integrateOver(deep, -c, Vec2::Zero(), false, D);
-        const double deep_g = g0 * D.area + g_grad.dot(D.y);  // ∫ g over it (g is affine)
-        piece_g += deep_g;
-        deep_energy += 0.5 * law.k * c * c * D.area - law.k * c * (deep_g + c * D.area);
-        I.area += D.area;
-        I.y += D.y;
-        I.g += D.g;
-        I.gy += D.gy;
-        for (int i = 0; i < 3; ++i) {
-          I.ga[i] += D.ga[i];
-          I.gb[i] += D.gb[i];
-        }
-      }
-      g_true += piece_g;
-    } else {
-      integrateOver(poly, g0, g_grad, moments != nullptr, I);
-      g_true += I.g - g_before;
-    }
-  }
+  overlie(a, na, f.sb0, f.sb_grad);
+  overlie(b, nb, f.sa0, f.sa_grad);
+  return cur;
+}
 
+// The law "prisms-overlap": the polygon's overlapping part (g < 0) within the prisms, its
+// adhesive part (g ≥ 0, the junctions' rims) whole, into `adhesive`. A polygon on one side of
+// g = 0 is not split: both clips keep the points at g = 0, so a pair at g ≡ 0 (touching
+// antiparallel faces) would be counted twice. Returns the index of the overlapping piece.
+int clipOverlapToPrisms(const PairFrame& f, const std::array<Vec3, 3>& a,
+                        const std::array<Vec3, 3>& b, const Vec3& na, const Vec3& nb,
+                        Polygon (&buf)[2], int cur, Polygon& adhesive, bool& split) {
+  split = false;
+  if (buf[cur].n == 0) return clipToPrisms(f, a, b, na, nb, buf, cur);
+  double g_lo = f.gap(buf[cur].v[0]), g_hi = g_lo;
+  for (int i = 1; i < buf[cur].n; ++i) {
+    const double g = f.gap(buf[cur].v[i]);
+    g_lo = std::min(g_lo, g);
+    g_hi = std::max(g_hi, g);
+  }
+  if (g_lo >= 0) return cur;  // adhesive only: the supplement's polygon
+  if (g_hi > 0) {
+    clipHalfPlane(buf[cur], adhesive, [&](const Vec2& y) { return f.gap(y); });
+    clipHalfPlane(buf[cur], buf[cur ^ 1], [&](const Vec2& y) { return -f.gap(y); });
+    cur ^= 1;
+    split = true;
+  }
+  return clipToPrisms(f, a, b, na, nb, buf, cur);
+}
+
+// Adds the polygon's area into `area` (one running sum over the pieces: the same bits as ever).
+void addArea(const Polygon& poly, double& area) {
+  for (int t = 1; t + 1 < poly.n; ++t)
+    area += 0.5 * cross2(poly.v[t] - poly.v[0], poly.v[t + 1] - poly.v[0]);
+}
+
+void integrateOver(const Polygon& p, const PairFrame& f, const Barycentric& lam_a,
+                   const Barycentric& lam_b, ContactQuadrature quadrature, bool with_moments,
+                   Integrals& into) {
+  switch (quadrature) {
+    case ContactQuadrature::Exact:
+      integrateExact(p, f.g0, f.g_grad, lam_a, lam_b, with_moments, into);
+      break;
+    case ContactQuadrature::Dunavant7:
+      integrate(p, dunavant7Rule(), f.g0, f.g_grad, lam_a, lam_b, with_moments, into);
+      break;
+    case ContactQuadrature::Centroid:
+      integrate(p, centroidRule(), f.g0, f.g_grad, lam_a, lam_b, with_moments, into);
+      break;
+  }
+}
+
+// The pair's contact from the integrals over its polygon pieces (P = k g).
+TriangleContact assembleContact(const PairFrame& f, const std::array<const Polygon*, 2>& pieces,
+                                double poly_area, Integrals& I, double g_true,
+                                const Barycentric& lam_a, const Barycentric& lam_b, double k,
+                                ContactMoments* moments, ContactOutputs outputs) {
+  TriangleContact out;
   auto toMidSurface = [&](const Vec2& y) {
-    const double s_mid = 0.5 * (sa0 + sa_grad.dot(y) + sb0 + sb_grad.dot(y));
-    return Vec3(o + y.x() * e1 + y.y() * e2 + s_mid * n);
+    const double s_mid = 0.5 * (f.sa0 + f.sa_grad.dot(y) + f.sb0 + f.sb_grad.dot(y));
+    return Vec3(f.o + y.x() * f.e1 + y.y() * f.e2 + s_mid * f.n);
   };
-
-  const double k = law.k;
   out.active = true;
-  out.normal = n;
+  out.normal = f.n;
   out.area = poly_area;
-  out.force = (k * I.g) * n;
+  out.force = (k * I.g) * f.n;
   for (int i = 0; i < 3; ++i) {
     out.force_weight_a[i] = k * I.ga[i];
     out.force_weight_b[i] = k * I.gb[i];
@@ -476,7 +434,7 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
     out.centroid = toMidSurface(centroid2);
     double g_max = 0;
     for (const Polygon* poly : pieces)
-      for (int i = 0; poly && i < poly->n; ++i) g_max = std::max(g_max, std::abs(gap(poly->v[i])));
+      for (int i = 0; poly && i < poly->n; ++i) g_max = std::max(g_max, std::abs(f.gap(poly->v[i])));
     const bool loaded = std::abs(I.g) > kZeroLoadRel * I.area * g_max;
     out.center_of_pressure = loaded ? toMidSurface(I.gy / I.g) : out.centroid;
   }
@@ -489,9 +447,49 @@ TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::
       I.bb[3 * j + i] = I.bb[3 * i + j];
     }
   if (moments) *moments = {I.ab, I.aa, I.bb};
-  out.energy = 0.5 * k * I.g2 + deep_energy;
+  out.energy = 0.5 * k * I.g2;
   out.mean_gap = g_true / I.area;
   return out;
+}
+
+}  // namespace
+
+TriangleContact computeTriangleContact(const std::array<Vec3, 3>& a, const std::array<Vec3, 3>& b,
+                                       const TriangleFrame& fa, const TriangleFrame& fb,
+                                       const ContactLaw& law, ContactQuadrature quadrature,
+                                       ContactMoments* moments, ContactOutputs outputs) {
+  if (moments) *moments = ContactMoments{};
+  if (!fa.ok || !fb.ok) return {};
+  const Vec3& na = fa.normal;
+  const Vec3& nb = fb.normal;
+  if (!(na.dot(nb) < 0)) return {};  // not facing
+  PairFrame f;
+  if (!framePair(a, b, na, nb, law.h0, f)) return {};
+  // The law's polygon: one piece, or two under prisms-overlap (the adhesive part apart).
+  Polygon buf[2], adhesive;
+  int cur = overlapPolygon(f, law.h0, buf);
+  bool split = false;
+  if (law.kind == ContactLawKind::Prisms) cur = clipToPrisms(f, a, b, na, nb, buf, cur);
+  if (law.kind == ContactLawKind::PrismsOverlap)
+    cur = clipOverlapToPrisms(f, a, b, na, nb, buf, cur, adhesive, split);
+  const std::array<const Polygon*, 2> pieces{&buf[cur], split ? &adhesive : nullptr};
+  double poly_area = 0;
+  addArea(buf[cur], poly_area);
+  if (split) addArea(adhesive, poly_area);
+  const double ref_area = std::max(std::abs(cross2(f.pa[1] - f.pa[0], f.pa[2] - f.pa[0])),
+                                   std::abs(cross2(f.pb[1] - f.pb[0], f.pb[2] - f.pb[0])));
+  if (!(poly_area > kEmptyPolygonRel * ref_area)) return {};
+
+  const Barycentric lam_a(f.pa), lam_b(f.pb);
+  Integrals I;
+  double g_true = 0;  // ∫ g: each piece adds into I (a single piece's sums are its own)
+  for (const Polygon* piece : pieces) {
+    if (!piece || piece->n < 3) continue;
+    const double g_before = I.g;
+    integrateOver(*piece, f, lam_a, lam_b, quadrature, moments != nullptr, I);
+    g_true += I.g - g_before;
+  }
+  return assembleContact(f, pieces, poly_area, I, g_true, lam_a, lam_b, law.k, moments, outputs);
 }
 
 }  // namespace activefoam

@@ -68,51 +68,6 @@ CellSet readCells(Reader& r, bool velocities, const std::string& what) {
 
 }  // namespace
 
-// Every key's value in table order: two specs with the same fingerprint run identically.
-std::string specFingerprint(const SceneSpec& spec) {
-  std::ostringstream os;
-  os.precision(17);
-  for (const SpecField& f : specFields()) {
-    // Names for numerics whose values are keys of their own: they change nothing that runs (and
-    // leaving them out keeps checkpoints and prepared spheroids of earlier versions valid).
-    if (f.key == "numerics.preset" || f.key.rfind("accuracy.", 0) == 0) continue;
-    // Keys added with the adaptive time step, left out at their defaults (see spec.h).
-    if (f.key == "numerics.adaptive" && spec.numerics.adaptive) continue;
-    // Changes no state: whether a run may start from uncompacted spheroids (left out at its
-    // default, so that keys of earlier versions stay valid).
-    if (f.key == "scene.allow_uncompacted" && !spec.scene_params.allow_uncompacted) continue;
-    // Added later; false draws the polarities as earlier versions did.
-    if (f.key == "scene.polarity_from_preparation" && !spec.scene_params.polarity_from_preparation)
-      continue;
-    // Added later; at 0 the relaxation is the one of earlier versions.
-    if (f.key == "scene.prep_min_s" && spec.scene_params.prep_min_s == 0) continue;
-    if (f.key == "numerics.dt_min_s" && dtMinS(spec.numerics) == defaultDtMinS(spec.numerics.dt_s))
-      continue;
-    // Added later; at 90° every facing pair touches, as in earlier versions.
-    if (f.key == "numerics.contact_max_facing_deg" && spec.numerics.contact_max_facing_deg == 90)
-      continue;
-    // Added later, default true; false is the remeshing of earlier versions, whose checkpoints
-    // and prepared spheroids stay valid when a spec asks for it.
-    if (f.key == "numerics.remesh_on_surface" && !spec.numerics.remesh_on_surface) continue;
-    // Added later; false is the remeshing of earlier versions.
-    if (f.key == "numerics.remesh_rescue" && !spec.numerics.remesh_rescue) continue;
-    if (f.key == "numerics.remesh_rebuild" && !spec.numerics.remesh_rebuild) continue;
-    if (f.key == "numerics.remesh_keep_out_um" && spec.numerics.remesh_keep_out_um == 0) continue;
-    // Added later; at 0 the pressure grows without bound, as in earlier versions.
-    if (f.key == "numerics.contact_max_overlap_um" && spec.numerics.contact_max_overlap_um == 0)
-      continue;
-    // Added later; false is the law of earlier versions.
-    if (f.key == "numerics.contact_within_prisms" && !spec.numerics.contact_within_prisms) continue;
-    if (f.key == "numerics.contact_prisms_overlap_only" &&
-        !spec.numerics.contact_prisms_overlap_only)
-      continue;
-    os << f.key << '=';
-    if (const auto v = getField(spec, f.key)) std::visit([&](const auto& x) { os << x; }, *v);
-    os << ';';
-  }
-  return os.str();
-}
-
 std::string Simulation::saveState(const std::string& extra) const {
   Writer w;
   for (char c : kMagic) w.pod(c);
@@ -122,8 +77,8 @@ std::string Simulation::saveState(const std::string& extra) const {
   w.pod(remesh_ops_);
   // Only with the key (so that the checkpoints of runs without it are those of earlier versions;
   // the key is in the fingerprint, so the reader knows).
-  if (spec_.numerics.remesh_rescue) w.pod(remesh_rescues_);
-  if (spec_.numerics.remesh_rebuild) w.pod(remesh_rebuilds_);
+  if (spec_.numerics.remesh_repair != RemeshRepair::None) w.pod(remesh_rescues_);
+  if (spec_.numerics.remesh_repair == RemeshRepair::RescueRebuild) w.pod(remesh_rebuilds_);
   if (spec_.numerics.remesh_keep_out_um > 0) w.pod(remesh_kept_out_);
   w.pod(steps_rejected_);
   std::vector<std::int64_t> counts;
@@ -144,8 +99,10 @@ std::string Simulation::loadState(const std::string& bytes) {
     throw std::invalid_argument("checkpoint: written by a run of a different spec");
   const auto schedule = r.pod<TimeStepper::State>();
   const auto remesh_ops = r.pod<std::int64_t>();
-  const auto rescues = spec_.numerics.remesh_rescue ? r.pod<std::int64_t>() : 0;
-  const auto rebuilds = spec_.numerics.remesh_rebuild ? r.pod<std::int64_t>() : 0;
+  const auto rescues =
+      spec_.numerics.remesh_repair != RemeshRepair::None ? r.pod<std::int64_t>() : 0;
+  const auto rebuilds =
+      spec_.numerics.remesh_repair == RemeshRepair::RescueRebuild ? r.pod<std::int64_t>() : 0;
   const auto kept_out = spec_.numerics.remesh_keep_out_um > 0 ? r.pod<std::int64_t>() : 0;
   const auto rejected = r.pod<std::int64_t>();
   const auto counts = r.vec<std::int64_t>();

@@ -42,8 +42,8 @@ RemeshParams cellRemeshParams(const NumericsParams& n, double r) {
   rp.max_area = n.remesh_max_area_factor * a_ref;
   rp.smooth_min_angle_deg = 15;
   rp.on_surface = n.remesh_on_surface;
-  rp.rescue = n.remesh_rescue;
-  rp.rebuild_triangles = n.remesh_rebuild ? tris : 0;
+  rp.rescue = n.remesh_repair != RemeshRepair::None;
+  rp.rebuild_triangles = n.remesh_repair == RemeshRepair::RescueRebuild ? tris : 0;
   rp.keep_out_um = n.remesh_keep_out_um;
   return rp;
 }

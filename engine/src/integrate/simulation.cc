@@ -47,10 +47,7 @@ void Simulation::init() {
     law_.k = p.k_contact;
     law_.h0 = contactRangeH0(p);
     law_.stiffness_moments = scheme_->consistentStiffness();
-    law_.facing_dot = contactFacingDot(spec_.numerics);
-    law_.max_overlap = spec_.numerics.contact_max_overlap_um;
-    law_.within_prisms = spec_.numerics.contact_within_prisms;
-    law_.prisms_overlap_only = spec_.numerics.contact_prisms_overlap_only;
+    law_.kind = spec_.numerics.contact_law;
     terms_.push_back(std::make_unique<ContactAdhesion>());
     const bool implicit = scheme_->contactStiffnessDt(1.0) > 0;
     const bool frictionless =

@@ -107,47 +107,24 @@ double radiusOfGyration(const CellSet& cells, const std::vector<double>& volumes
 }
 
 SceneSpec spheroidPrepSpec(const SceneSpec& spec, std::int64_t n_cells, std::uint64_t seed) {
+  // A prepared spheroid is an initial condition: runs that differ only in their solver settings,
+  // failure limits, contact law, repairs or fusion-only keys start from the same aggregates. The
+  // key table says which keys the preparation fixes and at what (SpecField::prep); the mesh
+  // settings and the cells' parameters shape the aggregates and stay.
   SceneSpec p = spec;
+  p.numerics.pinned.bits = ~0u;  // the preset's name changes no value here
+  for (const SpecField& f : specFields()) {
+    if (f.prep != SpecField::Prep::Fixed) continue;
+    if (f.prep_value)
+      setField(p, f.key, *f.prep_value);
+    else
+      clearField(p, f.key);
+  }
+  p.numerics.pinned = {};
   p.scene = SceneKind::Spheroid;
   p.seed = seed;
-  p.scene_params = SceneParams{};
   p.scene_params.n_cells = n_cells;
-  p.scene_params.prep_dt_s = spec.scene_params.prep_dt_s;
-  p.scene_params.prep_max_s = spec.scene_params.prep_max_s;
-  p.scene_params.compact_rate_per_s = spec.scene_params.compact_rate_per_s;
-  p.scene_params.prep_min_s = spec.scene_params.prep_min_s;
   p.numerics.dt_s = spec.scene_params.prep_dt_s;
-  p.numerics.integrator = IntegratorKind::ContactImplicit;
-  // The solver settings are the preparation's own (the defaults): a prepared spheroid is an
-  // initial condition, and runs that differ only in Δt, ε_CG, preconditioner, quadrature or
-  // failure limits (a speed/accuracy study, fidelity presets) start from the same aggregates.
-  // The mesh settings (triangles, remeshing) shape the cells and stay.
-  const NumericsParams d;
-  p.numerics.preset = d.preset;  // a name for values set here and below
-  p.accuracy = {};
-  p.numerics.cg_tol = d.cg_tol;
-  p.numerics.cg_max_iter = d.cg_max_iter;
-  // Jacobi, the defaults' preconditioner until 2026-11-24 (block-Jacobi since): a preparation
-  // converges to the same residual either way, but its aggregates would not be the same bits,
-  // and every spheroid cache would be prepared again (~15 min for 2 × 100 cells).
-  p.numerics.preconditioner = PreconditionerKind::Jacobi;
-  p.numerics.contact_quadrature = d.contact_quadrature;
-  p.numerics.max_volume_error = d.max_volume_error;
-  p.numerics.max_penetration_um = d.max_penetration_um;
-  p.numerics.max_oscillating_steps = d.max_oscillating_steps;
-  p.numerics.adaptive = d.adaptive;
-  // The contact law's experimental bounds belong to the run, not to the aggregates: a run with
-  // a bound starts from its reference run's prepared spheroids, so the two are seed pairs.
-  p.numerics.contact_max_facing_deg = d.contact_max_facing_deg;
-  p.numerics.contact_max_overlap_um = d.contact_max_overlap_um;
-  p.numerics.contact_within_prisms = d.contact_within_prisms;
-  p.numerics.contact_prisms_overlap_only = d.contact_prisms_overlap_only;
-  // Likewise the remesher's rescue: a run with it starts from the same prepared spheroids as its
-  // reference run without it.
-  p.numerics.remesh_rescue = d.remesh_rescue;
-  p.numerics.remesh_rebuild = d.remesh_rebuild;
-  p.numerics.remesh_keep_out_um = d.remesh_keep_out_um;
-  p.numerics.dt_min_s.reset();  // resolve() derives it from the preparation's Δt
   p.duration_s = spec.scene_params.prep_max_s;
   p.sample_every_s = kWindowS;
   p.snapshot_every_s = 0;

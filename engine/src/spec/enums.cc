@@ -47,8 +47,6 @@ std::string_view toString(PreconditionerKind k) {
 
 std::string_view toString(FidelityPreset p) {
   switch (p) {
-    case FidelityPreset::Draft:
-      return "draft";
     case FidelityPreset::Standard:
       return "standard";
     case FidelityPreset::Reference:
@@ -65,6 +63,30 @@ std::string_view toString(ContactQuadrature q) {
       return "dunavant7";
     case ContactQuadrature::Centroid:
       return "centroid";
+  }
+  return "?";
+}
+
+std::string_view toString(ContactLawKind k) {
+  switch (k) {
+    case ContactLawKind::Supplement:
+      return "supplement";
+    case ContactLawKind::Prisms:
+      return "prisms";
+    case ContactLawKind::PrismsOverlap:
+      return "prisms-overlap";
+  }
+  return "?";
+}
+
+std::string_view toString(RemeshRepair r) {
+  switch (r) {
+    case RemeshRepair::None:
+      return "none";
+    case RemeshRepair::Rescue:
+      return "rescue";
+    case RemeshRepair::RescueRebuild:
+      return "rescue-rebuild";
   }
   return "?";
 }

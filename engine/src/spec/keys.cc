@@ -31,7 +31,8 @@ template <class E>
 constexpr bool kIsChoiceEnum =
     std::is_same_v<E, SceneKind> || std::is_same_v<E, IntegratorKind> ||
     std::is_same_v<E, PreconditionerKind> || std::is_same_v<E, ContactQuadrature> ||
-    std::is_same_v<E, FidelityPreset>;
+    std::is_same_v<E, FidelityPreset> || std::is_same_v<E, ContactLawKind> ||
+    std::is_same_v<E, RemeshRepair>;
 
 SpecError unknownKey(std::string_view key) {
   std::string msg = "unknown key '" + std::string(key) + "'";
@@ -77,6 +78,11 @@ std::string checkNumber(const Entry& e, double v, const std::string& shown) {
   return {};
 }
 
+bool atBefore(const Entry& e, const SceneSpec& spec) {
+  if (e.at_before) return e.at_before(spec);
+  return e.field.before && getField(spec, e.field.key) == e.field.before;
+}
+
 std::uint32_t pinBit(std::string_view key) {
   static constexpr std::pair<std::string_view, std::uint32_t> kBits[] = {
       {"numerics.dt_s", 1u << 0},
@@ -85,6 +91,7 @@ std::uint32_t pinBit(std::string_view key) {
       {"numerics.preconditioner", 1u << 3},
       {"numerics.triangles_per_cell", 1u << 4},
       {"numerics.contact_quadrature", 1u << 5},
+      {"numerics.contact_law", 1u << 7},
       {"numerics.preset", kPinPreset}};
   for (const auto& [k, bit] : kBits)
     if (k == key) return bit;
@@ -179,6 +186,12 @@ std::optional<SpecError> setFieldValue(SceneSpec& spec, std::string_view key,
 }  // namespace
 
 std::optional<SpecError> setField(SceneSpec& spec, std::string_view key, const SpecValue& value) {
+  if (!findEntry(key))
+    if (auto retired = setRetiredField(spec, key, value)) return *retired;
+  if (key == "numerics.preset" && value == SpecValue(std::string("draft")))
+    return SpecError{std::string(key),
+                     "'draft' is retired: no step cheaper than standard was found fit "
+                     "(docs/science/presets.md); use standard (the default)"};
   if (auto e = setFieldValue(spec, key, value)) return e;
   const std::uint32_t bit = pinBit(key);
   spec.numerics.pinned.bits |= bit;

@@ -1,5 +1,5 @@
-// The fidelity presets (docs/study/presets.md): named numerics, their stated errors and costs,
-// and the choice of the cheapest one for an accuracy target.
+// The fidelity presets (docs/science/presets.md): named numerics, their stated errors, and the
+// choice of the cheapest one for an accuracy target.
 #include "activefoam/spec.h"
 
 #include <cstdint>
@@ -12,36 +12,24 @@ namespace activefoam {
 
 using namespace spec_internal;
 
-// ---- fidelity presets
-// ----------------------------------------------------------------------------
-
 const std::vector<PresetInfo>& fidelityPresets() {
-  // From docs/study/doublet.md (the doublet's Pareto front; measured errors in brackets; costs of
-  // the 2026-11-24 regeneration):
-  //   draft      Δt 0.5 s, 320 triangles  (θ_c 0.34°, θ(t) RMS 9.7°; 1.4 s per simulated hour)
-  //   standard   Δt 0.1 s, 320 triangles  (θ_c 0.47°, θ(t) RMS 8.3°;   7 s) — the supplement's
-  //              Δt, 5× below the contact-implicit limit with motility (stability-map.md)
-  //   reference  Δt 0.1 s, 1280 triangles (θ_c 0.12°, θ(t) RMS 0.5°;  36 s)
-  // ros2 on 1280 triangles at Δt 0.5 s is as accurate as reference (0.66° RMS) at the same cost
-  // (33 s; Jacobi CG): no preset of its own.
-  // Among 320-triangle settings the error sits at the mesh's floor (7–10° RMS) whatever Δt ≤ 1 s:
-  // draft buys its 5× speed with no measurable loss on the doublet, but it runs at the stability
-  // limit with motility (1 s fails), which is why it is not the default. Its ε_CG is 1e-2: 2.5×
-  // fewer CG iterations than 1e-3 (the step 1.44× cheaper on the 2 × 100 reference) with θ(t)
-  // within the one-seed noise of 1e-3's over 2 h of the reduced fusion, and the 18 adaptive-step
-  // fusions all finishing (docs/study/presets.md).
-  // All three precondition CG by 3×3 blocks (since 2026-11-24; Jacobi before): CG stops on the
-  // same true residual whatever the preconditioner, and the blocks see the contact springs'
-  // direction (Δt k S n̂n̂ᵀ dominates a contacting vertex's block): 11 instead of 20 CG
-  // iterations a step on the 2 × 100 reference at draft, 18 instead of 26 at standard, each
-  // iteration as dear (the coupling products are most of it) (docs/study/presets.md).
+  // standard: the step the figure studies ran — one stage with the consistent stiffness of the
+  //   contact springs (the cells' motion converged in Δt, docs/science/motion-convergence.md), Δt
+  //   1 s, ε_CG 1e-2, the overlap within the triangles' prisms. Step fitness (10 seed pairs of
+  //   the reduced base point, 4 h) found no difference from `reference` and none of its runs
+  //   failed, at 3.1× less CPU a simulated hour. The adaptive step halves Δt where a step fails.
+  // reference: the step it was judged against — Δt 0.25 s, ε_CG 1e-3, the supplement's law.
+  // No cheaper step was found fit (Δt 0.5 s under the supplement's law failed a run; the
+  // one-spring contact-implicit integrator under-resolves the motion at every Δt measured), so
+  // there is no `draft`.
+  // Stated errors on the doublet: tests/scenes/test_presets.cc measures them.
   static const std::vector<PresetInfo> presets = {
-      {FidelityPreset::Draft, 0.5, IntegratorKind::ContactImplicit, 1e-2,
-       PreconditionerKind::BlockJacobi, 320, ContactQuadrature::Exact, 1.0, 12.0, 1.4},
-      {FidelityPreset::Standard, 0.1, IntegratorKind::ContactImplicit, 1e-3,
-       PreconditionerKind::BlockJacobi, 320, ContactQuadrature::Exact, 1.0, 10.0, 7},
-      {FidelityPreset::Reference, 0.1, IntegratorKind::ContactImplicit, 1e-3,
-       PreconditionerKind::BlockJacobi, 1280, ContactQuadrature::Exact, 0.5, 2.0, 36},
+      {FidelityPreset::Standard, 1.0, IntegratorKind::ContactImplicitConsistent, 1e-2,
+       PreconditionerKind::BlockJacobi, 320, ContactQuadrature::Exact,
+       ContactLawKind::PrismsOverlap, 1.0, 12.0},
+      {FidelityPreset::Reference, 0.25, IntegratorKind::ContactImplicitConsistent, 1e-3,
+       PreconditionerKind::BlockJacobi, 320, ContactQuadrature::Exact, ContactLawKind::Supplement,
+       1.0, 12.0},
   };
   return presets;
 }
@@ -49,7 +37,7 @@ const std::vector<PresetInfo>& fidelityPresets() {
 const PresetInfo& presetInfo(FidelityPreset preset) {
   for (const PresetInfo& p : fidelityPresets())
     if (p.preset == preset) return p;
-  return fidelityPresets()[1];
+  return fidelityPresets()[0];
 }
 
 void applyPreset(NumericsParams& n, FidelityPreset preset) {
@@ -63,6 +51,7 @@ void applyPreset(NumericsParams& n, FidelityPreset preset) {
   if (free("numerics.preconditioner")) n.preconditioner = p.preconditioner;
   if (free("numerics.triangles_per_cell")) n.triangles_per_cell = p.triangles_per_cell;
   if (free("numerics.contact_quadrature")) n.contact_quadrature = p.contact_quadrature;
+  if (free("numerics.contact_law")) n.contact_law = p.contact_law;
 }
 
 std::optional<FidelityPreset> presetForTarget(const AccuracyTarget& target) {

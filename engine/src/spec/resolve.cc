@@ -72,9 +72,6 @@ double tauShell(const CellParams& c) {
 double adhesionW(const CellParams& c) {
   return (1.0 - c.alpha) * c.gamma;
 }
-double contactFacingDot(const NumericsParams& n) {
-  return n.contact_max_facing_deg >= 90 ? 0.0 : -std::cos(n.contact_max_facing_deg * M_PI / 180);
-}
 
 double contactRangeH0(const CellParams& c) {
   return std::sqrt(adhesionW(c) / c.k_contact);

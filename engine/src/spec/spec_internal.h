@@ -17,7 +17,8 @@ namespace activefoam::spec_internal {
 // Where a key's value lives in a SceneSpec.
 using Slot =
     std::variant<double*, std::optional<double>*, std::int64_t*, std::uint64_t*, SceneKind*,
-                 IntegratorKind*, PreconditionerKind*, ContactQuadrature*, FidelityPreset*, bool*>;
+                 IntegratorKind*, PreconditionerKind*, ContactQuadrature*, FidelityPreset*,
+                 ContactLawKind*, RemeshRepair*, bool*>;
 
 // An extra per-key rule beyond the range: returns an error message, empty when the value is fine.
 using ExtraRule = std::string (*)(double v);
@@ -26,7 +27,13 @@ struct Entry {
   SpecField field;
   Slot (*slot)(SceneSpec&);
   ExtraRule extra = nullptr;
+  // For a `before` that is not one value (numerics.dt_min_s: its derived default): whether the
+  // spec holds the key at it.
+  bool (*at_before)(const SceneSpec&) = nullptr;
 };
+
+// Whether `spec` holds the entry's key at its `before` value (false for a key without one).
+bool atBefore(const Entry& e, const SceneSpec& spec);
 
 inline constexpr double kSeedMax = 9007199254740992.0;  // 2^53: exact in a JSON number / double
 

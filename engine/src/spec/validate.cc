@@ -125,29 +125,6 @@ std::vector<SpecError> validate(const SceneSpec& spec) {
               formatNumber(2.0 * amin) + " (split halves would be collapsed again)");
   }
 
-  // A saturated pressure below the adhesion range would take away the repulsion that keeps
-  // cells apart (it starts at g = 0, inside the range).
-  if (const double cap = spec.numerics.contact_max_overlap_um;
-      cap > 0 &&
-      ok({"numerics.contact_max_overlap_um", "cells.alpha", "cells.gamma", "cells.k_contact"})) {
-    const double h0 = contactRangeH0(spec.cells);
-    if (cap < h0)
-      error("numerics.contact_max_overlap_um",
-            formatNumber(cap) +
-                " µm is inside the adhesion range h0 = √(w/k_AB) = " + formatNumber(h0) +
-                " µm of cells.alpha, cells.gamma and cells.k_contact: the "
-                "repulsion would saturate before it holds the cells apart; allowed 0 (never) "
-                "or [" +
-                formatNumber(h0) + ", 10] µm");
-  }
-
-  // A modifier of the prisms, meaningless without them (a run would silently ignore it).
-  if (spec.numerics.contact_prisms_overlap_only && !spec.numerics.contact_within_prisms &&
-      ok({"numerics.contact_prisms_overlap_only", "numerics.contact_within_prisms"}))
-    error("numerics.contact_prisms_overlap_only",
-          "true needs numerics.contact_within_prisms = true (it narrows what the prisms "
-          "bound to the overlapping part of a pair's contact)");
-
   // Size of the problem.
   if (ok({"scene", "scene.n_cells", "scene.n_cells_a", "scene.n_cells_b",
           "numerics.triangles_per_cell"})) {
@@ -266,14 +243,14 @@ std::vector<SpecError> measuredUnstable(const SceneSpec& spec) {
     // read micrometres deep beside them): with the overlap kept within the prisms the same
     // motile fusion ran 4 h at 1 s on seeds 1–3 without a step redone, so the bound
     // gets the map's 2 s.
-    const bool bounded = n.contact_within_prisms && n.contact_prisms_overlap_only;
+    const bool bounded = n.contact_law != ContactLawKind::Supplement;
     const bool motile_limit = motile && !bounded;
     limit = motile_limit ? 1.0 : 2.0;
     why = motile_limit
               ? "contact-implicit-consistent was measured to fail from 1 s with motility (the "
                 "2 × 20 fusion: inverted triangles, then a cell's volume error beyond "
-                "numerics.max_volume_error after 86 min; with numerics.contact_within_prisms "
-                "and numerics.contact_prisms_overlap_only it ran at 1 s)"
+                "numerics.max_volume_error after 86 min; with numerics.contact_law = "
+                "prisms-overlap it ran at 1 s)"
               : "contact-implicit-consistent was measured to fail from 2 s (contact-oscillation "
                 "at every k_AB of the map)";
     kind = motile_limit ? "docs/science/motion-convergence.md" : "docs/study/stability-map.md";

@@ -31,6 +31,10 @@ struct SpecParseOptions {
   bool require_scene = true;
   // Name used in syntax errors and I/O errors ("spec.toml"); defaults to <toml>/<json>/<set>.
   std::string source;
+  // The document is a record (a job's resolved spec, written by this or an earlier version):
+  // its labels (the preset's name, accuracy targets) are skipped, since it holds every value
+  // they chose. Parse it on recordBase(), so that keys added since read as the run had them.
+  bool record = false;
 };
 
 struct SpecParseResult {
