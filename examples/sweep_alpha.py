@@ -9,7 +9,7 @@ Needs the Python client (python/README.md) and gnuplot for the chart; the table 
 either way. The same with the CLI:
 
     foam sweep --scene fusion --set scene.n_cells=20 --set duration_s=3600 \\
-        --grid cells.alpha=0.3,0.45,0.6 --seeds 1,2,3 --preset draft --wait
+        --grid cells.alpha=0.3,0.45,0.6 --seeds 1,2,3 --wait
     foam results --sweep SWEEP_ID --by cells.alpha --metrics theta_eq_deg,tau_f_s
 """
 
@@ -28,7 +28,7 @@ def main() -> int:
     ap.add_argument("--seeds", default="1,2,3")
     ap.add_argument("--n-cells", type=int, default=20)
     ap.add_argument("--duration", type=float, default=3600)
-    ap.add_argument("--preset", default="draft")
+    ap.add_argument("--preset", default="standard")
     ap.add_argument("--out", default="sweep_alpha.png")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="any other spec key (repeatable)")
