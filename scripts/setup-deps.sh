@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
 # Installs the Debian packages activefoam builds with. Idempotent: installs only what is missing,
 # and runs apt-get update only when something is missing.
+#   scripts/setup-deps.sh          what the build and the main job need
+#   scripts/setup-deps.sh --tests  also what only some tests use (a browser, Prometheus)
 set -euo pipefail
+tests=false
+[ "${1:-}" = "--tests" ] && tests=true
 pkgs=(build-essential cmake ninja-build pkg-config git
       libeigen3-dev libspdlog-dev libsqlite3-dev libcli11-dev nlohmann-json3-dev
       libtomlplusplus-dev libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox python3
@@ -17,11 +21,12 @@ pkgs=(build-essential cmake ninja-build pkg-config git
       ccache)  # the compiler launcher (CMakeLists.txt): builds reuse earlier builds' objects
 # Only some tests use these (the dashboard in a real browser, a real Prometheus scraping foamd);
 # where they cannot be installed, those tests report skipped.
-optional=(chromium fonts-dejavu-core prometheus)
+optional=()
+$tests && optional=(chromium fonts-dejavu-core prometheus)
 missing=() missing_optional=()
 installed() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
 for p in "${pkgs[@]}"; do installed "$p" || missing+=("$p"); done
-for p in "${optional[@]}"; do installed "$p" || missing_optional+=("$p"); done
+for p in "${optional[@]+"${optional[@]}"}"; do installed "$p" || missing_optional+=("$p"); done
 if [ ${#missing[@]} -eq 0 ] && [ ${#missing_optional[@]} -eq 0 ]; then
   echo "setup-deps: all $((${#pkgs[@]} + ${#optional[@]})) packages present"
   exit 0

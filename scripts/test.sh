@@ -10,6 +10,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 preset="${1:-release}"
+# The tests' own packages (a browser for the dashboard, Prometheus): the main job needs neither.
+./scripts/setup-deps.sh --tests
 ./scripts/build.sh "$preset"
 label=()
 [ "$preset" = asan ] && label=(-L engine)
