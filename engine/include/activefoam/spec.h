@@ -1,4 +1,4 @@
-// The scene spec: every parameter of a run, in the units of DESIGN.md §3 (µm, s, nN).
+// The scene spec: every parameter of a run, in the units of docs/model.md §1 (µm, s, nN).
 //
 // A value type with the supplement's Table 1/2 defaults. One table (specFields) describes every
 // key: its dotted name, type, allowed range, unit and help. Parsers (TOML/JSON in foam-run,
@@ -97,20 +97,20 @@ struct NumericsParams {
   // signature of an explicit scheme beyond its stability limit) before the run fails.
   std::int64_t max_oscillating_steps = 10;
   // Triangle pairs touch only when their normals face each other within this angle of
-  // antiparallel (n̂_A·n̂_B < −cos φ). 90: every facing pair (n̂_A·n̂_B < 0), DESIGN.md's term 6.
+  // antiparallel (n̂_A·n̂_B < −cos φ). 90: every facing pair (n̂_A·n̂_B < 0), docs/model.md §3.2.
   // Nearly perpendicular pairs at junctions read gaps of micrometres along their bisector and
   // gave forces 1000× the tissue's (docs/science/motion-convergence.md, "Correction"). Not
   // applied in the spheroids' preparation.
   double contact_max_facing_deg = 90;
   // The overlap beyond which the contact pressure stops growing, µm: P = k max(g, −c), and
-  // where a pair is deeper than c it adds no stiffness. 0: P = k g for every g (DESIGN.md's term
-  // 6, the supplement's law). Nearly perpendicular pairs read overlaps of micrometres along their
+  // where a pair is deeper than c it adds no stiffness. 0: P = k g for every g (docs/model.md §3.4,
+  // the supplement's law). Nearly perpendicular pairs read overlaps of micrometres along their
   // bisector; saturating the pressure there keeps the rims that a facing bound drops
   // (docs/science/motion-convergence.md). Not applied in the spheroids' preparation.
   double contact_max_overlap_um = 0;
   // A pair's contact keeps only the part of its polygon where each triangle's point lies over
   // the other triangle (inside its prism along its normal). false: the whole polygon of the
-  // projections onto the bisector plane (DESIGN.md's term 6, the supplement's law), where a
+  // projections onto the bisector plane (docs/model.md §3.3, the supplement's law), where a
   // nearly perpendicular pair whose planes cross beside the triangles reads an overlap of
   // micrometres between triangles that are apart (docs/numerics.md). Not applied in the
   // spheroids' preparation.
@@ -206,7 +206,7 @@ struct SpecField {
   std::string range() const;         // "(0, 10]" or "one of cell|doublet|..." for messages
 };
 
-// Every key, in a stable order (the order of DESIGN.md §10).
+// Every key, in a stable order (top level, [cells], [numerics], [scene], [accuracy]).
 //
 // The top-level key "scene" (the scene kind) shares its name with the [scene] table, which TOML
 // and JSON cannot both hold in one document. The kind may therefore also be written as `kind`

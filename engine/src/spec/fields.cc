@@ -1,5 +1,5 @@
 // The key table: every key of the scene spec with its type, range, unit, help and the place its
-// value lives in a SceneSpec (DESIGN.md §3, §10). Adding a key is one entry here.
+// value lives in a SceneSpec (docs/model.md §9). Adding a key is one entry here.
 #include "activefoam/spec.h"
 
 #include <string>
