@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-R_UM = 8.88  # the mean cell radius of the reduced parameters (DESIGN §3), unless a run sets it
+R_UM = 8.88  # mean cell radius of the reduced parameters (docs/model.md §9.2), unless a run sets it
 GAMMA_REF = 0.5  # nN/µm
 BASE = {"alpha": 0.4375, "tau_p_s": 600.0, "tau_gamma_s": 10.0, "n_cells": 20.0,
         "l_eta_reduced": 0.5}

@@ -1,4 +1,4 @@
-// Remeshing cost per cell (DESIGN.md §5: 200 cells every τ_r).
+// Remeshing cost per cell (docs/model.md §6.3: 200 cells every τ_r).
 #include <cmath>
 #include <random>
 

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """Whose motion makes the MSRD: cells under the doublet's surface or cells on it? The MSRD of
-neighbours (DESIGN.md: pairs in contact at the time origin, pooled over origins) split by where
+neighbours (docs/model.md §8.6: pairs in contact at the origin, pooled over origins) split by where
 the pair's cells are at the origin — both buried (no free surface), both on the surface, or
 one of each — from a run's snapshots (foam-run with snapshot_every_s > 0).
 

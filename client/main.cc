@@ -1,4 +1,4 @@
-// foam: the activefoam command-line client (DESIGN.md §8). Specs go to the server as text
+// foam: the activefoam command-line client (docs/usage.md). Specs go to the server as text
 // (TOML/JSON) plus key=value settings, and the server validates them; of the engine only the VTK
 // writer is used (foam export).
 //

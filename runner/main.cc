@@ -1,4 +1,4 @@
-// foam-run: runs one scene spec to an output folder (DESIGN.md §10).
+// foam-run: runs one scene spec to an output folder (docs/usage.md).
 //
 //   foam-run SPEC --out DIR [--set KEY=VALUE]... [--force | --resume] [--quiet] [--threads N]
 //

@@ -1,4 +1,4 @@
-// foamd: the activefoam server (DESIGN.md §8).
+// foamd: the activefoam server (docs/usage.md).
 //
 //   foamd [--listen HOST:PORT] [--db PATH] [--workers N] [--threads-per-job N]
 //         [--token-file F] [--http HOST:PORT [--http-threads N] [--metrics-public]]

@@ -1,4 +1,4 @@
-// The one place where proto scene specs meet engine specs (DESIGN.md §2).
+// The one place where proto scene specs meet engine specs (ARCHITECTURE.md).
 //
 // Typed messages map onto the engine's key table by name: field `cells.gamma` of
 // activefoam.v1.SceneSpec is the key "cells.gamma", the `scene` oneof case is the key "scene",

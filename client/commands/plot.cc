@@ -74,7 +74,7 @@ std::string plotSamples(const v1::JobResults& r, const std::string& column,
   }
   if (column == "theta_deg" && res["eq2_ok"] == 1 &&
       has({"tau_gamma_s", "tau_eps_s", "eq2_theta0_deg"})) {
-    // Closed form of Eq. 2 in u = cos θ (DESIGN.md §7).
+    // Closed form of Eq. 2 in u = cos θ (docs/model.md §8.3).
     const double tg = res["tau_gamma_s"], tpe = res["tau_eps_s"];
     const double k = tpe / tg, root = std::sqrt(k * k + 4);
     const double up = (root - k) / 2, um = (-root - k) / 2, lam = root / (2 * tpe);
@@ -96,7 +96,7 @@ std::string escapeEnhanced(const std::string& key) {
   return out;
 }
 
-// Axis labels with units; the reduced names (DESIGN.md §3) where the key is one.
+// Axis labels with units; the reduced names (docs/model.md §9.2) where the key is one.
 std::string axisLabel(const std::string& key) {
   static const std::map<std::string, std::string> labels = {
       {"cells.alpha", "α (relative cell–cell tension)"},

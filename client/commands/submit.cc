@@ -9,7 +9,7 @@ namespace activefoam::client {
 
 CLI::App* setupSubmit(CLI::App& app, SubmitOptions& o) {
   auto* submit = app.add_subcommand("submit", "submit a job; prints its id on the first line");
-  submit->add_option("SPEC", o.spec.file, "spec file (TOML or JSON, DESIGN.md §10; - = stdin)");
+  submit->add_option("SPEC", o.spec.file, "spec file (TOML or JSON, docs/model.md §9; - = stdin)");
   submit->add_option("--scene", o.spec.scene,
                      "scene (cell|doublet|spheroid|fusion) instead of a file");
   submit->add_option("--set", o.spec.settings,

@@ -157,7 +157,7 @@ class Walker {
 
 // ---- TOML --------------------------------------------------------------------------------------
 
-// DESIGN.md §10 writes `scene = "fusion"` and a [scene] table in one document, which TOML forbids
+// A spec may write `scene = "fusion"` and a [scene] table in one document, which TOML forbids
 // (a key redefined as a table). That form is accepted: when the top level assigns `scene`, a
 // `[scene]` header is read as this name and walked as the scene table. Lines keep their numbers.
 constexpr std::string_view kSceneTableAlias = "__scene_table__";

@@ -317,7 +317,7 @@ function columnPoints(samples, column) {
 // Minutes once a run is long enough for seconds to become unreadable.
 const timeUnit = tMax => (tMax > 1200 ? {scale: 60, label: 't (min)'} : {scale: 1, label: 't (s)'});
 
-// θ(t) of the fits foam-run makes to a fusion, over [0, tMax] seconds (DESIGN.md §7).
+// θ(t) of the fits foam-run makes to a fusion, over [0, tMax] seconds (docs/model.md §8.2–§8.4).
 function fitCurves(results, tMax) {
   const r = Object.fromEntries(results.map(x => [x.name, x.value]));
   const has = (...names) => names.every(n => isNum(r[n]));

@@ -1,4 +1,4 @@
-// Tests of the triangle–triangle contact geometry (DESIGN.md §4.6–4.7): broad phase against its
+// Tests of the triangle–triangle contact geometry (docs/model.md §3): broad phase against its
 // brute-force oracle, and the narrow phase against the physics it must satisfy (action–reaction,
 // energy consistency, moment balance, hand-computed special cases, an independent grid
 // integration).

@@ -1,4 +1,4 @@
-// Fits of the fusion time series (DESIGN.md §7): Eq. 1, Eq. 2 (closed form), S1.
+// Fits of the fusion time series (docs/model.md §8.2–§8.4): Eq. 1, Eq. 2 (closed form), S1.
 #include <cmath>
 #include <functional>
 #include <iostream>

@@ -1,4 +1,4 @@
-// Fusion observables (DESIGN.md §7) on synthetic geometry: fusion angle, shape index, surface
+// Fusion observables (docs/model.md §8) on synthetic geometry: fusion angle, shape index, surface
 // contact angle, MSRD and mixing time, normalized unique contacts.
 #include <cmath>
 #include <iostream>

@@ -147,7 +147,7 @@ TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
   other.numerics.contact_quadrature = ContactQuadrature::Centroid;
   EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
   // Nor the contact law's experimental bounds: a run with one starts from its reference's
-  // aggregates (they are prepared under the law as DESIGN.md states it).
+  // aggregates (they are prepared under the supplement's law, docs/model.md §7.3).
   for (ContactLawKind law :
        {ContactLawKind::Supplement, ContactLawKind::Prisms, ContactLawKind::PrismsOverlap}) {
     other.numerics.contact_law = law;

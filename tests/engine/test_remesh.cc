@@ -1,4 +1,4 @@
-// Remeshing (DESIGN.md §5): invariants and physics, never hard-coded outputs.
+// Remeshing (docs/model.md §6.3): invariants and physics, never hard-coded outputs.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -613,7 +613,7 @@ TEST(Remesh, RandomStress) {
     const auto [lo, hi] = areaRange(m);
     ASSERT_GE(lo, p.min_area / 2) << "round " << round;
     ASSERT_LE(hi, 2 * p.max_area) << "round " << round;
-    ASSERT_LT(dv, 1e-3) << "round " << round;   // DESIGN.md §5 bound
+    ASSERT_LT(dv, 1e-3) << "round " << round;   // docs/model.md §6.3 bound
     ASSERT_LT(dv, 1e-12) << "round " << round;  // what the placement/correction achieves
   }
   EXPECT_GT(total.splits, 0);

@@ -1,4 +1,4 @@
-// The scene spec: defaults (DESIGN.md §3), the key table, set/get, validate, resolve.
+// The scene spec: defaults (docs/model.md §9), the key table, set/get, validate, resolve.
 #include <cmath>
 #include <set>
 

@@ -327,7 +327,7 @@ TEST(SpecIo, JsonMustBeAnObject) {
 }
 
 TEST(SpecIo, TheDesignExampleWithSceneKeyAndSceneTable) {
-  // DESIGN.md §10 writes both `scene = "fusion"` and a [scene] table, which plain TOML forbids.
+  // A spec may write both `scene = "fusion"` and a [scene] table, which plain TOML forbids.
   const auto r = parseSpecText(
       "scene = \"fusion\"  # the kind\nseed = 3\n[cells]\nalpha = 0.5\n[scene]  # params\n"
       "n_cells = 40\nn_cells_b = 30\n[numerics]\ndt_s = 0.05\n");

@@ -1,4 +1,4 @@
-// The state of all cells, packed as structure of arrays (DESIGN.md §2).
+// The state of all cells, packed as structure of arrays (ARCHITECTURE.md).
 #pragma once
 
 #include <cstdint>

@@ -1,4 +1,4 @@
-// Triangle–triangle contact geometry (DESIGN.md §4.6–4.7): the narrow phase for one facing pair
+// Triangle–triangle contact geometry (docs/model.md §3): the narrow phase for one facing pair
 // and the broad phase over a packed mesh. Pure functions of positions; no cell state.
 #pragma once
 

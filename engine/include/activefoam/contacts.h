@@ -1,4 +1,4 @@
-// The per-step contact set between cells (DESIGN.md §4.6–4.7) and the terms that use it.
+// The per-step contact set between cells (docs/model.md §3) and the terms that use it.
 #pragma once
 
 #include <array>
@@ -165,7 +165,7 @@ class ContactFriction : public ForceTerm {
 
 // S8–S11: active migration. P_i^a = p_a (S_c,l/S_l) ((x_i − x_c,l)/‖x_i − x_c,l‖)·p̂_l acts as a
 // pressure on the nodal area, F_i^act = P_i^a S_i n̂_i; the reaction −(S_i^c/S_c,l) Σ_j F_j^act on
-// contacting nodes makes every cell's internal force sum exactly zero (DESIGN.md §9). After the
+// contacting nodes makes every cell's internal force sum zero (docs/model.md §4.2). After the
 // step, p̂_l diffuses on the sphere with D_r = 1/τ_p (S10), driven by one Wiener path per cell
 // that is a pure function of (seed, cell, absolute time): reproducible for any thread count,
 // nothing to checkpoint, and the same path whatever the steps are — a run at another Δt, or one

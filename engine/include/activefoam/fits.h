@@ -1,4 +1,4 @@
-// Least-squares fits of the fusion time series (DESIGN.md §7): Eq. 1, Eq. 2 and the S1 model.
+// Least-squares fits of the fusion time series (docs/model.md §8): Eq. 1, Eq. 2 and the S1 model.
 //
 // Every fit is a small Levenberg–Marquardt on the model's closed form, started from a coarse
 // scan of its time constant (so it needs no guesses and is indifferent to the time unit), with

@@ -1,4 +1,4 @@
-// One interface for every physical contribution (DESIGN.md §2, §4): a term adds forces (and
+// One interface for every physical contribution (docs/model.md §2–§5): a term adds forces (and
 // returns its energy where it has one), adds its SPD friction to Γ, and may update its state
 // after the position update. Terms are listed explicitly in Simulation, not registered by macros.
 #pragma once

@@ -1,5 +1,5 @@
-// Γ of one step (DESIGN.md §5): diagonal 3×3 blocks, assembled, plus the vertex couplings of the
-// terms that have them (cortex viscosity along mesh edges, contact friction across pairs),
+// Γ of one step (docs/model.md §6.1): diagonal 3×3 blocks, assembled, plus the vertex couplings
+// of the terms that have them (cortex viscosity along mesh edges, contact friction across pairs),
 // applied as products. The solver rebuilds it from the terms every step (ForceTerm::addFriction);
 // the couplings' per-step data live here, not in the terms. Each coupling is one object whose
 // blocks serve the product, the preconditioner and the assembly alike.

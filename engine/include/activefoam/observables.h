@@ -1,4 +1,4 @@
-// Observables computed from a simulation state (DESIGN.md §7).
+// Observables computed from a simulation state (docs/model.md §8).
 #pragma once
 
 #include <array>
@@ -34,7 +34,7 @@ SphereFit fitSphere(const Eigen::Matrix3Xd& points);
 double doubletContactAngleDeg(const CellSet& cells, const ContactList& contacts);
 
 // ---------------------------------------------------------------------------------------------
-// Fusion observables (DESIGN.md §7; implemented in observe/fusion_observables.cc).
+// Fusion observables (docs/model.md §8; implemented in observe/fusion_observables.cc).
 
 // Fusion angle of two spheroids (cells.label[c] = 0 or 1). Each spheroid's centroid is the
 // volume-weighted mean of its cells' volume centroids; the axis runs through the two centroids
@@ -49,8 +49,8 @@ double doubletContactAngleDeg(const CellSet& cells, const ContactList& contacts)
 // equal truncated spheres (a = R sin θ, L = 2R(1 + cos θ)); 90° is complete fusion, 0° two
 // separate spheroids.
 // Surface used: by default every cell surface. The largest crossing of a section is on the
-// aggregate's outer envelope anyway (contact surfaces lie inside it), and DESIGN's "free
-// surface" leaves a one-edge band without data around every cell–cell junction — at a
+// aggregate's outer envelope anyway (contact surfaces lie inside it), and the "free
+// surface" alone leaves a one-edge band without data around every cell–cell junction — at a
 // two-cell neck that band sits exactly on the neck and biases a by ~cot θ × the band width.
 // free_surface_only = true restricts to edges whose two vertices have no contact area.
 struct FusionAngle {

@@ -1,4 +1,4 @@
-// Brakke-style remeshing of one closed cell surface (DESIGN.md §5).
+// Brakke-style remeshing of one closed cell surface (docs/model.md §6.3).
 #pragma once
 
 #include <functional>

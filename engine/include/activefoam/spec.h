@@ -1,4 +1,4 @@
-// The scene spec: every parameter of a run, in the units of DESIGN.md §3 (µm, s, nN).
+// The scene spec: every parameter of a run, in the units of docs/model.md §1 (µm, s, nN).
 //
 // A value type with the supplement's Table 1/2 defaults. One table (specFields) describes every
 // key: its dotted name, type, allowed range, unit and help. Parsers (TOML/JSON in foam-run,
@@ -204,7 +204,7 @@ struct SpecField {
   bool readBy(SceneKind k) const { return scenes & (1u << static_cast<unsigned>(k)); }
 };
 
-// Every key, in a stable order (the order of DESIGN.md §10).
+// Every key, in a stable order (top level, [cells], [numerics], [scene], [accuracy]).
 //
 // The top-level key "scene" (the scene kind) shares its name with the [scene] table, which TOML
 // and JSON cannot both hold in one document. The kind may therefore also be written as `kind`

@@ -1,5 +1,5 @@
-// Prepared spheroids (DESIGN.md §6): N cells packed into a ball, then relaxed with the full DCM
-// (adhesion, motility) until the aggregate is compact; cached by everything that shapes them,
+// Prepared spheroids (docs/model.md §7.3): N cells packed into a ball, then relaxed with the full
+// model (adhesion, motility) until the aggregate is compact; cached by everything that shapes them,
 // so that a parameter study pays the preparation once per (N, seed, parameters), not per run.
 #pragma once
 

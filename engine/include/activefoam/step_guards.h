@@ -1,4 +1,4 @@
-// The checks a step must pass (DESIGN.md §5): a failed check rejects the step, which the
+// The checks a step must pass (docs/model.md §6.4): a failed check rejects the step, which the
 // adaptive schedule undoes and retries at half the length.
 #pragma once
 

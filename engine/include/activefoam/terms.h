@@ -1,4 +1,4 @@
-// The force terms of DESIGN.md §4 that act within one cell.
+// The force terms that act within one cell (docs/model.md §2, §5).
 #pragma once
 
 #include <cmath>
@@ -12,7 +12,7 @@ namespace activefoam {
 
 // S2–S4: F_i += (γ_s/2)(x_k − x_j) × n̂_A = −γ_s ∂S_A/∂x_i. Energy Σ γ_s S_A.
 // γ_s = γ − w f_A with f_A the contacting fraction of the triangle this step (ctx.contacts) and
-// w = (1 − α) γ, so that a fully contacting triangle has γ_s = αγ (Young–Dupré, DESIGN.md §4.1).
+// w = (1 − α) γ, so that a fully contacting triangle has γ_s = αγ (docs/model.md §3.1).
 class SurfaceTension : public ForceTerm {
  public:
   explicit SurfaceTension(const CellParams& p) : gamma_(p.gamma), w_(adhesionW(p)) {}

@@ -1,6 +1,6 @@
 // Thread count of the engine's parallel kernels, and the helpers that keep their results
-// bit-identical for any thread count (a promise of the spec, DESIGN.md: a run is a pure function
-// of its spec).
+// bit-identical for any thread count (a promise of the spec, ARCHITECTURE.md: a run is a pure
+// function of its spec).
 //
 // The rule every parallel kernel follows: a thread only writes slots that belong to the items it
 // was given (a cell's vertices, a row of Γ, a contact pair's result), and every floating-point

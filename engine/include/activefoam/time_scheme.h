@@ -1,4 +1,4 @@
-// How a step finds its velocity (DESIGN.md §5): one TimeScheme per integrator, each in a file
+// How a step finds its velocity (docs/model.md §6.2): one TimeScheme per integrator, each in a file
 // of its own (one_stage.cc, ros2.cc). makeTimeScheme is the one place that maps
 // numerics.integrator to a scheme; Simulation takes any scheme (tests add their own). Simulation
 // tries a step, runs the guards, rolls back and remeshes; a scheme decides only what is solved

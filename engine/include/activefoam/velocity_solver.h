@@ -1,4 +1,4 @@
-// The velocity solve of one step (DESIGN.md §5): the force sum F, the friction operator Γ
+// The velocity solve of one step (docs/model.md §6.1): the force sum F, the friction operator Γ
 // (FrictionOperator: assembled diagonal blocks + the terms' couplings applied as products) and
 // preconditioned CG on Γ v = F. What Γ carries besides friction (Δt K_c, the contact springs'
 // linearised stiffness) is the time scheme's choice, passed in the step context

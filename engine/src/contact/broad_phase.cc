@@ -1,4 +1,4 @@
-// Broad phase of the triangle–triangle contact (DESIGN.md §4.6): candidate pairs of facing
+// Broad phase of the triangle–triangle contact (docs/model.md §3.2): candidate pairs of facing
 // triangles of different cells whose margin-inflated bounding boxes overlap.
 //
 // findContactCandidates (O(T + candidates) for packed cells with a bounded number of neighbours):

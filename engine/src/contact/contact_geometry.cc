@@ -1,4 +1,4 @@
-// Narrow phase of the triangle–triangle contact (DESIGN.md §4.6–4.7, supplement S14–S18).
+// Narrow phase of the triangle–triangle contact (docs/model.md §3, supplement S14–S18).
 //
 // Both triangles are projected onto the plane ⟂ n̂_AB (2D coordinates y in an orthonormal basis
 // e1, e2 with e1 × e2 = n̂_AB, origin o = mean of the six vertices), clipped against each other

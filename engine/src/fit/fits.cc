@@ -81,7 +81,7 @@ FitResult fitEq1(const std::vector<double>& t, const std::vector<double>& theta)
 // u₊ = (√(k²+4) − k)/2 = 2/(√(k²+4) + k) ∈ (0, 1) (= cos θ_eq), u₋ = −1/u₊ < −1.
 // For w = (u − u₊)/(u − u₋):  dw/dt = u̇ (u₊ − u₋)/(u − u₋)² = −w (u₊ − u₋)/(2τ_ε), so
 // w(t) = w(0) e^{−λt} with λ = (u₊ − u₋)/(2τ_ε) = √(k²+4)/(2τ_ε) = ½√(1/τ_Γ² + 4/τ_ε²)
-// (multiply √(k²+4) = √(τ_ε²/τ_Γ² + 4) by 1/τ_ε): the same λ as DESIGN.md §7.
+// (multiply √(k²+4) = √(τ_ε²/τ_Γ² + 4) by 1/τ_ε): the same λ as docs/model.md §8.3.
 // Back: u = (u₊ − w u₋)/(1 − w); u − u₋ > 0 for u ∈ [−1, 1], so w < 1 and this is finite.
 
 double eq2Theta(double t, double tau_gamma, double tau_eps, double theta0_deg) {

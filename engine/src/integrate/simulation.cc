@@ -33,7 +33,7 @@ Simulation::Simulation(const SceneSpec& spec, CellSet cells, std::unique_ptr<Tim
 
 void Simulation::init() {
   const CellParams& p = spec_.cells;
-  // The explicit list of terms (DESIGN.md §2). Terms whose parameters make them vanish are not
+  // The explicit list of terms (ARCHITECTURE.md). Terms whose parameters make them vanish are not
   // built (no per-step cost): motility without p_a, contact friction without ξ unless it also
   // carries the contact-implicit stiffness Δt K_c.
   terms_.push_back(std::make_unique<SurfaceTension>(p));

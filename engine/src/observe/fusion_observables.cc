@@ -1,4 +1,4 @@
-// Fusion observables (DESIGN.md §7): fusion angle, shape index, MSRD, unique contacts, surface
+// Fusion observables (docs/model.md §8): fusion angle, shape index, MSRD, unique contacts, surface
 // contact angle. Pure functions of the state, or small accumulators fed by the run loop.
 #include <algorithm>
 #include <cmath>

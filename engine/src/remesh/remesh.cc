@@ -1,5 +1,5 @@
 // Brakke-style remeshing: longest-edge splits, shortest-edge collapses with volume-preserving
-// placement, Delaunay edge flips (DESIGN.md §5).
+// placement, Delaunay edge flips (docs/model.md §6.3).
 //
 // Each sweep works on a snapshot of the vertex→triangle incidence (rebuilt per sweep, O(T)).
 // An operation is applied only if everything it reads is unmodified since the snapshot (tracked

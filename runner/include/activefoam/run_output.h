@@ -1,4 +1,4 @@
-// The output folder of one run (DESIGN.md §10): spec.json, samples.csv, snapshots/, summary.json.
+// The output folder of one run (docs/usage.md): spec.json, samples.csv, snapshots/, summary.json.
 // Used by foam-run; kept apart from main() so it can be tested without running the engine.
 #pragma once
 
@@ -30,7 +30,7 @@ std::string checkOutputDir(const std::filesystem::path& dir, bool force);
 std::string csvLine(const std::vector<double>& values);
 std::string csvLine(const std::vector<std::string>& names);
 
-// The reduced parameters (DESIGN.md §3, Table 2) of a resolved spec: tau_gamma_s = η/γ,
+// The reduced parameters (docs/model.md §9.2, Table 2) of a resolved spec: tau_gamma_s = η/γ,
 // pa_reduced = p_a r/2γ, alpha, l_eta_reduced = √(η/ξ)/r (null when ξ = 0), tau_p_s, and the
 // cell count.
 nlohmann::json reducedParameters(const SceneSpec& resolved);

@@ -1,4 +1,4 @@
-// Reading and writing scene specs (DESIGN.md §10): TOML or JSON documents with the keys of
+// Reading and writing scene specs (docs/model.md §9): TOML or JSON documents with the keys of
 // specFields(), nested tables [cells], [numerics], [scene], and `key=value` overrides (--set).
 //
 // Every leaf goes through setField, so ranges and messages are the engine's. Parsing collects
@@ -7,7 +7,7 @@
 //
 // The scene kind: plain TOML and JSON cannot hold both `scene = "fusion"` and a [scene] table.
 // The kind is the top-level string `scene = "fusion"`, or `kind = "fusion"` inside [scene]
-// (the form specToJson writes). For TOML, the form of DESIGN.md §10 — `scene = "fusion"` at the
+// (the form specToJson writes). For TOML, the form `scene = "fusion"` at the
 // top and a [scene] table below — is accepted as well (the header is renamed before parsing).
 #pragma once
 
@@ -26,8 +26,8 @@ namespace activefoam {
 enum class SpecFormat { Auto, Toml, Json };
 
 struct SpecParseOptions {
-  // A document must name its scene (DESIGN: `scene = "fusion"` alone is a valid spec; nothing
-  // at all is not). Off when the scene may come from elsewhere, e.g. a later --set.
+  // A document must name its scene (docs/usage.md: `scene = "fusion"` alone is a valid spec;
+  // nothing at all is not). Off when the scene may come from elsewhere, e.g. a later --set.
   bool require_scene = true;
   // Name used in syntax errors and I/O errors ("spec.toml"); defaults to <toml>/<json>/<set>.
   std::string source;
