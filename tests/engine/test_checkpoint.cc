@@ -40,11 +40,11 @@ TEST(Checkpoint, SimulationStateRoundTripsBitExactly) {
       std::memcmp(a.cells().x.data(), b.cells().x.data(), sizeof(double) * a.cells().x.size()), 0);
 }
 
-// With numerics.remesh_repair = rescue the checkpoint carries the count of rescued remeshes (the summary's
-// proof that a run without any has the bits of a run without the key), and the resumed run goes
-// on bit for bit; a state saved without the key is another spec's. (A doublet needs no rescue:
-// the count is 0 here; the rescue itself is Remesh.ALockedCellIsRepairedByTheRescue's.) Likewise
-// numerics.remesh_keep_out_um and its count of refused collapses (Remesh.KeepOutRefuses…).
+// With numerics.remesh_repair = rescue the checkpoint carries the count of rescued remeshes (the
+// summary's proof that a run without any has the bits of a run without the key), and the resumed
+// run goes on bit for bit; a state saved without the key is another spec's. (A doublet needs no
+// rescue: the count is 0 here; the rescue itself is Remesh.ALockedCellIsRepairedByTheRescue's.)
+// Likewise numerics.remesh_keep_out_um and its count of refused collapses (Remesh.KeepOutRefuses…).
 namespace {
 
 template <class T>

@@ -177,7 +177,8 @@ GridReference gridIntegrate(const Tri3& a, const Tri3& b, const ContactLaw& law,
       if (!(g < law.h0)) continue;
       // The prisms laws: B's point over A and A's point over B (prisms-overlap: only where they
       // overlap, g < 0).
-      if ((law.kind == ContactLawKind::Prisms || (law.kind == ContactLawKind::PrismsOverlap && g < 0)) &&
+      if ((law.kind == ContactLawKind::Prisms ||
+           (law.kind == ContactLawKind::PrismsOverlap && g < 0)) &&
           !(over(a, X + sB * n) && over(b, X + sA * n)))
         continue;
       r.g_min = std::min(r.g_min, g);
@@ -954,7 +955,6 @@ TEST(ContactNarrowPhase, PrismsOnTheOverlapOnlyKeepTheAdhesivePartWhole) {
     ++gridded;
     const GridReference r = gridIntegrate(pr.a, pr.b, overlap, 500);
     expectMatchesGrid(c, r, overlap.k, trial);
-    const double scale = overlap.k * c.area * 0.4;
     // Pairs in two pieces: what else the step reads — the mean gap, the centroid (friction's
     // barycentrics), the friction and stiffness moments — against the grid, for every rule
     // that is exact for them.

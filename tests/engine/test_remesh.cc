@@ -489,9 +489,9 @@ TEST(Remesh, TheRebuildChangesNothingWhereNoTriangleIsLeftSmall) {
   EXPECT_EQ(dented.tri, before.tri);
 }
 
-// The simulation counts a rebuild (numerics.remesh_repair = rescue-rebuild) over the run, and a checkpoint of a
-// run with the key carries the count, the key being in its fingerprint; with the key off the same
-// cell keeps its mesh.
+// The simulation counts a rebuild (numerics.remesh_repair = rescue-rebuild) over the run, and a
+// checkpoint of a run with the key carries the count, the key being in its fingerprint; with the
+// key off the same cell keeps its mesh.
 TEST(Remesh, TheSimulationCountsARebuildAndItsCheckpointKeepsIt) {
   const ObjCell cell =
       readObjCell(std::string(ENGINE_TEST_DATA) + "/locked-cell-rescue-refused.obj");

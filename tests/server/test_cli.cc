@@ -96,7 +96,8 @@ TEST(Cli, PresetsAndAccuracyTargetsAreRecordedAndUnstableStepsRefused) {
   }
   ASSERT_EQ(r.rc, 0) << r.out;
   Proc show = sh(d.foam() + " show " + firstLine(r.out));
-  EXPECT_NE(show.out.find("fidelity:  preset standard (contact-implicit-consistent, Δt 1 s, 320 triangles"),
+  EXPECT_NE(show.out.find(
+                "fidelity:  preset standard (contact-implicit-consistent, Δt 1 s, 320 triangles"),
             std::string::npos)
       << show.out;
   EXPECT_NE(show.out.find("chosen for the accuracy target contact angle ≤ 2°"), std::string::npos)

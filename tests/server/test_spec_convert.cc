@@ -152,12 +152,11 @@ TEST(SpecConvert, SceneKeysTheSceneDoesNotUseAreRefused) {
 // are never built (Simulation::init), so their keys change nothing and are refused (issue 39
 // item 17: such a run had the same bits as one without them). The same keys run on a doublet.
 TEST(SpecConvert, ContactAndMotilityKeysOnASingleCellAreRefused) {
-  for (const char* set :
-       {"cells.alpha=0.5", "cells.k_contact=50", "cells.xi=0.5", "cells.xi_normal=0.5",
-        "cells.xi_tangential=0.1", "cells.p_a=0", "cells.tau_p_s=60", "cells.pa_reduced=0.5",
-        "cells.l_eta_reduced=1", "numerics.contact_quadrature=centroid",
-        "numerics.max_penetration_um=0.5", "numerics.max_oscillating_steps=5",
-        "numerics.contact_law=prisms"}) {
+  for (const char* set : {"cells.alpha=0.5", "cells.k_contact=50", "cells.xi=0.5",
+                          "cells.xi_normal=0.5", "cells.xi_tangential=0.1", "cells.p_a=0",
+                          "cells.tau_p_s=60", "cells.pa_reduced=0.5", "cells.l_eta_reduced=1",
+                          "numerics.contact_quadrature=centroid", "numerics.max_penetration_um=0.5",
+                          "numerics.max_oscillating_steps=5", "numerics.contact_law=prisms"}) {
     const std::string key = std::string(set).substr(0, std::string(set).find('='));
     ConvertResult r = convertSpec(v1::SceneSpec{}, "", {"scene=cell", set});
     ASSERT_FALSE(r.ok()) << set;
