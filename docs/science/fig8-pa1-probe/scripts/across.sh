@@ -5,7 +5,7 @@
 #   b025 Δt 0.25 s / ε_CG 1e-3 with the overlap within prisms
 #   l025 Δt 0.25 s / ε_CG 1e-3 under the plain law (the figure studies' step)
 # One one-thread foam-run per run, JOBS at once (default the cores); the folders are across/'s.
-# On the lent 16-core machine (2026-11-27) the runs were stopped after 440 s (b05) and 290 s
+# On a 16-core machine the runs were stopped after 440 s (b05) and 290 s
 # (b025, l025) of wall time: LIMIT_S does the same (default none).
 #   OUT=/tmp/across docs/science/fig8-pa1-probe/scripts/across.sh            # all 30
 #   OUT=/tmp/across docs/science/fig8-pa1-probe/scripts/across.sh b05-a0.3-s4 # one

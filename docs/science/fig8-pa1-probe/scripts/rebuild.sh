@@ -1,5 +1,5 @@
 #!/bin/bash
-# numerics.remesh_rebuild (session 35), 1 h each, the prepared polarities and the rescue, guard 20 %:
+# numerics.remesh_rebuild, 1 h each, the prepared polarities and the rescue, guard 20 %:
 #   b05-a0.4375-s5   p_a r/2γ = 1, α 0.4375, seed 5, Δt 0.5 s / 1e-2 with the bound: without the
 #                    rebuild it ended on a sliver at 674 s (across/b05-a0.4375-s5)
 #   base-dt1-s1[-norebuild]  the base point (p_a r/2γ = 0.33) at Δt 1 s / 1e-2 with the bound, seed 1,
