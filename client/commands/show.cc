@@ -25,7 +25,7 @@ std::string fidelityText(const std::string& spec_json) {
     // two switches said otherwise.
     std::string law = n.value("contact_law", std::string());
     if (law.empty())
-      law = !n.value("contact_within_prisms", false)         ? "supplement"
+      law = !n.value("contact_within_prisms", false)        ? "supplement"
             : n.value("contact_prisms_overlap_only", false) ? "prisms-overlap"
                                                             : "prisms";
     os << ", contact law " << law << ")";

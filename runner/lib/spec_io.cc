@@ -631,11 +631,11 @@ std::vector<SpecError> checkSceneKeys(const SceneSpec& spec, const std::vector<s
     const SceneSpec& reference = field.substr(0, 6) == "cells." ? default_cells : defaults;
     if (getField(spec, field) == getField(reference, field)) continue;
     std::string list;
-    for (SceneKind k : {SceneKind::Cell, SceneKind::Doublet, SceneKind::Spheroid, SceneKind::Fusion})
+    for (SceneKind k :
+         {SceneKind::Cell, SceneKind::Doublet, SceneKind::Spheroid, SceneKind::Fusion})
       if (f->readBy(k)) list += (list.empty() ? "" : ", ") + std::string(toString(k));
-    errors.push_back({key, "not used by the " + std::string(toString(scene)) +
-                               " scene (only by: " + list +
-                               "); remove it, or run the scene it belongs to"});
+    errors.push_back({key, "not used by the " + std::string(toString(scene)) + " scene (only by: " +
+                               list + "); remove it, or run the scene it belongs to"});
   }
   return errors;
 }

@@ -50,7 +50,8 @@ struct RunSummary {
   // Cell remeshes that ran the rescue (numerics.remesh_repair): 0 means the bits of the run
   // without the key.
   std::int64_t remesh_rescues = 0;
-  // Cell meshes rebuilt (numerics.remesh_repair = rescue-rebuild): 0 means the bits of the run without the key.
+  // Cell meshes rebuilt (numerics.remesh_repair = rescue-rebuild): 0 means the bits of the run
+  // without the key.
   std::int64_t remesh_rebuilds = 0;
   // Collapses and rebuilds refused for entering a neighbour (numerics.remesh_keep_out_um): 0
   // means the bits of the run without the key.

@@ -97,8 +97,8 @@ class Simulation {
   // Cell remeshes that ran the rescue (numerics.remesh_repair) over the run: while it is 0 the
   // run has the bits it would have without the key.
   std::int64_t remeshRescues() const { return remesh_rescues_; }
-  // Cell meshes rebuilt (numerics.remesh_repair = rescue-rebuild) over the run: while it is 0 the run has the
-  // bits it would have without the key.
+  // Cell meshes rebuilt (numerics.remesh_repair = rescue-rebuild) over the run: while it is 0 the
+  // run has the bits it would have without the key.
   std::int64_t remeshRebuilds() const { return remesh_rebuilds_; }
   // Collapses and rebuilds refused for entering a neighbour (numerics.remesh_keep_out_um) over the
   // run: while it is 0 the run has the bits it would have without the key.

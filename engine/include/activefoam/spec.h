@@ -174,10 +174,10 @@ enum class FieldType { Real, Integer, Choice, Boolean };
 
 struct SpecField {
   std::string key;  // dotted path as in the TOML: "seed", "cells.gamma", "numerics.dt_s", ...
-  FieldType type;
-  double lo, hi;  // allowed closed range [lo, hi] for Real/Integer
-  bool lo_open;   // true: (lo, hi]
-  bool optional;  // may be left unset (a derived default applies)
+  FieldType type = FieldType::Real;
+  double lo = 0, hi = 0;  // allowed closed range [lo, hi] for Real/Integer
+  bool lo_open = false;   // true: (lo, hi]
+  bool optional = false;  // may be left unset (a derived default applies)
   std::string unit;
   std::string help;
   std::vector<std::string> choices;  // for Choice (and the allowed values of an Integer key)
@@ -292,8 +292,8 @@ struct PresetInfo {
   // Stated errors on the doublet (the equilibrium contact angle against arccos α and the
   // approach θ_c(t) against a finer run, tests/scenes/test_presets.cc, which checks that every
   // preset meets them): what it measured, rounded up.
-  double contact_angle_error_deg;      // equilibrium contact angle
-  double trajectory_error_deg;         // RMS over the approach θ(t)
+  double contact_angle_error_deg;  // equilibrium contact angle
+  double trajectory_error_deg;     // RMS over the approach θ(t)
 };
 
 // Every preset, cheapest first.

@@ -349,8 +349,7 @@ int overlapPolygon(const PairFrame& f, double h0, Polygon (&buf)[2]) {
 // parallel triangles keeps its polygon.
 int clipToPrisms(const PairFrame& f, const std::array<Vec3, 3>& a, const std::array<Vec3, 3>& b,
                  const Vec3& na, const Vec3& nb, Polygon (&buf)[2], int cur) {
-  auto overlie = [&](const std::array<Vec3, 3>& t, const Vec3& nt, double s0,
-                     const Vec2& s_grad) {
+  auto overlie = [&](const std::array<Vec3, 3>& t, const Vec3& nt, double s0, const Vec2& s_grad) {
     for (int i = 0; i < 3 && buf[cur].n > 0; ++i, cur ^= 1) {
       const Vec3 m = nt.cross(t[i == 2 ? 0 : i + 1] - t[i]);
       const double mn = m.dot(f.n);
@@ -434,7 +433,8 @@ TriangleContact assembleContact(const PairFrame& f, const std::array<const Polyg
     out.centroid = toMidSurface(centroid2);
     double g_max = 0;
     for (const Polygon* poly : pieces)
-      for (int i = 0; poly && i < poly->n; ++i) g_max = std::max(g_max, std::abs(f.gap(poly->v[i])));
+      for (int i = 0; poly && i < poly->n; ++i)
+        g_max = std::max(g_max, std::abs(f.gap(poly->v[i])));
     const bool loaded = std::abs(I.g) > kZeroLoadRel * I.area * g_max;
     out.center_of_pressure = loaded ? toMidSurface(I.gy / I.g) : out.centroid;
   }

@@ -15,29 +15,43 @@ using namespace spec_internal;
 
 namespace {
 
+// The key's type, range and words; the history columns start empty (SpecField).
+SpecField field(std::string key, FieldType type, double lo, double hi, bool lo_open, bool optional,
+                std::string unit, std::string help, std::vector<std::string> choices = {},
+                bool hi_open = false) {
+  SpecField f;
+  f.key = std::move(key);
+  f.type = type;
+  f.lo = lo;
+  f.hi = hi;
+  f.lo_open = lo_open;
+  f.optional = optional;
+  f.unit = std::move(unit);
+  f.help = std::move(help);
+  f.choices = std::move(choices);
+  f.hi_open = hi_open;
+  return f;
+}
+
 SpecField real(std::string key, bool lo_open, double lo, double hi, bool hi_open, std::string unit,
                std::string help, bool optional = false) {
-  SpecField f{std::move(key),  FieldType::Real, lo, hi,     lo_open, optional,
-              std::move(unit), std::move(help), {}, hi_open};
-  return f;
+  return field(std::move(key), FieldType::Real, lo, hi, lo_open, optional, std::move(unit),
+               std::move(help), {}, hi_open);
 }
 
 SpecField integer(std::string key, double lo, double hi, std::string help,
                   std::vector<std::string> allowed = {}) {
-  SpecField f{std::move(key),  FieldType::Integer, lo, hi, false, false, "",
-              std::move(help), std::move(allowed)};
-  return f;
+  return field(std::move(key), FieldType::Integer, lo, hi, false, false, "", std::move(help),
+               std::move(allowed));
 }
 
 SpecField boolean(std::string key, std::string help) {
-  SpecField f{std::move(key), FieldType::Boolean, 0, 0, false, false, "", std::move(help), {}};
-  return f;
+  return field(std::move(key), FieldType::Boolean, 0, 0, false, false, "", std::move(help));
 }
 
 SpecField choice(std::string key, std::vector<std::string> choices, std::string help) {
-  SpecField f{std::move(key),  FieldType::Choice, 0, 0, false, false, "",
-              std::move(help), std::move(choices)};
-  return f;
+  return field(std::move(key), FieldType::Choice, 0, 0, false, false, "", std::move(help),
+               std::move(choices));
 }
 
 // Annotations of the entry just added (SpecField: label, before, prep, scenes).

@@ -62,7 +62,8 @@ std::optional<std::optional<SpecError>> setRetiredField(SceneSpec& spec, std::st
   if (key == "numerics.contact_within_prisms") {
     if (!b) return needBool();
     ContactLawKind law = ContactLawKind::Supplement;
-    if (*b) law = n.contact_law == ContactLawKind::Supplement ? ContactLawKind::Prisms : n.contact_law;
+    if (*b)
+      law = n.contact_law == ContactLawKind::Supplement ? ContactLawKind::Prisms : n.contact_law;
     return setField(spec, "numerics.contact_law", std::string(toString(law)));
   }
   if (key == "numerics.contact_prisms_overlap_only") {
@@ -75,12 +76,11 @@ std::optional<std::optional<SpecError>> setRetiredField(SceneSpec& spec, std::st
   // The remesher's two switches of earlier versions: rescue, and rebuild after it.
   if (key == "numerics.remesh_rescue" || key == "numerics.remesh_rebuild") {
     if (!b) return needBool();
-    const bool rescue = key == "numerics.remesh_rescue" ? *b
-                                                        : n.remesh_repair != RemeshRepair::None;
-    const bool rebuild = key == "numerics.remesh_rebuild"
-                             ? *b
-                             : n.remesh_repair == RemeshRepair::RescueRebuild;
-    const RemeshRepair r = rebuild   ? RemeshRepair::RescueRebuild
+    const bool rescue =
+        key == "numerics.remesh_rescue" ? *b : n.remesh_repair != RemeshRepair::None;
+    const bool rebuild =
+        key == "numerics.remesh_rebuild" ? *b : n.remesh_repair == RemeshRepair::RescueRebuild;
+    const RemeshRepair r = rebuild  ? RemeshRepair::RescueRebuild
                            : rescue ? RemeshRepair::Rescue
                                     : RemeshRepair::None;
     return setField(spec, "numerics.remesh_repair", std::string(toString(r)));

@@ -15,10 +15,9 @@
 namespace activefoam::spec_internal {
 
 // Where a key's value lives in a SceneSpec.
-using Slot =
-    std::variant<double*, std::optional<double>*, std::int64_t*, std::uint64_t*, SceneKind*,
-                 IntegratorKind*, PreconditionerKind*, ContactQuadrature*, FidelityPreset*,
-                 ContactLawKind*, RemeshRepair*, bool*>;
+using Slot = std::variant<double*, std::optional<double>*, std::int64_t*, std::uint64_t*,
+                          SceneKind*, IntegratorKind*, PreconditionerKind*, ContactQuadrature*,
+                          FidelityPreset*, ContactLawKind*, RemeshRepair*, bool*>;
 
 // An extra per-key rule beyond the range: returns an error message, empty when the value is fine.
 using ExtraRule = std::string (*)(double v);
