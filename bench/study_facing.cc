@@ -64,7 +64,7 @@ int main(int argc, char** argv) {
                     e.failure.c_str());
         continue;
       }
-      const bool plain = phi == 90 && !prisms;
+      const bool plain = !prisms;
       if (plain) at90[c.alpha] = e.theta_c_deg;
       char change[32] = "";
       if (at90.count(c.alpha) && !plain)
