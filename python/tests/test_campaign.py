@@ -1,4 +1,4 @@
-"""scripts/campaign.sh: a study campaign carried across machines that do not outlive a session
+"""scripts/campaign.sh: a study campaign carried across machines that do not outlive the work
 (start, stop with the store saved, start again on a new machine, report)."""
 
 import os
@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from activefoam import Client
-from activefoam.client import _state_name
+from activefoam.client import state_name
 from conftest import TINY_FUSION, _free_port
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -53,7 +53,7 @@ def test_a_campaign_resumes_on_a_new_machine_and_takes_committed_runs_as_done(tm
         assert "2 runs submitted" in campaign("start").stderr
         with Client(env["FOAM_SERVER"]) as c:
             deadline = time.monotonic() + 120
-            while not any(j.progress >= 0.2 for j in c._list(tag="study:tiny")):
+            while not any(j.progress >= 0.2 for j in c.job_infos(tag="study:tiny")):
                 assert time.monotonic() < deadline
                 time.sleep(0.2)
         campaign("stop")  # one run cut off mid-way, checkpointed, the store saved
@@ -69,7 +69,7 @@ def test_a_campaign_resumes_on_a_new_machine_and_takes_committed_runs_as_done(tm
         assert "restore-store: 2 jobs" in r.stderr and "0 runs submitted, 2 already" in r.stderr
         with Client(env["FOAM_SERVER"]) as c:
             deadline = time.monotonic() + 240
-            while not all(_state_name(j.state) == "succeeded" for j in c._list(tag="study:tiny")):
+            while not all(state_name(j.state) == "succeeded" for j in c.job_infos(tag="study:tiny")):
                 assert time.monotonic() < deadline
                 time.sleep(0.5)
         assert "tiny reported" in campaign("report").stderr
@@ -97,7 +97,7 @@ def test_a_campaign_resumes_on_a_new_machine_and_takes_committed_runs_as_done(tm
                                       'duration_s = 1800\n"numerics.cg_tol" = 0.01'))
         assert "2 runs submitted" in campaign("start").stderr
         with Client(env["FOAM_SERVER"]) as c:
-            second = {j.id for j in c._list(tag="study:tiny")}
+            second = {j.id for j in c.job_infos(tag="study:tiny")}
         tiny.write_text(plain.replace("duration_s = 1800",
                                       'duration_s = 1800\n"numerics.cg_tol" = 0.002'))
         r = campaign("start")
@@ -106,7 +106,7 @@ def test_a_campaign_resumes_on_a_new_machine_and_takes_committed_runs_as_done(tm
         r = campaign("start", "--cancel-stale")
         assert "cancelled 2 jobs" in r.stderr and "0 runs submitted, 2 already" in r.stderr
         with Client(env["FOAM_SERVER"]) as c:
-            states = {j.id: _state_name(j.state) for j in c._list(tag="study:tiny")}
+            states = {j.id: state_name(j.state) for j in c.job_infos(tag="study:tiny")}
         # A running job stops at its next step; the third's are untouched.
         assert all(states[j] in ("cancelled", "running") for j in second), states
         assert all(s in ("queued", "running") for j, s in states.items() if j not in second)
