@@ -16,7 +16,8 @@ pkgs=(build-essential cmake ninja-build pkg-config git
       ffmpeg  # foam export --movie and Job.movie encode with it; its ffprobe checks them
       python3-grpcio python3-protobuf python3-pandas python3-pytest  # the Python client's tests
       python3-yaml python3-jsonschema  # CITATION.cff against its schema (tests/repo)
-      python3-matplotlib  # study reports (python/activefoam/study.py)
+      python3-venv  # its install test: pip install ./python into a fresh virtual environment
+      python3-matplotlib  # study reports (python3 -m activefoam.study report)
       python3-tqdm  # progress bars of Job.wait / Sweep.wait (a plain line without it)
       clang libomp-dev  # the tsan preset: clang + LLVM's libomp, whose Archer tool TSan understands
       ccache)  # the compiler launcher (CMakeLists.txt): builds reuse earlier builds' objects

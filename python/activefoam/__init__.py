@@ -2,10 +2,16 @@
 
     from activefoam import Client
     c = Client("host:50051")
-    job = c.submit({"scene": "doublet", "duration_s": 600}, preset="draft")
+    job = c.submit({"scene": "doublet", "duration_s": 600}, preset="standard")
     job.wait(progress=True); job.samples(); job.results()
+
+The study tool is activefoam.study (python3 -m activefoam.study, or foam-study).
 """
 
-from activefoam.client import Client, Job, Sweep
+# The package's version, read by pyproject.toml; python/CMakeLists.txt checks that it is the
+# project's (CMakeLists.txt).
+__version__ = "0.1.0"
 
-__all__ = ["Client", "Job", "Sweep"]
+from activefoam.client import Client, Job, Sweep  # noqa: E402
+
+__all__ = ["Client", "Job", "Sweep", "__version__"]

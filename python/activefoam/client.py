@@ -24,7 +24,9 @@ Spec = Union[Mapping[str, Any], str, os.PathLike]
 _STATES = {"queued", "running", "succeeded", "failed", "cancelled"}
 
 
-def _state_name(value: int) -> str:
+def state_name(value: int) -> str:
+    """A job state of the wire (activefoam.v1.JobState) as the client names it: "queued",
+    "running", "succeeded", "failed" or "cancelled"."""
     return job_pb2.JobState.Name(value)[len("JOB_STATE_"):].lower()
 
 
@@ -50,19 +52,22 @@ def _error(err: grpc.RpcError, what: str) -> Exception:
     return RuntimeError(text)
 
 
-def _flatten(spec: Mapping[str, Any], prefix: str = "") -> Dict[str, Any]:
-    """Nested tables → dotted keys ({"cells": {"alpha": 0.5}} → {"cells.alpha": 0.5})."""
+def flatten(spec: Mapping[str, Any], prefix: str = "") -> Dict[str, Any]:
+    """Nested tables → dotted keys ({"cells": {"alpha": 0.5}} → {"cells.alpha": 0.5}), the keys
+    `foam-run --keys` lists."""
     out: Dict[str, Any] = {}
     for key, value in spec.items():
         name = f"{prefix}{key}"
         if isinstance(value, Mapping):
-            out.update(_flatten(value, name + "."))
+            out.update(flatten(value, name + "."))
         else:
             out[name] = value
     return out
 
 
-def _setting(key: str, value: Any) -> str:
+def setting(key: str, value: Any) -> str:
+    """One key as foamd's settings take it (`foam-run --set`): KEY=VALUE, a boolean as
+    true/false, a float exactly (repr)."""
     if isinstance(value, bool):
         text = "true" if value else "false"
     elif isinstance(value, float):
@@ -72,13 +77,24 @@ def _setting(key: str, value: Any) -> str:
     return f"{key}={text}"
 
 
-def _spec_fields(spec: Spec) -> Dict[str, Any]:
-    """SubmitJob/SubmitSweep fields for a spec given as a dict or as a TOML/JSON file path."""
+def _settings(flat: Mapping[str, Any]) -> List[str]:
+    # The scene first: its table's defaults apply before the other keys.
+    keys = sorted(flat, key=lambda k: (k != "scene", 0))
+    return [setting(k, flat[k]) for k in keys]
+
+
+def _spec_fields(spec: Spec, overrides: Optional[Mapping[str, Any]] = None) -> Dict[str, Any]:
+    """SubmitJob/SubmitSweep fields for a spec given as a dict or as a TOML/JSON file path, with
+    `overrides` set on top."""
     if isinstance(spec, Mapping):
-        flat = _flatten(spec)
-        # The scene first: its table's defaults apply before the other keys.
-        keys = sorted(flat, key=lambda k: (k != "scene", 0))
-        return {"settings": [_setting(k, flat[k]) for k in keys]}
+        return {"settings": _settings({**flatten(spec), **flatten(overrides or {})})}
+    fields: Dict[str, Any] = {"spec_text": _spec_text(spec)}
+    if overrides:
+        fields["settings"] = _settings(flatten(overrides))
+    return fields
+
+
+def _spec_text(spec: Union[str, os.PathLike]) -> str:
     path = Path(spec)
     if path.is_dir():
         raise ValueError(f"spec: {str(path)!r} is a directory, not a spec file")
@@ -92,7 +108,7 @@ def _spec_fields(spec: Spec) -> Dict[str, Any]:
     if len(data) > 1 << 20:
         raise ValueError(f"spec: {str(path)!r} holds more than the 1 MiB a spec may have")
     try:
-        return {"spec_text": data.decode("utf-8")}
+        return data.decode("utf-8")
     except UnicodeDecodeError as e:
         raise ValueError(f"spec: {str(path)!r} is not UTF-8 (byte {e.start})") from None
 
@@ -213,16 +229,19 @@ class Client:
     # ---- jobs --------------------------------------------------------------------------------
 
     def submit(self, spec: Spec, preset: Optional[str] = None, tags: Optional[Sequence[str]] = None,
-               priority: int = 0, idempotency_key: str = "") -> "Job":
+               priority: int = 0, idempotency_key: str = "",
+               overrides: Optional[Mapping[str, Any]] = None) -> "Job":
         """Submits one job: `spec` is a dict of spec keys (dotted or nested tables, as
-        `foam-run --keys` lists them) or the path of a TOML/JSON spec file."""
-        fields = _spec_fields(spec)
+        `foam-run --keys` lists them) or the path of a TOML/JSON spec file; `overrides`, keys
+        set on top of it (as `foam-run --set`). A second submit with the same idempotency_key
+        returns the first one's job; the Job's `created` says which happened."""
+        fields = _spec_fields(spec, overrides)
         if preset:
             fields.setdefault("settings", []).insert(0, f"numerics.preset={preset}")
         req = service_pb2.SubmitJobRequest(priority=priority, tag=_one_tag(tags),
                                            idempotency_key=idempotency_key, **fields)
         resp = self._call("SubmitJob", req, "submit")
-        return Job(self, resp.job_id)
+        return Job(self, resp.job_id, created=resp.created)
 
     def job(self, job_id: str) -> "Job":
         return Job(self, job_id)
@@ -232,9 +251,12 @@ class Client:
         step: "running" until then)."""
         j = self._call("CancelJob", service_pb2.CancelJobRequest(job_id=job_id, reason=reason),
                        f"cancel {job_id}")
-        return _state_name(j.state)
+        return state_name(j.state)
 
-    def _list(self, **filters: Any) -> List[Any]:
+    def job_infos(self, **filters: Any) -> List[Any]:
+        """The job messages (as Job.info() returns them: state, seed, spec_json, failure_kind,
+        ...) of every job matching ListJobsRequest's filters (tag, sweep_id, states, scene,
+        outcome), newest first, over all pages."""
         req = service_pb2.ListJobsRequest(page_size=1000, **filters)
         jobs: List[Any] = []
         while True:
@@ -248,7 +270,7 @@ class Client:
              sweep: str = "", scene: str = "", outcome: str = "") -> pd.DataFrame:
         """The jobs matching the filters, newest first, one row each."""
         states = [state] if isinstance(state, str) else list(state or [])
-        rows = [_job_row(j) for j in self._list(
+        rows = [_job_row(j) for j in self.job_infos(
             states=[_state_value(s) for s in states], tag=tag, sweep_id=sweep, scene=scene,
             outcome=outcome)]
         return pd.DataFrame(rows, columns=_JOB_COLUMNS)
@@ -263,7 +285,7 @@ class Client:
         fields = _spec_fields(spec)
         if preset:
             fields.setdefault("settings", []).insert(0, f"numerics.preset={preset}")
-        axes = [service_pb2.GridAxis(key=k, values=[_setting(k, v).split("=", 1)[1] for v in vs])
+        axes = [service_pb2.GridAxis(key=k, values=[setting(k, v).split("=", 1)[1] for v in vs])
                 for k, vs in (grid or {}).items()]
         req = service_pb2.SubmitSweepRequest(grid=axes, seeds=list(seeds or []),
                                              tag=_one_tag(tags), name=name, priority=priority,
@@ -274,7 +296,7 @@ class Client:
     def sweep_of(self, sweep_id: str, keys: Sequence[str] = ()) -> "Sweep":
         """An existing sweep; `keys`: the spec keys for the columns of results() (default: the
         keys its grid varies, as the server recorded them)."""
-        ids = [j.id for j in reversed(self._list(sweep_id=sweep_id))]
+        ids = [j.id for j in reversed(self.job_infos(sweep_id=sweep_id))]
         return Sweep(self, sweep_id, ids, list(keys))
 
 
@@ -283,7 +305,7 @@ _JOB_COLUMNS = ["job_id", "state", "scene", "outcome", "seed", "progress", "t_s"
 
 
 def _job_row(j: Any) -> Dict[str, Any]:
-    return {"job_id": j.id, "state": _state_name(j.state), "scene": j.scene,
+    return {"job_id": j.id, "state": state_name(j.state), "scene": j.scene,
             "outcome": j.outcome or None, "seed": j.seed, "progress": j.progress, "t_s": j.t_s,
             "tag": j.tag, "sweep_id": j.sweep_id, "reason": j.reason,
             "created_utc": j.created_utc, "finished_utc": j.finished_utc or None}
@@ -299,9 +321,13 @@ def _spec_value(spec_json: str, key: str) -> Any:
 
 
 class Job:
-    def __init__(self, client: Client, job_id: str):
+    """A job of foamd. `created`: for a job from Client.submit, whether that call created it
+    (False: an earlier submit with the same idempotency key had); None otherwise."""
+
+    def __init__(self, client: Client, job_id: str, created: Optional[bool] = None):
         self._c = client
         self.id = job_id
+        self.created = created
 
     def __repr__(self) -> str:
         return f"Job({self.id!r})"
@@ -312,7 +338,7 @@ class Job:
                              f"job {self.id}")
 
     def state(self) -> str:
-        return _state_name(self.info().state)
+        return state_name(self.info().state)
 
     def _events(self, from_seq: int = 0, timeout_s: Optional[float] = None) -> Iterator[Any]:
         """The job's events (WatchJob, following) until it ends. A stream that ends before the
@@ -355,7 +381,7 @@ class Job:
             for ev in self._events(timeout_s=timeout_s):
                 kind = ev.WhichOneof("kind")
                 if kind == "state":
-                    state = _state_name(ev.state.state)
+                    state = state_name(ev.state.state)
                     if bar:
                         bar.update(ev.state.progress, state, ev.state.t_s)
                     if ev.state.terminal and bar:
@@ -384,7 +410,7 @@ class Job:
         "label" (per cell), and "t_s", "step"."""
         import numpy as np
         if index < 0:
-            snaps = self._results(False).snapshots
+            snaps = self.results_message(False).snapshots
             if not snaps:
                 raise LookupError(f"job {self.id} has no snapshots")
             index = snaps[-1].index
@@ -402,7 +428,9 @@ class Job:
                 "pressure": np.array(snap.cell_pressure, dtype=float),
                 "label": np.array(snap.cell_label, dtype=np.int64)}
 
-    def _results(self, with_samples: bool) -> Any:
+    def results_message(self, with_samples: bool = False) -> Any:
+        """The job's GetResults message in one call: the job, its results, the sample columns
+        and (with_samples) rows, its snapshots' list and its curves."""
         return self._c._call("GetResults",
                              service_pb2.GetResultsRequest(job_id=self.id,
                                                            with_samples=with_samples),
@@ -410,18 +438,18 @@ class Job:
 
     def samples(self) -> pd.DataFrame:
         """The samples (the columns of samples.csv), one row per sample."""
-        r = self._results(True)
+        r = self.results_message(True)
         return pd.DataFrame([list(s.values) for s in r.samples], columns=list(r.columns))
 
     def results(self) -> Dict[str, float]:
         """Result name → value (fits with their *_se standard errors; NaN where undefined)."""
-        return {x.name: x.value for x in self._results(False).results}
+        return {x.name: x.value for x in self.results_message(False).results}
 
     def curve(self, name: str = "msrd") -> pd.DataFrame:
         """A curve the finished run ended with, as columns x, y: "msrd" (fusion) is the MSRD
         (µm², y) against the lag (s, x). LookupError when the run has none (not finished, not a
         fusion, or run by a foamd older than the curves)."""
-        for c in self._results(False).curves:
+        for c in self.results_message(False).curves:
             if c.name == name:
                 return pd.DataFrame({"x": list(c.x), "y": list(c.y)})
         raise LookupError(f"job {self.id} has no curve {name!r}")
@@ -429,7 +457,7 @@ class Job:
     def export(self, directory: Union[str, os.PathLike]) -> List[Path]:
         """Writes the snapshots as VTK PolyData (snap_NNNNNN.vtp) and series.pvd, as
         `foam export` does; returns the files written."""
-        r = self._results(False)
+        r = self.results_message(False)
         if not r.snapshots:
             raise LookupError(f"job {self.id} has no snapshots (snapshot_every_s = 0, or none "
                               "recorded yet)")
@@ -555,7 +583,7 @@ class Sweep:
     def results(self, metrics: Optional[Sequence[str]] = None) -> pd.DataFrame:
         """One row per job: job_id, state, outcome, seed, the swept keys (dotted), then its
         results (NaN for jobs that did not succeed)."""
-        jobs = list(reversed(self._c._list(sweep_id=self.id)))  # in submission order
+        jobs = list(reversed(self._c.job_infos(sweep_id=self.id)))  # in submission order
         q = self._c._call("QueryResults",
                           service_pb2.QueryResultsRequest(sweep_id=self.id, limit=100000,
                                                           names=list(metrics or [])),
@@ -566,7 +594,7 @@ class Sweep:
         names = sorted({n for v in values.values() for n in v})
         rows = []
         for j in jobs:
-            row: Dict[str, Any] = {"job_id": j.id, "state": _state_name(j.state),
+            row: Dict[str, Any] = {"job_id": j.id, "state": state_name(j.state),
                                    "outcome": j.outcome or None, "seed": j.seed}
             for k in self.keys:
                 row[k] = _spec_value(j.spec_json, k)
@@ -586,7 +614,7 @@ class Sweep:
         missing = [k for k in by if k not in df.columns]
         if missing:
             # Keys not swept: read them from each job's spec.
-            jobs = {j.id: j for j in self._c._list(sweep_id=self.id)}
+            jobs = {j.id: j for j in self._c.job_infos(sweep_id=self.id)}
             for k in missing:
                 df[k] = [_spec_value(jobs[i].spec_json, k) for i in df["job_id"]]
                 if df[k].isna().all():

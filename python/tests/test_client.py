@@ -130,13 +130,13 @@ def test_token_auth(tmp_path):
 @pytest.mark.parametrize("token", ["short", "x" * 5000, "good-token-0123456\n", "tok\x00en-0123456789",
                                    "tökén-0123456789abc", "with space 0123456789"])
 def test_tokens_that_cannot_be_sent_are_refused_at_once(token):
-    # Issue 39: binary bytes or a newline made gRPC abort the client; 1 MB broke every call.
+    # Binary bytes or a newline made gRPC abort the client; 1 MB broke every call.
     with pytest.raises(ValueError, match="token"):
         Client("127.0.0.1:1", token=token)
 
 
 def test_a_spec_without_a_size_is_read_to_its_limit_only():
-    # Issue 39: /dev/zero has no size to check first; the client reads at most 1 MiB.
+    # /dev/zero has no size to check first; the client reads at most 1 MiB.
     with Client("127.0.0.1:1") as c, pytest.raises(ValueError, match="more than the 1 MiB"):
         c.submit("/dev/zero")
 
@@ -155,7 +155,7 @@ class _FakeStub:
 
 
 def test_a_damaged_snapshot_is_a_runtime_error_naming_it():
-    # Issue 39: zlib.error escaped Job.export, not one of the client's documented exceptions.
+    # zlib.error escaped Job.export, not one of the client's documented exceptions.
     from activefoam.client import Job
     c = Client("127.0.0.1:1")
     c._stub = _FakeStub([_FakeChunk(b"\x78\x9c not deflate", "zlib")])
@@ -173,7 +173,7 @@ def _vtp_array(text, name):
 
 def test_wait_follows_the_stream_watch_yields_the_samples_snapshot_gives_arrays(client, tmp_path,
                                                                               monkeypatch):
-    # Issue 38 item 3: wait() and Sweep.wait() follow WatchJob instead of polling GetJob;
+    # wait() and Sweep.wait() follow WatchJob instead of polling GetJob;
     # watch() yields the samples as they arrive; snapshot(i) is the mesh as numpy arrays.
     from activefoam.client import Job
 
@@ -213,7 +213,7 @@ def _frames(path) -> int:
 
 
 def test_movie_runs_foam_export_movie_one_frame_a_snapshot(client, tmp_path):
-    # Issue 38 item 2: Job.movie is `foam export --movie` (the CLI's renderer, Debian's ffmpeg).
+    # Job.movie is `foam export --movie` (the CLI's renderer, Debian's ffmpeg).
     import shutil
     if not os.environ.get("FOAM_EXE"):
         pytest.skip("FOAM_EXE does not name a built foam (ctest sets it)")
@@ -221,7 +221,7 @@ def test_movie_runs_foam_export_movie_one_frame_a_snapshot(client, tmp_path):
         pytest.skip("ffmpeg/ffprobe missing (apt-get install ffmpeg)")
     job = client.submit(dict(TINY, duration_s=10))
     assert job.wait(timeout_s=120) == "succeeded"
-    snaps = len(job._results(False).snapshots)
+    snaps = len(job.results_message(False).snapshots)
     assert snaps == 3
     out = job.movie(tmp_path / "cell.mp4", size=(320, 240))
     assert out == tmp_path / "cell.mp4" and out.stat().st_size > 0

@@ -1,4 +1,4 @@
-"""activefoam.power: the effects a trend verdict resolves with n seeds, on synthetic ensembles
+"""activefoam.study.power: the effects a trend verdict resolves with n seeds, on synthetic ensembles
 with known answers."""
 
 import math
@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from activefoam import power as pw
+from activefoam.study import power as pw
 from activefoam import trends
 
 

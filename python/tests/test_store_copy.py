@@ -1,4 +1,4 @@
-"""A foamd store carried to another machine (activefoam.store_copy, `study save-store` /
+"""A foamd store carried to another machine (activefoam.study.store_copy, `study save-store` /
 `restore-store`): a job running when the copy was taken resumes there from its checkpoint."""
 
 import json
@@ -7,8 +7,8 @@ import time
 import pytest
 
 from activefoam import Client
-from activefoam import store_copy as sc
-from activefoam.client import _state_name
+from activefoam.study import store_copy as sc
+from activefoam.client import state_name
 from conftest import TINY_FUSION, Foamd
 
 SPEC = 'seed = 3\nduration_s = 3600\n' + TINY_FUSION
@@ -27,7 +27,7 @@ def _wait(client, jid, pred, timeout=240, cap=1800):
         if (info.state, info.progress) != seen:
             seen, last_move = (info.state, info.progress), now
         assert now - last_move < timeout and now - start < cap, \
-            f"job {jid}: {_state_name(info.state)} at {info.progress:.1%}, unchanged for " \
+            f"job {jid}: {state_name(info.state)} at {info.progress:.1%}, unchanged for " \
             f"{now - last_move:.0f} s ({now - start:.0f} s in all)"
         time.sleep(0.2)
 
@@ -41,7 +41,7 @@ def test_a_running_job_resumes_from_its_checkpoint_in_a_restored_store(tmp_path)
         with Client(a.address) as c:
             (tmp_path / "spec.toml").write_text(SPEC)
             jid = c.submit(tmp_path / "spec.toml").id
-            _wait(c, jid, lambda j: _state_name(j.state) == "running" and j.progress >= 0.1)
+            _wait(c, jid, lambda j: state_name(j.state) == "running" and j.progress >= 0.1)
             # foamd keeps the store to itself while it runs: a copy is refused, naming why.
             with pytest.raises(sc.StoreCopyError, match="in use .*stop foamd first"):
                 sc.save(tmp_path / "a" / "foamd.db", tmp_path / "copy", engine="engine-X")
@@ -65,9 +65,9 @@ def test_a_running_job_resumes_from_its_checkpoint_in_a_restored_store(tmp_path)
     b = Foamd(tmp_path / "b")
     try:
         with Client(b.address) as c:
-            j = _wait(c, jid, lambda j: _state_name(j.state) in ("succeeded", "failed",
+            j = _wait(c, jid, lambda j: state_name(j.state) in ("succeeded", "failed",
                                                                   "cancelled"), timeout=300)
-            assert _state_name(j.state) == "succeeded", j.reason
+            assert state_name(j.state) == "succeeded", j.reason
             samples = c.job(jid).samples()
             assert len(samples) == 3600 // 30 + 1
             assert list(samples["t_s"]) == [30.0 * k for k in range(121)]

@@ -17,6 +17,7 @@ import pandas as pd
 import pytest
 
 from activefoam import study as st
+from activefoam.study import matching, submission
 from conftest import TINY_FUSION
 
 
@@ -453,10 +454,10 @@ def test_runs_match_jobs_by_their_resolved_spec_reduced_keys_included(tmp_path):
                           "xi": eta / (0.5 * r) ** 2, "pa_reduced": None, "tau_gamma_s": None,
                           "l_eta_reduced": None}}
     runs = s.runs()
-    assert st._matches(s, runs[0], resolved)
-    assert not st._matches(s, runs[1], resolved)     # p_a r/2γ = 1 is another run
+    assert matching._matches(s, runs[0], resolved)
+    assert not matching._matches(s, runs[1], resolved)     # p_a r/2γ = 1 is another run
     resolved["seed"] = 8
-    assert not st._matches(s, runs[0], resolved)
+    assert not matching._matches(s, runs[0], resolved)
 
 
 def test_a_job_from_before_a_key_existed_matches_the_keys_default_only(tmp_path):
@@ -476,11 +477,11 @@ def test_a_job_from_before_a_key_existed_matches_the_keys_default_only(tmp_path)
     s = st.load(f)
     old = {"scene": {"kind": "fusion"}, "seed": 1, "numerics": {"dt_s": 0.5}}
     runs = s.runs()
-    assert st._matches(s, runs[0], old)
-    assert not st._matches(s, runs[1], old)
+    assert matching._matches(s, runs[0], old)
+    assert not matching._matches(s, runs[1], old)
     new = {"scene": {"kind": "fusion"}, "seed": 1,
            "numerics": {"contact_max_facing_deg": 60.0, "remesh_on_surface": False}}
-    assert st._matches(s, runs[1], new) and not st._matches(s, runs[0], new)
+    assert matching._matches(s, runs[1], new) and not matching._matches(s, runs[0], new)
 
 
 def test_a_study_leaving_a_changed_default_unset_takes_no_job_at_the_earlier_value(tmp_path):
@@ -502,14 +503,14 @@ def test_a_study_leaving_a_changed_default_unset_takes_no_job_at_the_earlier_val
     old = {"scene": {"kind": "fusion"}, "seed": 1, "numerics": {"dt_s": 0.5}, "cells": {"alpha": 0.5}}
     new = {"scene": {"kind": "fusion"}, "seed": 1, "numerics": {"remesh_on_surface": True},
            "cells": {"alpha": 0.5}}
-    assert not st._matches(s, run, old)
-    assert st._matches(s, run, new)
+    assert not matching._matches(s, run, old)
+    assert matching._matches(s, run, new)
     pinned = tmp_path / "pinned.toml"
     pinned.write_text(f.read_text().replace('scene = "fusion"',
                                             'scene = "fusion"\n"numerics.remesh_on_surface" = false'))
     s = st.load(pinned)
-    assert st._matches(s, s.runs()[0], old)
-    assert not st._matches(s, s.runs()[0], new)
+    assert matching._matches(s, s.runs()[0], old)
+    assert not matching._matches(s, s.runs()[0], new)
     # Set in the base spec instead: the job's value is the base's, whatever it is; named in a
     # comment only, it is not set.
     (tmp_path / "base.toml").write_text('scene = "fusion"\n[numerics]\nremesh_on_surface = false\n')
@@ -525,7 +526,7 @@ def test_a_study_leaving_a_changed_default_unset_takes_no_job_at_the_earlier_val
             "cells.alpha" = [0.5]
             """))
         s = st.load(f)
-        assert st._matches(s, s.runs()[0], old) == takes_old, base
+        assert matching._matches(s, s.runs()[0], old) == takes_old, base
 
 
 def test_fitness_judges_a_candidate_of_a_second_grid_against_the_first_grids_reference(tmp_path):
@@ -611,7 +612,7 @@ def test_fitness_judges_a_candidate_of_a_second_grid_against_the_first_grids_ref
 
 
 def test_a_failed_reference_leaves_its_seed_out_and_the_rest_are_read_in_pairs(tmp_path):
-    """Step fitness's design (docs/science/presets.md, session 35): 10 seeds a side, the
+    """Step fitness's design: 10 seeds a side, the
     reference of seed 6 failed in the simulation. The calibrated test relabels within the 9 seed
     pairs both sides ended (2^9), the candidate's unpartnered seed 6 left out; the failure is
     listed with its kind and time. With 5 shared seeds it splits all the runs, as before."""
@@ -703,13 +704,15 @@ class _FakeFoamd:
     def add(self, tag, job):
         self.jobs.setdefault(tag, []).append(job)
 
-    def _list(self, tag):
+    def job_infos(self, tag):
         return list(self.jobs.get(tag, []))
 
-    def _call(self, method, req, what):
-        assert method == "SubmitJob"
+    def submit(self, base, tags, priority, idempotency_key, overrides):
+        from activefoam.client import setting
+        settings = [setting(k, v) for k, v in overrides.items()]
+        (tag,) = tags
         spec = {"cells": dict(self.defaults), "numerics": {"remesh_on_surface": True}}
-        for s in req.settings:
+        for s in settings:
             k, v = s.split("=", 1)
             node = spec
             *path, leaf = k.split(".")
@@ -718,13 +721,13 @@ class _FakeFoamd:
             node[leaf] = (json.loads(v) if v[0].isdigit() or v[0] == "-" or v in ("true", "false")
                           else v)
         jid = f"j-{len(self.submitted):04d}"
-        self.add(req.tag, _FakeJob(jid, spec["seed"], spec, state="QUEUED"))
-        self.submitted.append(dict(s.split("=", 1) for s in req.settings))
-        self.submitted[-1]["tag"] = req.tag
-        self.submitted[-1]["key"] = req.idempotency_key
+        self.add(tag, _FakeJob(jid, spec["seed"], spec, state="QUEUED"))
+        self.submitted.append(dict(s.split("=", 1) for s in settings))
+        self.submitted[-1]["tag"] = tag
+        self.submitted[-1]["key"] = idempotency_key
 
         class R:
-            created, job_id = True, jid
+            created, id = True, jid
         return R()
 
 
@@ -770,7 +773,7 @@ def test_a_shared_point_takes_the_other_studys_job_and_is_not_run_again(tmp_path
     # τ_p = 150 at both seeds runs; τ_p = 600 is the α study's α = 0.4375 run of each seed.
     assert (n, held) == (2, 2)
     assert sorted(s["cells.tau_p_s"] for s in foamd.submitted) == ["150", "150"]
-    found, source, _ = st._run_jobs(taup, foamd)
+    found, source, _ = matching._run_jobs(taup, foamd)
     shared = [i for i, r in enumerate(taup.runs()) if r.point["cells.tau_p_s"] == 600]
     assert sorted(source) == shared and set(source.values()) == {"alpha"}
     assert [found[i][0].id for i in shared] == ["j-a0.4375-1", "j-a0.4375-2"]
@@ -790,7 +793,7 @@ def test_a_shared_run_whose_job_was_cancelled_is_submitted_as_the_other_studys(t
         ("study:alpha", None, "0.4375", "2"),
         ("study:taup", "150", None, "1"), ("study:taup", "150", None, "2")]
     assert next(s["key"] for s in foamd.submitted if s["tag"] == "study:alpha").endswith(":1")
-    found, source, _ = st._run_jobs(taup, foamd)
+    found, source, _ = matching._run_jobs(taup, foamd)
     shared = [i for i, r in enumerate(taup.runs()) if r.point["cells.tau_p_s"] == 600]
     assert all(source[i] == "alpha" for i in shared)
 
@@ -829,7 +832,7 @@ def test_a_shared_run_submitted_before_its_owner_is_the_owners_and_runs_once(tmp
     assert sorted(s["cells.alpha"] for s in foamd.submitted[4:]) == ["0.6", "0.6"]
     # Each study sees every one of its runs once, and nothing more is submitted.
     for study in (taup, alpha):
-        found, _, stale = st._run_jobs(study, foamd)
+        found, _, stale = matching._run_jobs(study, foamd)
         assert sorted(found) == list(range(len(study.runs()))) and not stale
         assert all(len(js) == 1 for js in found.values())
         assert st.submit_missing(study, foamd) == (0, 4)
@@ -847,7 +850,7 @@ def test_a_shared_run_whose_own_job_was_cancelled_takes_the_other_studys_job(tmp
                     "numerics": {"remesh_on_surface": True}}
             foamd.add("study:taup", _FakeJob(f"j-t{tau}-{seed}", seed, spec, state=state))
     assert st.submit_missing(taup, foamd) == (0, 4)
-    found, source, _ = st._run_jobs(taup, foamd)
+    found, source, _ = matching._run_jobs(taup, foamd)
     shared = [i for i, r in enumerate(taup.runs()) if r.point["cells.tau_p_s"] == 600]
     assert [found[i][0].id for i in shared] == ["j-a0.4375-1", "j-a0.4375-2"]
     assert all(source[i] == "alpha" for i in shared)
@@ -896,7 +899,7 @@ def test_a_point_shared_with_two_studies_by_seed_takes_each_ones_job(tmp_path):
     assert st.submit_missing(taup, foamd) == (3, 3)
     assert sorted((s["tag"], s["cells.tau_p_s"], s["seed"]) for s in foamd.submitted) == [
         ("study:taup", "150", "1"), ("study:taup", "150", "2"), ("study:taup", "150", "3")]
-    found, source, _ = st._run_jobs(taup, foamd)
+    found, source, _ = matching._run_jobs(taup, foamd)
     shared = {taup.runs()[i].seed: (found[i][0].id, source[i]) for i in source}
     assert shared == {1: ("j-a0.4375-1", "alpha"), 2: ("j-a0.4375-2", "alpha"),
                       3: ("j-b0.4375-3", "beta")}
@@ -1014,7 +1017,7 @@ def test_an_earlier_stores_ended_runs_count_as_done_and_are_reported_with_the_st
     assert st.submit_missing(study, foamd, carried=carried) == (1, 3)
     assert [(s["seed"], s["cells.alpha"]) for s in foamd.submitted] == [("2", "0.4375")]
     assert st.submit_missing(study, foamd, carried=carried) == (0, 4)
-    counts, frac, _ = st._progress(study, foamd, carried)
+    counts, frac, _ = submission._progress(study, foamd, carried)
     assert counts == {"succeeded": 2, "failed": 1, "queued": 1}
     # --retry-failed runs the carried failure again.
     foamd2 = _FakeFoamd({"alpha": 0.4375})
@@ -1076,8 +1079,7 @@ def test_carried_runs_whose_settings_changed_or_of_another_study_are_not_taken(t
 
 def test_found_80_scales_the_pairs_sd_and_is_left_out_when_the_test_did_not_pair(tmp_path,
                                                                                 monkeypatch):
-    from activefoam import power
-    from activefoam import study as st
+    from activefoam.study import power
     f = tmp_path / "pairs.toml"
     f.write_text(textwrap.dedent("""\
         [study]
@@ -1185,7 +1187,7 @@ def test_a_run_that_failed_in_the_simulation_is_rerun_once_per_diagnosis_naming_
     assert all(s["tag"] == "diag:alpha" and s["seed"] == "1" for s in foamd.submitted)
     assert out.getvalue().count("submitted") == 3
     # Each rerun matches its run and diagnosis; run again, nothing more.
-    diag = st._diag_jobs(study, foamd)
+    diag = matching._diag_jobs(study, foamd)
     runs = study.runs()
     assert {(runs[i].point["cells.alpha"], name) for i, ds in diag.items() for name in ds} == {
         (0.4375, "keep-out"), (0.4375, "reference-step"), (0.6, "reference-step")}
@@ -1225,7 +1227,7 @@ def test_a_diagnosis_whose_numerics_the_run_already_had_is_not_rerun(tmp_path):
     assert all(s["cells.alpha"] == "0.4375" for s in foamd.submitted)
     assert "cells.alpha=0.6, seed 1 failed (volume-drift): diagnosis 'reference-step' " + \
         st.NOOP_TEXT + " (numerics.cg_tol)" in out.getvalue()
-    foamd.job = lambda jid: type("J", (), {"_results": lambda self, _: _NoResults()})()
+    foamd.job = lambda jid: type("J", (), {"results_message": lambda self, _: _NoResults()})()
     for j in foamd.jobs["diag:alpha"]:
         j.reason, j.outcome, j.progress, j.t_s = "", "", 0.0, 0.0
         j.state = job_pb2.JobState.Value("JOB_STATE_QUEUED")
@@ -1239,7 +1241,7 @@ class _NoResults:
 
 
 def test_a_failure_a_diagnosis_ran_past_is_reported_and_left_out_of_the_failed_verdict(tmp_path):
-    from activefoam import verdicts
+    from activefoam.study import verdicts
     from activefoam.v1 import job_pb2
     study = _diagnosed_study(tmp_path)
     foamd = _FakeFoamd({"alpha": 0.4375})
@@ -1257,7 +1259,7 @@ def test_a_failure_a_diagnosis_ran_past_is_reported_and_left_out_of_the_failed_v
             j.failure_kind = "interpenetration"
         else:
             j.state, j.t_s = job_pb2.JobState.Value("JOB_STATE_RUNNING"), 96.0
-    foamd.job = lambda jid: type("J", (), {"_results": lambda self, _: _NoResults()})()
+    foamd.job = lambda jid: type("J", (), {"results_message": lambda self, _: _NoResults()})()
     out = st.collect(study, foamd, tmp_path / "report" / "data")
     runs = pd.read_csv(out / "runs.csv")
     a, b = (runs[(runs["seed"] == 1) & (runs["cells.alpha"] == x)].iloc[0] for x in (0.4375, 0.6))
@@ -1279,16 +1281,16 @@ def test_a_failure_a_diagnosis_ran_past_is_reported_and_left_out_of_the_failed_v
 
 
 def test_retry_failed_takes_every_kind_or_the_named_ones_and_refuses_unknown_kinds():
-    assert st._retry_kinds(None) is False
-    assert st._retry_kinds("preparation-failed, volume-drift") == {"preparation-failed",
+    assert submission._retry_kinds(None) is False
+    assert submission._retry_kinds("preparation-failed, volume-drift") == {"preparation-failed",
                                                                    "volume-drift"}
     for bad in ("prep-failed", "volume-drift,engine-error", ","):
         with pytest.raises(st.StudyError, match="--retry-kinds: .*allowed: .*preparation-failed"):
-            st._retry_kinds(bad)
+            submission._retry_kinds(bad)
     prep = [_FakeJob("j-1", 4, {}, state="FAILED", failure_kind="preparation-failed")]
     drift = [_FakeJob("j-2", 4, {}, state="FAILED", failure_kind="volume-drift")]
     lost = [_FakeJob("j-3", 4, {}, state="FAILED", failure_kind="engine-error")]
-    assert not st._needs_job(prep, False) and st._needs_job(prep, True)
-    assert st._needs_job(prep, {"preparation-failed"})
-    assert not st._needs_job(drift, {"preparation-failed"})
-    assert st._needs_job(lost, {"preparation-failed"}) and st._needs_job(lost, False)
+    assert not submission._needs_job(prep, False) and submission._needs_job(prep, True)
+    assert submission._needs_job(prep, {"preparation-failed"})
+    assert not submission._needs_job(drift, {"preparation-failed"})
+    assert submission._needs_job(lost, {"preparation-failed"}) and submission._needs_job(lost, False)

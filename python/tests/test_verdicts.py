@@ -1,4 +1,4 @@
-"""The verdict table (activefoam.verdicts) on synthetic study data with known answers."""
+"""The verdict table (activefoam.study.verdicts) on synthetic study data with known answers."""
 
 import json
 import subprocess
@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from activefoam import study as st
-from activefoam import verdicts as vd
+from activefoam.study import verdicts as vd
 
 STUDY = """\
 [study]

@@ -1,7 +1,7 @@
 """A copy of a foamd store that a study can continue from on another machine.
 
 A study's runs live in foamd's SQLite store: jobs, samples, results, and each running job's last
-checkpoint. Where the machine does not outlive the work (a cloud node, a session's sandbox, a
+checkpoint. Where the machine does not outlive the work (a cloud node, a sandbox, a
 cluster allocation), `save` writes a copy of the store and of its prepared spheroids to a folder;
 `restore` puts them back under a new database path. foamd started there resumes the jobs that
 were running from their checkpoints; finished runs are not run again.
@@ -69,9 +69,9 @@ def _counts(db: Path) -> Dict[str, Any]:
         total = con.execute("SELECT count(*) FROM jobs").fetchone()[0]
     finally:
         con.close()
-    from activefoam.client import _state_name
+    from activefoam.client import state_name
     return {"jobs": total, "checkpoints": ckpt,
-            "by_state": {_state_name(int(s)): n for s, n in sorted(jobs.items())}}
+            "by_state": {state_name(int(s)): n for s, n in sorted(jobs.items())}}
 
 
 def _replace(src: Path, dst: Path) -> None:

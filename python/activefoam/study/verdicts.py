@@ -32,15 +32,20 @@ from __future__ import annotations
 import json
 import math
 import os
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
 
-from activefoam import study as st
+try:
+    import tomllib  # Python >= 3.11
+except ModuleNotFoundError:  # pragma: no cover - Python 3.9/3.10: the tomli package
+    import tomli as tomllib  # type: ignore
+
 from activefoam import trends
+from activefoam.study import studyfile as sf
+from activefoam.study.data import _ran_past, load_data
 
 TREND_KEYS = {"figure", "statement", "source", "study", "metric", "expect", "low", "high", "per",
               "band", "band_rel", "value"}
@@ -54,7 +59,7 @@ class TrendSpec:
     figure: str
     statement: str
     source: str
-    study: st.Study
+    study: sf.Study
     metric: str
     expect: str
     low: Dict[str, Any] = field(default_factory=dict)
@@ -69,71 +74,71 @@ def load(path: os.PathLike) -> List[TrendSpec]:
     """Reads and checks a verdicts file; StudyError names the entry and key."""
     p = Path(path)
     if not p.is_file():
-        raise st.StudyError(f"verdicts: no such file {str(p)!r}")
+        raise sf.StudyError(f"verdicts: no such file {str(p)!r}")
     try:
         doc = tomllib.loads(p.read_text())
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise st.StudyError(f"verdicts: {p}: not TOML: {e}") from None
-    st._unknown(doc, {"trend"}, "")
+        raise sf.StudyError(f"verdicts: {p}: not TOML: {e}") from None
+    sf._unknown(doc, {"trend"}, "")
     items = doc.get("trend")
     if not isinstance(items, list) or not items:
-        raise st.StudyError("trend: at least one [[trend]] table")
-    studies: Dict[Path, st.Study] = {}
+        raise sf.StudyError("trend: at least one [[trend]] table")
+    studies: Dict[Path, sf.Study] = {}
     out = []
     for i, t in enumerate(items):
         w = f"trend[{i}]"
         if not isinstance(t, dict):
-            raise st.StudyError(f"{w}: a table")
-        st._unknown(t, TREND_KEYS, f"{w}.")
+            raise sf.StudyError(f"{w}: a table")
+        sf._unknown(t, TREND_KEYS, f"{w}.")
         for k in ("figure", "statement", "study", "metric", "expect"):
             if not isinstance(t.get(k), str) or not t[k]:
-                raise st.StudyError(f"{w}.{k}: a non-empty string, got {t.get(k)!r}")
+                raise sf.StudyError(f"{w}.{k}: a non-empty string, got {t.get(k)!r}")
         if t["expect"] not in EXPECT:
-            raise st.StudyError(f"{w}.expect: one of {', '.join(EXPECT)}, got {t['expect']!r}")
+            raise sf.StudyError(f"{w}.expect: one of {', '.join(EXPECT)}, got {t['expect']!r}")
         source = t.get("source", "caption")
         if source not in SOURCES:
-            raise st.StudyError(f"{w}.source: one of {', '.join(SOURCES)}, got {source!r}")
-        if t["metric"] != "failed" and t["metric"] not in st.METRICS:
-            raise st.StudyError(f"{w}.metric: 'failed' or one of {', '.join(st.METRICS)}"
-                                f"{st._closest(t['metric'], list(st.METRICS) + ['failed'])}, "
+            raise sf.StudyError(f"{w}.source: one of {', '.join(SOURCES)}, got {source!r}")
+        if t["metric"] != "failed" and t["metric"] not in sf.METRICS:
+            raise sf.StudyError(f"{w}.metric: 'failed' or one of {', '.join(sf.METRICS)}"
+                                f"{sf._closest(t['metric'], list(sf.METRICS) + ['failed'])}, "
                                 f"got {t['metric']!r}")
         sp = (p.parent / t["study"]).resolve()
         if sp not in studies:
             try:
-                studies[sp] = st.load(sp)
-            except st.StudyError as e:
-                raise st.StudyError(f"{w}.study: {e}") from None
+                studies[sp] = sf.load(sp)
+            except sf.StudyError as e:
+                raise sf.StudyError(f"{w}.study: {e}") from None
         study = studies[sp]
         keys = study.swept_keys()
         spec = TrendSpec(i, t["figure"], t["statement"], source, study, t["metric"], t["expect"])
         for side in ("low", "high"):
             v = t.get(side, {})
             if not isinstance(v, dict):
-                raise st.StudyError(f"{w}.{side}: a table of KEY = value")
+                raise sf.StudyError(f"{w}.{side}: a table of KEY = value")
             for k in v:
                 if k not in keys:
-                    raise st.StudyError(f"{w}.{side}.{k}: not a grid key of {study.name}"
-                                        f"{st._closest(k, keys)}; grid keys: {', '.join(keys)}")
+                    raise sf.StudyError(f"{w}.{side}.{k}: not a grid key of {study.name}"
+                                        f"{sf._closest(k, keys)}; grid keys: {', '.join(keys)}")
             setattr(spec, side, dict(v))
         if not spec.high:
-            raise st.StudyError(f"{w}.high: the ensemble judged (a table of KEY = value)")
+            raise sf.StudyError(f"{w}.high: the ensemble judged (a table of KEY = value)")
         if spec.expect in ("increase", "decrease", "none", "report") and not spec.low:
-            raise st.StudyError(f"{w}.low: the ensemble compared against (a table of KEY = value)")
+            raise sf.StudyError(f"{w}.low: the ensemble compared against (a table of KEY = value)")
         per = t.get("per", "")
         if per and per not in keys:
-            raise st.StudyError(f"{w}.per: not a grid key of {study.name}{st._closest(per, keys)}")
+            raise sf.StudyError(f"{w}.per: not a grid key of {study.name}{sf._closest(per, keys)}")
         spec.per = per
         for k in ("band", "band_rel", "value"):
             if k in t:
                 if not isinstance(t[k], (int, float)) or isinstance(t[k], bool) or \
                         not math.isfinite(t[k]) or (k != "value" and t[k] < 0):
-                    raise st.StudyError(f"{w}.{k}: a finite number{' ≥ 0' if k != 'value' else ''}"
+                    raise sf.StudyError(f"{w}.{k}: a finite number{' ≥ 0' if k != 'value' else ''}"
                                         f", got {t[k]!r}")
                 setattr(spec, k, float(t[k]))
         if spec.expect in ("below", "above") and spec.value is None:
-            raise st.StudyError(f"{w}.value: the level that '{spec.expect}' compares with")
+            raise sf.StudyError(f"{w}.value: the level that '{spec.expect}' compares with")
         if spec.expect == "none" and spec.band is None and spec.band_rel is None:
-            raise st.StudyError(f"{w}.band: 'none' needs band (absolute) or band_rel (relative to "
+            raise sf.StudyError(f"{w}.band: 'none' needs band (absolute) or band_rel (relative to "
                                 "the low median)")
         out.append(spec)
     return out
@@ -144,7 +149,7 @@ def _select(runs: Any, point: Dict[str, Any]) -> Any:
     for k, v in point.items():
         if k not in sel:
             return runs.iloc[0:0]
-        sel = sel[[st._same(x, v) for x in sel[k]]]
+        sel = sel[[sf._same(x, v) for x in sel[k]]]
     return sel
 
 
@@ -192,7 +197,7 @@ def _runs_by_study(items: List[TrendSpec], data_root: os.PathLike) -> Dict[str, 
     for t in items:
         if t.study.name not in out:
             d = Path(data_root) / t.study.name / "data"
-            out[t.study.name] = st.load_data(t.study, d).runs if (d / "runs.csv").is_file() \
+            out[t.study.name] = load_data(t.study, d).runs if (d / "runs.csv").is_file() \
                 else None
     return out
 
@@ -229,7 +234,7 @@ def _values(runs: Any, point: Dict[str, Any], metric: str) -> List[float]:
         return []
     if metric == "failed":
         failed = _simulation_failed(sel)
-        ok = (sel["state"] == "succeeded") & ~st._ran_past(sel)
+        ok = (sel["state"] == "succeeded") & ~_ran_past(sel)
         return [1.0 if f else 0.0 for f, o in zip(failed, ok) if f or o]
     if metric not in sel:
         return []
@@ -248,11 +253,11 @@ def _no_value(runs: Any, point: Dict[str, Any], metric: str) -> int:
 
 def _simulation_failed(sel: Any) -> Any:
     """Per run: failed in the simulation itself (the supplement's hatched cells). A failure a
-    diagnosis rerun ran past (study.py, [[diagnose]]) is those numerics', not the point's: left
+    diagnosis rerun ran past (the study file's [[diagnose]]) is those numerics', not the point's: left
     out, as a run that did not end."""
     kind = sel["failure_kind"].fillna("") if "failure_kind" in sel else ""
-    return ((sel["state"] == "failed") & kind.isin(st.SIMULATION_FAILURES)
-            & ~st._ran_past(sel))
+    return ((sel["state"] == "failed") & kind.isin(sf.SIMULATION_FAILURES)
+            & ~_ran_past(sel))
 
 
 def _failed_and_pending(runs: Any, point: Dict[str, Any]) -> Tuple[int, int]:
@@ -302,7 +307,7 @@ def evaluate(items: List[TrendSpec], data_root: os.PathLike,
             pers = []
             for pt in t.study.points():
                 v = pt.get(t.per)
-                if v is not None and not any(st._same(v, w) for w in pers):
+                if v is not None and not any(sf._same(v, w) for w in pers):
                     pers.append(v)
         for pv in pers:
             low = dict(t.low, **({t.per: pv} if t.per else {}))

@@ -1,5 +1,5 @@
-"""How large an effect a trend verdict can resolve with n seeds a point (issue 35: ensembles sized
-from the measured spread).
+"""How large an effect a trend verdict can resolve with n seeds a point (ensembles sized from the
+measured spread).
 
 A verdict (activefoam.trends.trend) calls a trend *agrees* when the bootstrap interval of the
 difference of medians excludes 0 on the supplement's side. With few seeds that needs an effect
@@ -13,7 +13,7 @@ statements, the probability that two equal ensembles are judged *agrees*.
 The ensembles are modelled as normal with σ = IQR / 1.349 (the IQR of a normal), the IQR
 measured on the reduced base point. Run it on a study's data:
 
-    python3 -m activefoam.power STUDY.toml --data DIR --point KEY=VALUE [...] --out FILE.md
+    python3 -m activefoam.study power STUDY.toml --data DIR --point KEY=VALUE [...] --out FILE.md
 """
 
 from __future__ import annotations
@@ -21,11 +21,15 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
 
 from activefoam import trends
+from activefoam.study.data import load_data
+from activefoam.study.matching import _py
+from activefoam.study.studyfile import FITNESS_METRICS, _same, load
 
 IQR_OF_NORMAL = 1.3489795  # the IQR of a standard normal
 
@@ -238,10 +242,7 @@ def _value(text: str):
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    from pathlib import Path
-
-    from activefoam import study as st
-    ap = argparse.ArgumentParser(prog="python3 -m activefoam.power", description=__doc__.split(
+    ap = argparse.ArgumentParser(prog="python3 -m activefoam.study power", description=__doc__.split(
         "\n\n")[0])
     ap.add_argument("study", nargs="?", help="the study file whose data is read")
     ap.add_argument("--data", help="its report's data folder")
@@ -255,14 +256,14 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                     help="with --pairs: the times (s)")
     ap.add_argument("--point", action="append", default=[], metavar="KEY=VALUE",
                     help="the runs to take (the base point), repeatable")
-    ap.add_argument("--metrics", default=",".join(st.FITNESS_METRICS + ["mixing_time_s"]))
+    ap.add_argument("--metrics", default=",".join(FITNESS_METRICS + ["mixing_time_s"]))
     ap.add_argument("--trials", type=int, default=400)
     ap.add_argument("--out", required=True, help="markdown table to write")
     args = ap.parse_args(argv)
     if args.fitness_rule:
         lines = ["The fitness rule |Δ median| < IQR/2 on synthetic normal ensembles (pass "
                  f"rates from 20 000 draws, the calibrated test's from {args.trials} trials a "
-                 f"cell; `python3 -m activefoam.power --fitness-rule --trials {args.trials} "
+                 f"cell; `python3 -m activefoam.study power --fitness-rule --trials {args.trials} "
                  "--out FILE`)", ""] + fitness_rule_table(
                      trials=args.trials)
         Path(args.out).write_text("\n".join(lines) + "\n")
@@ -270,8 +271,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return 0
     if not args.study or not args.data:
         ap.error("a study file and --data are needed (or --fitness-rule)")
-    study = st.load(args.study)
-    data = st.load_data(study, args.data)
+    study = load(args.study)
+    data = load_data(study, args.data)
     if args.pairs:
         keys = [k for k in args.pairs.split(",") if k]
         missing = [k for k in keys if k not in data.runs]
@@ -285,7 +286,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             print(f"error: --pairs: {e}", file=sys.stderr)
             return 2
         lines = [f"The two runs of a seed under the two settings of {', '.join(keys)}: "
-                 f"{study.name} (`python3 -m activefoam.power {args.study} --data {args.data} "
+                 f"{study.name} (`python3 -m activefoam.study power {args.study} --data {args.data} "
                  f"--pairs {args.pairs} --out FILE`)", "",
                  "| t (h) | seeds | correlation of θ across seeds | median \\|θ₁ − θ₂\\| "
                  "within a seed (°) | SD of θ across seeds (°) |", "|---|---|---|---|---|"]
@@ -301,7 +302,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if key not in runs:
             print(f"error: --point {p}: no column {key!r} in the data", file=sys.stderr)
             return 2
-        runs = runs[[st._same(st._py(v), _value(value)) for v in runs[key]]]
+        runs = runs[[_same(_py(v), _value(value)) for v in runs[key]]]
     metrics = [m for m in args.metrics.split(",") if m]
     rows = table({m: list(runs[m]) for m in metrics}, trials=args.trials)
     lines = [f"Seed-to-seed spread and resolvable effects: {study.name}, "

@@ -1,0 +1,1 @@
+"""The gRPC stubs of activefoam.v1, generated from proto/ (scripts/python-stubs.sh)."""
