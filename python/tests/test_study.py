@@ -449,7 +449,8 @@ def test_runs_match_jobs_by_their_resolved_spec_reduced_keys_included(tmp_path):
     s = st.load(f)
     r, g = 8.88, 0.5
     eta = 10 * g
-    resolved = {"scene": {"kind": "fusion"}, "seed": 7, "numerics": {"remesh_on_surface": True},
+    resolved = {"scene": {"kind": "fusion", "polarity_from_preparation": True}, "seed": 7,
+                "numerics": {"remesh_on_surface": True},
                 "cells": {"p_a": 0.33 * 2 * g / r, "radius_mean_um": r, "gamma": g, "eta": eta,
                           "xi": eta / (0.5 * r) ** 2, "pa_reduced": None, "tau_gamma_s": None,
                           "l_eta_reduced": None}}
@@ -470,7 +471,9 @@ def test_a_job_from_before_a_key_existed_matches_the_keys_default_only(tmp_path)
         seeds = [1]
         [spec]
         scene = "fusion"
+        "numerics.dt_s" = 0.5
         "numerics.remesh_on_surface" = false  # the remeshing of the jobs before both keys
+        "scene.polarity_from_preparation" = false  # and their polarities
         [[grid]]
         "numerics.contact_max_facing_deg" = [90, 60]
         """))
@@ -480,7 +483,7 @@ def test_a_job_from_before_a_key_existed_matches_the_keys_default_only(tmp_path)
     assert matching._matches(s, runs[0], old)
     assert not matching._matches(s, runs[1], old)
     new = {"scene": {"kind": "fusion"}, "seed": 1,
-           "numerics": {"contact_max_facing_deg": 60.0, "remesh_on_surface": False}}
+           "numerics": {"contact_max_facing_deg": 60.0, "remesh_on_surface": False, "dt_s": 0.5}}
     assert matching._matches(s, runs[1], new) and not matching._matches(s, runs[0], new)
 
 
@@ -495,25 +498,29 @@ def test_a_study_leaving_a_changed_default_unset_takes_no_job_at_the_earlier_val
         seeds = [1]
         [spec]
         scene = "fusion"
+        "numerics.dt_s" = 0.5
         [[grid]]
         "cells.alpha" = [0.5]
         """))
     s = st.load(f)
     run = s.runs()[0]
     old = {"scene": {"kind": "fusion"}, "seed": 1, "numerics": {"dt_s": 0.5}, "cells": {"alpha": 0.5}}
-    new = {"scene": {"kind": "fusion"}, "seed": 1, "numerics": {"remesh_on_surface": True},
+    new = {"scene": {"kind": "fusion", "polarity_from_preparation": True}, "seed": 1,
+           "numerics": {"remesh_on_surface": True, "dt_s": 0.5},
            "cells": {"alpha": 0.5}}
     assert not matching._matches(s, run, old)
     assert matching._matches(s, run, new)
     pinned = tmp_path / "pinned.toml"
     pinned.write_text(f.read_text().replace('scene = "fusion"',
-                                            'scene = "fusion"\n"numerics.remesh_on_surface" = false'))
+                                            'scene = "fusion"\n"numerics.remesh_on_surface" = false'
+                                            '\n"scene.polarity_from_preparation" = false'))
     s = st.load(pinned)
     assert matching._matches(s, s.runs()[0], old)
     assert not matching._matches(s, s.runs()[0], new)
     # Set in the base spec instead: the job's value is the base's, whatever it is; named in a
     # comment only, it is not set.
-    (tmp_path / "base.toml").write_text('scene = "fusion"\n[numerics]\nremesh_on_surface = false\n')
+    (tmp_path / "base.toml").write_text('[numerics]\nremesh_on_surface = false\ndt_s = 0.5\n'
+                                        '[scene]\nkind = "fusion"\npolarity_from_preparation = false\n')
     (tmp_path / "comment.toml").write_text('scene = "fusion"  # not remesh_on_surface\n')
     for base, takes_old in (("base.toml", True), ("comment.toml", False)):
         f = tmp_path / f"with-{base}"
@@ -711,7 +718,8 @@ class _FakeFoamd:
         from activefoam.client import setting
         settings = [setting(k, v) for k, v in overrides.items()]
         (tag,) = tags
-        spec = {"cells": dict(self.defaults), "numerics": {"remesh_on_surface": True}}
+        spec = {"cells": dict(self.defaults), "numerics": {"remesh_on_surface": True},
+                "scene": {"polarity_from_preparation": True}}
         for s in settings:
             k, v = s.split("=", 1)
             node = spec
@@ -760,7 +768,8 @@ def _alpha_jobs(foamd, states=("SUCCEEDED", "SUCCEEDED"), tau_p=600):
     for seed, state in zip((1, 2), states):
         for a in (0.4375, 0.6):
             spec = {"seed": seed, "duration_s": 240, "cells": {"alpha": a, "tau_p_s": tau_p},
-                    "numerics": {"remesh_on_surface": True}}  # as today's foamd echoes it
+                    "numerics": {"remesh_on_surface": True},  # as today's foamd echoes it
+                    "scene": {"polarity_from_preparation": True}}
             foamd.add("study:alpha", _FakeJob(f"j-a{a}-{seed}", seed, spec, state=state))
 
 
@@ -807,7 +816,8 @@ def test_cancelled_jobs_are_no_failed_attempts(tmp_path):
     for seed in (1, 2):
         for a, state, kind in ((0.4375, "CANCELLED", ""), (0.6, "FAILED", "engine-error")):
             spec = {"seed": seed, "duration_s": 240, "cells": {"alpha": a, "tau_p_s": 600},
-                    "numerics": {"remesh_on_surface": True}}
+                    "numerics": {"remesh_on_surface": True},
+                    "scene": {"polarity_from_preparation": True}}
             for k in range(st.MAX_ATTEMPTS):
                 foamd.add("study:alpha", _FakeJob(f"j-{a}-{seed}-{k}", seed, spec, state=state,
                                                   failure_kind=kind))
@@ -847,7 +857,8 @@ def test_a_shared_run_whose_own_job_was_cancelled_takes_the_other_studys_job(tmp
     for seed in (1, 2):
         for tau, state in ((150, "SUCCEEDED"), (600, "CANCELLED")):
             spec = {"seed": seed, "duration_s": 240, "cells": {"alpha": 0.4375, "tau_p_s": tau},
-                    "numerics": {"remesh_on_surface": True}}
+                    "numerics": {"remesh_on_surface": True},
+                    "scene": {"polarity_from_preparation": True}}
             foamd.add("study:taup", _FakeJob(f"j-t{tau}-{seed}", seed, spec, state=state))
     assert st.submit_missing(taup, foamd) == (0, 4)
     found, source, _ = matching._run_jobs(taup, foamd)
@@ -894,7 +905,7 @@ def test_a_point_shared_with_two_studies_by_seed_takes_each_ones_job(tmp_path):
     foamd = _FakeFoamd({"alpha": 0.4375, "tau_p_s": 600})
     _alpha_jobs(foamd)
     spec = {"seed": 3, "duration_s": 240, "cells": {"alpha": 0.4375, "tau_p_s": 600},
-            "numerics": {"remesh_on_surface": True}}
+            "numerics": {"remesh_on_surface": True}, "scene": {"polarity_from_preparation": True}}
     foamd.add("study:beta", _FakeJob("j-b0.4375-3", 3, spec))
     assert st.submit_missing(taup, foamd) == (3, 3)
     assert sorted((s["tag"], s["cells.tau_p_s"], s["seed"]) for s in foamd.submitted) == [
@@ -1161,7 +1172,8 @@ def _diagnosed_jobs(foamd):
     for seed in (1, 2):
         for a in (0.4375, 0.6):
             spec = {"seed": seed, "duration_s": 240, "cells": {"alpha": a},
-                    "numerics": {"remesh_on_surface": True, "dt_s": 1.0}}
+                    "numerics": {"remesh_on_surface": True, "dt_s": 1.0},
+                    "scene": {"polarity_from_preparation": True}}
             kind = ("" if seed == 2 else "interpenetration" if a == 0.4375 else "volume-drift")
             j = _FakeJob(f"j-{a}-{seed}", seed, spec, state="FAILED" if kind else "SUCCEEDED",
                          failure_kind=kind)
@@ -1207,26 +1219,26 @@ def test_a_run_that_failed_in_the_simulation_is_rerun_once_per_diagnosis_naming_
 
 
 def test_a_diagnosis_whose_numerics_the_run_already_had_is_not_rerun(tmp_path):
-    # The failed run's resolved spec already has the diagnosis's values (here from a preset the
+    # The failed run's resolved spec already has the diagnosis's values (here a CG limit the
     # study file does not show): the rerun would be the same run, failing bit for bit.
     from activefoam.v1 import job_pb2
     study = _diagnosed_study(tmp_path)
     f = study.path
     f.write_text(f.read_text().replace('spec = { "numerics.dt_s" = 0.25 }',
-                                       'spec = { "numerics.cg_tol" = 0.001 }'))
+                                       'spec = { "numerics.cg_max_iter" = 2000 }'))
     study = st.load(f)
     foamd = _FakeFoamd({"alpha": 0.4375})
     _diagnosed_jobs(foamd)
     for j in foamd.jobs["study:alpha"]:
         spec = json.loads(j.spec_json)
-        # The volume drift's run had ε_CG 1e-3 already; the interpenetration's 1e-2.
-        spec["numerics"]["cg_tol"] = 0.001 if spec["cells"]["alpha"] == 0.6 else 0.01
+        # The volume drift's run had 2000 CG iterations already; the interpenetration's 1000.
+        spec["numerics"]["cg_max_iter"] = 2000 if spec["cells"]["alpha"] == 0.6 else 1000
         j.spec_json = json.dumps(spec)
     out = io.StringIO()
     assert st.submit_diagnoses(study, foamd, out=out) == 2  # α 0.4375's two, not α 0.6's
     assert all(s["cells.alpha"] == "0.4375" for s in foamd.submitted)
     assert "cells.alpha=0.6, seed 1 failed (volume-drift): diagnosis 'reference-step' " + \
-        st.NOOP_TEXT + " (numerics.cg_tol)" in out.getvalue()
+        st.NOOP_TEXT + " (numerics.cg_max_iter)" in out.getvalue()
     foamd.job = lambda jid: type("J", (), {"results_message": lambda self, _: _NoResults()})()
     for j in foamd.jobs["diag:alpha"]:
         j.reason, j.outcome, j.progress, j.t_s = "", "", 0.0, 0.0

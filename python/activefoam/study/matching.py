@@ -38,13 +38,52 @@ def _spec_value(spec: Dict[str, Any], key: str) -> Any:
 # sweeps the key could never find its reference runs among the older jobs).
 KEYS_ADDED_LATER = {"numerics.contact_max_facing_deg": 90.0,
                     "numerics.contact_max_overlap_um": 0.0,
-                    "numerics.contact_within_prisms": False,
-                    "numerics.contact_prisms_overlap_only": False,
                     "numerics.remesh_on_surface": False,
-                    "numerics.remesh_rescue": False,
-                    "numerics.remesh_rebuild": False,
                     "numerics.remesh_keep_out_um": 0.0,
                     "scene.polarity_from_preparation": False}
+
+
+def _record_law(spec: Dict[str, Any]) -> Optional[str]:
+    """numerics.contact_law of a job's record: its own, or what the two switches of earlier
+    versions named; None for a record with neither (its integrator and step tell it apart)."""
+    law = _spec_value(spec, "numerics.contact_law")
+    within = _spec_value(spec, "numerics.contact_within_prisms")
+    if law is not None or within is None:
+        return law
+    if not within:
+        return "supplement"
+    return "prisms-overlap" if _spec_value(spec, "numerics.contact_prisms_overlap_only") \
+        else "prisms"
+
+
+def _record_repair(spec: Dict[str, Any]) -> Optional[str]:
+    """numerics.remesh_repair of a job's record: its own, or what the rescue and rebuild switches
+    of earlier versions named; None for a record with neither."""
+    repair = _spec_value(spec, "numerics.remesh_repair")
+    if repair is not None:
+        return repair
+    if _spec_value(spec, "numerics.remesh_rescue") is None and \
+            _spec_value(spec, "numerics.remesh_rebuild") is None:
+        return None
+    if _spec_value(spec, "numerics.remesh_rebuild"):
+        return "rescue-rebuild"
+    return "rescue" if _spec_value(spec, "numerics.remesh_rescue") else "none"
+
+
+# The keys that replaced earlier switches, read from either kind of record; and the switches,
+# read from records that name the key instead (a study file of earlier versions).
+_RECORD_READERS = {
+    "numerics.contact_law": _record_law,
+    "numerics.remesh_repair": _record_repair,
+    "numerics.contact_within_prisms": lambda s: (None if _record_law(s) is None
+                                                 else _record_law(s) != "supplement"),
+    "numerics.contact_prisms_overlap_only": lambda s: (None if _record_law(s) is None
+                                                       else _record_law(s) == "prisms-overlap"),
+    "numerics.remesh_rescue": lambda s: (None if _record_repair(s) is None
+                                         else _record_repair(s) != "none"),
+    "numerics.remesh_rebuild": lambda s: (None if _record_repair(s) is None
+                                          else _record_repair(s) == "rescue-rebuild"),
+}
 
 
 def _resolved_value(spec: Dict[str, Any], key: str) -> Any:
@@ -62,16 +101,29 @@ def _resolved_value(spec: Dict[str, Any], key: str) -> Any:
         return None
     if key == "scene" and isinstance(spec.get("scene"), dict):
         return spec["scene"].get("kind")
+    if key in _RECORD_READERS:
+        return _RECORD_READERS[key](spec)
     value = _spec_value(spec, key)
     if value is None and key in KEYS_ADDED_LATER and spec:
         return KEYS_ADDED_LATER[key]
     return value
 
 
-# Keys added later whose default is not the value of the jobs before them: a study that leaves
-# one unset runs at today's default, and a stored job at the earlier value is not its run (a
-# study that ran before the change says `key = <earlier value>` in its [spec]).
-DEFAULTS_CHANGED = {"numerics.remesh_on_surface": True}
+# Defaults that changed after jobs were stored: a study that leaves one unset runs at today's
+# default, and a stored job at the earlier value is not its run (a study whose runs were made
+# before the change says `key = <earlier value>` in its [spec]).
+DEFAULTS_CHANGED = {"numerics.remesh_on_surface": True,
+                    "numerics.remesh_repair": "rescue-rebuild",
+                    "numerics.max_volume_error": 0.2,
+                    "scene.polarity_from_preparation": True}
+# And the values each preset sets (docs/science/presets.md): the numerics a study that names no
+# preset (standard) or names one runs at, where the defaults of earlier versions differed.
+PRESET_VALUES = {
+    "standard": {"numerics.integrator": "contact-implicit-consistent", "numerics.dt_s": 1.0,
+                 "numerics.cg_tol": 0.01, "numerics.contact_law": "prisms-overlap"},
+    "reference": {"numerics.integrator": "contact-implicit-consistent", "numerics.dt_s": 0.25,
+                  "numerics.cg_tol": 0.001, "numerics.contact_law": "supplement"},
+}
 
 
 def _base_keys(study: Study) -> set:
@@ -95,6 +147,8 @@ def _matches(study: Study, run: Run, spec: Dict[str, Any],
     if settings is None:
         settings = study.settings(run)
     for k, v in settings.items():
+        if k == "numerics.preset":
+            continue  # a name: the values it chose are compared below
         got = _resolved_value(spec, k)
         if got is None:
             if k in run.point or k == "seed":
@@ -102,10 +156,14 @@ def _matches(study: Study, run: Run, spec: Dict[str, Any],
             continue  # a key the resolved spec does not echo (e.g. an alias): cannot check
         if not _same(got, v):
             return False
-    for k, now in DEFAULTS_CHANGED.items():
+    preset = str(settings.get("numerics.preset", "standard"))
+    for k, now in {**DEFAULTS_CHANGED, **PRESET_VALUES.get(preset, {})}.items():
         if k in settings or k in _base_keys(study):
             continue  # set by the study (checked above) or by its base spec (then both agree)
-        if not _same(_resolved_value(spec, k), now):
+        got = _resolved_value(spec, k)
+        if got is None:
+            continue  # a record that does not name it (a partial one): cannot check
+        if not _same(got, now):
             return False
     return True
 

@@ -58,7 +58,7 @@ DIAGNOSE_KEYS = {"name", "title", "spec", "kinds"}
 SHARE_KEYS = {"file", "this", "that", "seeds"}
 
 
-PRESETS = {"draft", "standard", "reference"}
+PRESETS = {"standard", "reference"}
 
 
 # Per-run metrics of a fusion study: name → (label, where it comes from).
