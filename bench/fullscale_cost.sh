@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# What a full-scale study costs (issue 35): one 2 × 100-cell fusion job from the touching spheroids
+# What a full-scale study costs: one 2 × 100-cell fusion job from the touching spheroids
 # at the full-scale study files' step and at the reduced figure studies' step, per step and per
 # simulated hour, (a) as one job on T threads pinned to cores 0 … T−1 and (b) as P one-thread jobs
 # side by side on cores 0 … P−1 — the layout of a node running a study (foamd's default: one

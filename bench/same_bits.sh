@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Hashes of the runs that a change to the step must leave bit-identical (issue 37's acceptance):
+# Hashes of the runs that a change to the step must leave bit-identical:
 #   ref-T     the reference fusion (2 × 100 cells, draft-like contact-implicit at Δt 0.5 s),
 #             24 steps, samples every second, at T = 1, 2, 3 threads (the spheroids come from
 #             the cache given, so their preparation is compared only by the next run)
