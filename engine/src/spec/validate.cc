@@ -157,12 +157,12 @@ std::vector<SpecError> validate(const SceneSpec& spec) {
         error("accuracy.contact_angle_deg",
               formatNumber(*spec.accuracy.contact_angle_deg) +
                   "° is finer than any preset promises; allowed [" + formatNumber(ca) +
-                  ", 90] ° (the finest: `reference`, docs/study/presets.md)");
+                  ", 90] ° (the finest: `reference`, docs/science/presets.md)");
       if (spec.accuracy.trajectory_deg && *spec.accuracy.trajectory_deg < tr)
         error("accuracy.trajectory_deg",
               formatNumber(*spec.accuracy.trajectory_deg) +
                   "° is finer than any preset promises; allowed [" + formatNumber(tr) +
-                  ", 90] ° (the finest: `reference`, docs/study/presets.md)");
+                  ", 90] ° (the finest: `reference`, docs/science/presets.md)");
     } else {
       SceneSpec want = spec;  // the numerics the target chooses
       want.numerics.pinned.bits = 0;
