@@ -92,7 +92,7 @@ BENCHMARK(BM_Remesh)->Arg(1)->Arg(200)->Unit(benchmark::kMicrosecond);
 
 // A 100-cell aggregate packed at contact: cells on FCC sites inside a ball, neighbours 0.99·2r
 // apart (slightly pressed together), relaxed 30 s with contacts before timing, so every cell has
-// flattened contacts with its ~12 neighbours (issue 3's "cells packed at contact").
+// flattened contacts with its ~12 neighbours ("cells packed at contact").
 CellSet packedAggregate(int n, int triangles) {
   const double r = 8.88, a = 0.99 * 2 * r * std::sqrt(2.0);  // FCC cube edge: neighbours a/√2
   std::vector<Vec3> sites;

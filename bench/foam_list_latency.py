@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Where `foam list` spends its time under 50 concurrent submits (issue 39 item 18).
+"""Where `foam list` spends its time under 50 concurrent submits.
 
 Starts its own foamd (a temporary database, a free loopback port, no engine workers: submits
 stay queued), keeps 50 `foam submit` processes running in a loop, and times, N times each:
@@ -49,7 +49,7 @@ def main():
         [foamd, "--db", os.path.join(tmp, "f.db"), "--listen", f"127.0.0.1:{port}",
          "--workers", "1", "--log-level", "warn"],
         stdout=subprocess.DEVNULL, stderr=open(os.path.join(tmp, "foamd.log"), "w"))
-    # --workers 1 runs the queue's 5 s cells: a loaded server, as in the issue's probe.
+    # --workers 1 runs the queue's 5 s cells: a loaded server.
     try:
         for _ in range(100):
             if subprocess.run([foam, "list", "--limit", "1"], env=env, capture_output=True).returncode == 0:

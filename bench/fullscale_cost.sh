@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# What a full-scale study costs (issue 35): one 2 × 100-cell fusion job from the touching spheroids
+# What a full-scale study costs: one 2 × 100-cell fusion job from the touching spheroids
 # at the full-scale study files' step and at the reduced figure studies' step, per step and per
 # simulated hour, (a) as one job on T threads pinned to cores 0 … T−1 and (b) as P one-thread jobs
 # side by side on cores 0 … P−1 — the layout of a node running a study (foamd's default: one
@@ -8,19 +8,21 @@
 #
 #   bench/fullscale_cost.sh FOAM_RUN CACHE OUT ["1 2 4 8 16"] [P] [STEPS] [REPS]
 #
-# full:   studies/fig14-full.toml's [spec] at the supplement's nominal point (contact-implicit-
-#         consistent, Δt 0.25 s, `standard`'s mesh and ε_CG 1e-3, keep-out 1 µm), as every
-#         full-scale file runs it;
-# figure: the reduced figure studies' [spec] (fig8-reduced: Δt 1 s, ε_CG 1e-2, the contact's
-#         overlap within prisms) on the same 2 × 100 scene — step fitness passed it at 2 × 20;
-#         at 2 × 100 it is studies/step-fitness-full.toml's question.
+# full:   the full-scale study files' step at the supplement's nominal point: the `reference`
+#         preset (contact-implicit-consistent, Δt 0.25 s, ε_CG 1e-3, the supplement's contact
+#         law) with the keep-out at 1 µm, as every full-scale file runs it;
+# figure: the reduced figure studies' step, the `standard` preset (Δt 1 s, ε_CG 1e-2, the
+#         contact's overlap within prisms), at fig8-reduced's base point on the same 2 × 100
+#         scene — step fitness passed it at 2 × 20; at 2 × 100 it is
+#         studies/step-fitness-full.toml's question.
+# Both with the remesh repairs, the volume guard at 20 % and the prepared polarities.
 # STEPS (default 60) steps each, timed from the first sample to the last (setup excluded); P
 # (default: the threads list's largest) jobs side by side; REPS (default 2) repetitions of (a).
 # CACHE: prepared spheroids (foam-run --spheroid-cache); each configuration prepares its two on
 # first use, untimed (~4 min of one core each pair).
 set -euo pipefail
 if [ $# -lt 3 ]; then
-  sed -n 2,20p "$0" >&2
+  sed -n 2,22p "$0" >&2
   exit 2
 fi
 foam_run=$1 cache=$2 out=$3 threads=${4:-1 2 4 8 16}
@@ -28,15 +30,12 @@ p=${5:-$(tr ' ' '\n' <<<"$threads" | sort -n | tail -1)} steps=${6:-60} reps=${7
 root="$(cd "$(dirname "$0")/.." && pwd)"
 spec="$root/studies/specs/fusion-2x100.toml"
 common=(--set seed=1 --set snapshot_every_s=0 --set scene.polarity_from_preparation=true
-        --set numerics.remesh_rescue=true --set numerics.remesh_rebuild=true
-        --set numerics.max_volume_error=0.2 --set numerics.remesh_keep_out_um=1.0
-        --set numerics.integrator=contact-implicit-consistent)
+        --set numerics.remesh_repair=rescue-rebuild --set numerics.max_volume_error=0.2
+        --set numerics.remesh_keep_out_um=1.0)
 # shellcheck disable=SC2034  # used through run_one's nameref
-full=(--set numerics.preset=standard --set numerics.dt_s=0.25)
+full=(--set numerics.preset=reference)
 # shellcheck disable=SC2034
-figure=(--set numerics.dt_s=1 --set numerics.cg_tol=0.01 --set numerics.contact_within_prisms=true
-        --set numerics.contact_prisms_overlap_only=true --set cells.pa_reduced=0.33
-        --set cells.l_eta_reduced=0.5)
+figure=(--set numerics.preset=standard --set cells.pa_reduced=0.33 --set cells.l_eta_reduced=0.5)
 dt_of() { [ "$1" = full ] && echo 0.25 || echo 1; }
 mkdir -p "$out"
 { nproc; lscpu; uptime; } >"$out/host.txt" 2>&1

@@ -2,7 +2,7 @@
 # CPU seconds for the first DURATION simulated seconds of the reduced fusion study's scene
 # (2 × 30 cells, seed 1, the study's settings and prepared spheroids), one foam-run at a time on
 # one thread, per configuration "integrator dt preconditioner" (docs/benchmarks.md,
-# "Preconditioner"; docs/study/fusion-ros2.md).
+# "8. CG iterations"; docs/study/fusion-ros2.md).
 #
 #   bench/fusion_cpu_cost.sh FOAM_RUN CACHE_DIR OUT_DIR [DURATION ≥ 30] ["integrator dt pre" ...]
 # CACHE_DIR: the study's spheroid cache (bench/study_fusion_accuracy.py DIR fills DIR/cache).

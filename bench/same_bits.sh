@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
-# Hashes of the runs that a change to the step must leave bit-identical (issue 37's acceptance):
-#   ref-T     the reference fusion (2 × 100 cells, draft-like contact-implicit at Δt 0.5 s),
-#             24 steps, samples every second, at T = 1, 2, 3 threads (the spheroids come from
-#             the cache given, so their preparation is compared only by the next run)
-#   draft300  a 2 × 20 fusion at the draft preset, 300 s, spheroids prepared in the run
+# Hashes of the runs that a change to the step must leave bit-identical:
+#   ref-T     the reference fusion (2 × 100 cells, bench/specs/fusion_reference.toml: the
+#             one-spring contact-implicit step at Δt 0.5 s), 24 steps, samples every second, at
+#             T = 1, 2, 3 threads (the spheroids come from the cache given, so their preparation
+#             is compared only by the next run)
+#   ci300     a 2 × 20 fusion at the one-spring contact-implicit step (Δt 0.5 s, ε_CG 1e-2, the
+#             supplement's contact law), 300 s, spheroids prepared in the run
 #   ros2      a 2 × 20 fusion with the ros2 integrator (adaptive, error-controlled: ~40 % of its
 #             tries are rejected), 20 s
 #   ros2-dbl  the doublet with ros2, 300 s
@@ -44,7 +46,8 @@ for t in 1 2 3; do
   run "ref-$t" "$root/bench/specs/fusion_reference.toml" --set duration_s=12 \
     --set sample_every_s=1 --threads "$t" --spheroid-cache "$cache"
 done
-run draft300 "$root/studies/specs/fusion-2x20.toml" --set numerics.preset=draft \
+run ci300 "$root/studies/specs/fusion-2x20.toml" --set numerics.integrator=contact-implicit \
+  --set numerics.dt_s=0.5 --set numerics.cg_tol=0.01 --set numerics.contact_law=supplement \
   --set duration_s=300 --set sample_every_s=10 --set snapshot_every_s=0 --no-cache --threads 2
 run ros2 "$root/studies/specs/fusion-2x20.toml" --set numerics.integrator=ros2 \
   --set numerics.dt_s=0.5 --set numerics.adaptive=true --set numerics.max_step_error_um=0.05 \

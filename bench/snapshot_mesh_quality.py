@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The meshes cells carry in a run's snapshots (docs/numerics.md, "The mesh a cell carries").
+"""The meshes cells carry in a run's snapshots (docs/numerics.md, "Remeshing").
 
     foam export JOB -o DIR            # the job's snapshots as .vtp (ASCII)
     /usr/bin/python3 bench/snapshot_mesh_quality.py DIR/snap_*.vtp

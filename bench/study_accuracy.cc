@@ -1,4 +1,4 @@
-// Speed against accuracy on the doublet (issue 6): every numerical knob varied alone from the
+// Speed against accuracy on the doublet: every numerical knob varied alone from the
 // `standard` settings, plus the combinations that matter (Δt × mesh × ε_CG), each measured
 // against a reference solved at the finest settings that fit the machine (contact-implicit,
 // Δt = 0.025 s, ε_CG = 1e-6, 1280 triangles per cell).
@@ -13,7 +13,7 @@
 //
 // Run on the 2-core machine:
 //   OMP_NUM_THREADS=1 build/release/bench/study_accuracy docs/study [--quick] [duration_s]
-// (about 10 minutes on the 2-core host of 2026-11-24, 30 on the older one; --quick about 3)
+// (about 10 minutes on the 2-core host; --quick about 3)
 //   python3 bench/plot_study.py docs/study/doublet.csv docs/study/doublet-pareto.png
 // Writes DIR/doublet.csv (one row per configuration) and DIR/doublet.md (the table, the Pareto
 // front marked).
@@ -45,7 +45,7 @@ struct Config {
   PreconditionerKind pre = PreconditionerKind::Jacobi;
   ContactQuadrature quad = ContactQuadrature::Exact;
   double remesh_factor = 1;  // × the default τ_r
-  double k_factor = 1;       // × the default contact stiffness k_AB (issue 15: an accuracy knob?)
+  double k_factor = 1;       // × the default contact stiffness k_AB (an accuracy knob?)
 };
 
 // What a child process sends back through its pipe (plain data).
@@ -179,7 +179,7 @@ int main(int argc, char** argv) {
         c.dt = dt;
       },
       quick ? std::vector<double>{0.005} : std::vector<double>{0.005, 0.01});
-  // The second-order two-stage step (issue 14 part 3), on both meshes: with 320 triangles the
+  // The second-order two-stage step (ros2), on both meshes: with 320 triangles the
   // mesh error dominates the trajectory, with 1280 the time step's shows.
   for (int tris : quick ? std::vector<int>{320} : std::vector<int>{320, 1280})
     for (double dt : quick ? std::vector<double>{0.5} : std::vector<double>{0.1, 0.5, 1, 2}) {
@@ -191,8 +191,8 @@ int main(int argc, char** argv) {
       c.dt = dt;
       configs.push_back(c);
     }
-  // Softer contact springs (issue 15 item 1): k_AB × 1/4, 1/16, 1/64 lengthen the adhesion range
-  // h0 = √(w/k_AB) 2, 4, 8× — at `standard`'s Δt and at `draft`'s, where they cut CG iterations.
+  // Softer contact springs: k_AB × 1/4, 1/16, 1/64 lengthen the adhesion range
+  // h0 = √(w/k_AB) 2, 4, 8× — at Δt 0.1 s and at 0.5 s, where they cut CG iterations.
   for (double dt : {0.1, 0.5})
     for (double k : {0.25, 1.0 / 16, 1.0 / 64}) {
       Config c = std_cfg;
@@ -201,7 +201,7 @@ int main(int argc, char** argv) {
       c.k_factor = k;
       configs.push_back(c);
     }
-  // The `draft` preset as it ships (Δt 0.5 s, ε_CG 1e-2).
+  // The contact-implicit step at Δt 0.5 s, ε_CG 1e-2 (row `draft`).
   {
     Config c = std_cfg;
     c.knob = "draft";

@@ -1,17 +1,17 @@
-// Adaptive time step on the fusions that used to die (issue 14): 2 × 20-cell fusions at Δt = 0.5 s
+// Adaptive time step on fusions that die at a fixed step: 2 × 20-cell fusions at Δt = 0.5 s
 // (320 triangles, contact-implicit, Table 1/2 defaults otherwise) for 1500 simulated seconds, over
 // the supplement's study ranges p_a r/2γ ∈ {0, 0.33, 0.66} and L_η/r ∈ {0.25, 0.5, 1.0}, for
 // several seeds. Each run reports whether it finished, its rejected tries, the shortest step it
 // took, and the first rejection: where the same run without the adaptive step
-// (numerics.adaptive = false, today's engine before it) ends — up to that step the two runs are
+// (numerics.adaptive = false) ends — up to that step the two runs are
 // the same run (tests/engine/test_integrator.cc).
 //
 // Run (about 2 CPU hours; shards split the rows between processes, e.g. 0/2 and 1/2 on the
 // 2-core machine; prepared spheroids are shared through the cache):
 //   OMP_NUM_THREADS=1 build/release/bench/study_adaptive_fusion OUT.csv CACHE_DIR
 //       [seeds=1,2] [duration_s=1500] [shard=0/1] [cg_tol=1e-3]
-// cg_tol: ε_CG of every run (1e-3 by default, the setting the issue's failures were seen at;
-// the `draft` preset uses 1e-2 since 2026-11-24: docs/study/adaptive-fusion.md has both).
+// cg_tol: ε_CG of every run (1e-3 by default, where the fixed-step failures were seen; 1e-2 is
+// the contact-implicit step at Δt 0.5 s of the studies: docs/study/adaptive-fusion.md has both).
 // One CSV row per run, appended as each run ends (a rerun skips rows already in OUT.csv);
 // bench/report_adaptive_fusion.py turns the CSVs into the table of docs/study/adaptive-fusion.md.
 #include <chrono>

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The whole speed/accuracy study of issue 6 in one command: builds the release tree, then
+# The whole speed/accuracy study in one command: builds the release tree, then
 # regenerates into docs/study/ the doublet study and its chart, the stability map and the
 # reduced-fusion study and its chart. Every study drives one core (OMP_NUM_THREADS=1) so costs
 # compare; the fusion study is resumable — run this again after an interruption and finished

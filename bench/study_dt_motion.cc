@@ -1,6 +1,6 @@
 // Does the cells' motion converge in Δt? The preset-fitness study (docs/science/presets.md) found
-// that `draft` (Δt 0.5 s) moves the cells of a fusing 2 × 20 aggregate 2.5–3× less than
-// `standard` (Δt 0.1 s) over 4 h. Ensembles over hours mix discretisation with the motility's
+// that the contact-implicit step at Δt 0.5 s moves the cells of a fusing 2 × 20 aggregate 2.5–3×
+// less than at Δt 0.1 s over 4 h. Ensembles over hours mix discretisation with the motility's
 // chaos; this driver separates them. Every configuration starts from the same prepared
 // aggregate and is driven by the same polarity noise (one Wiener path per cell, a function of
 // time, not of the steps), so over a short run two configurations differ mostly by their

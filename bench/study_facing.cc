@@ -1,16 +1,16 @@
 // The contact law (numerics.contact_law) on the supplement's
 // calibration: passive doublets of equal cells settle at θ_c = arccos α (Fig. 7E;
-// docs/validation.md). The bound drops triangle pairs whose normals are more than φ from
-// antiparallel; at a junction those are the pairs at its rim, which is where the doublet's angle
-// is read, so this is where a bound would bias the calibration if it did.
+// docs/validation.md). A variant that clips pairs acts on oblique ones; at a junction those are
+// the pairs at its rim, which is where the doublet's angle is read, so this is where a variant
+// would bias the calibration if it did.
 //
 // Same scene, numerics (`standard`) and durations as the test
-// Alphas/PassiveDoublet.ContactAngleIsArccosAlphaAtStandard; one row per (α, φ):
-//   OMP_NUM_THREADS=1 build/release/bench/study_facing [φ | prisms | overlap ...]
-//                                                     (default φ: 90 75 60 45)
-// `prisms`: every facing pair (90°) with numerics.contact_within_prisms, the contact polygon
-// kept where the triangles overlie each other; `overlap`: the same with
-// numerics.contact_prisms_overlap_only (only the polygon's overlapping part, g < 0, bounded).
+// Alphas/PassiveDoublet.ContactAngleIsArccosAlphaAtStandard; one row per (α, law):
+//   OMP_NUM_THREADS=1 build/release/bench/study_facing [90 | prisms | overlap ...]
+//                                                     (default: all three)
+// `90`: the supplement's law; `prisms`: "prisms", the contact polygon kept where the triangles
+// overlie each other; `overlap`: "prisms-overlap" (only the polygon's overlapping part, g < 0,
+// bounded).
 // Prints a Markdown table (θ_c, its error against arccos α and the change from 90°, the
 // largest volume error, the wall time). ~3 min per φ on one core.
 #include <cmath>

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Speed against accuracy on a reduced fusion (issue 6): two spheroids of 30 cells fusing for
-`--hours` simulated hours, each numerical knob varied alone from the `draft` preset and
+"""Speed against accuracy on a reduced fusion: two spheroids of 30 cells fusing for `--hours`
+simulated hours, each numerical knob varied alone from BASE (contact-implicit, Δt 0.5 s) and
 measured against a reference solved at the finest settings that fit the machine.
 
     bench/study_fusion_accuracy.py OUT_DIR [--hours H] [--cells N] [--only NAME,...]
@@ -12,7 +12,7 @@ the study survives interruptions: run the same command again and it continues wh
 start from the same prepared aggregates; 80 triangles per cell needs its own.
 
 Reference: contact-implicit, Δt = 0.1 s (the supplement's), ε_CG = 1e-6, 320 triangles per cell.
-1 280 triangles (the issue's finest mesh) does not fit this 2-core machine for a fusion (~4× the
+1 280 triangles (the finest mesh studied) does not fit this 2-core machine for a fusion (~4× the
 vertices and contacts: ~7 h of wall time per simulated hour); the doublet study has it.
 
 Writes OUT_DIR/fusion.csv and OUT_DIR/fusion.md: per configuration the θ(t) error against the
@@ -42,9 +42,9 @@ BASE = {
     "numerics.contact_quadrature": "exact",
 }
 
-# name, knob, overrides of BASE (the reference first). BASE is the `draft` preset as it was
-# until 2026-11-24 (ε_CG 1e-3; today's `draft` is row cg-1e-2), kept so that the rows stay
-# comparable; every knob row changes one setting of it. `standard` is the preset of that name (Δt = 0.1 s).
+# name, knob, overrides of BASE (the reference first). BASE (row `draft`) is the one-spring
+# contact-implicit step at Δt 0.5 s, ε_CG 1e-3, Jacobi; every knob row changes one setting of it.
+# Row `standard` is BASE at Δt 0.1 s. The row names are those of docs/study/fusion/fusion.md.
 CONFIGS = [
     ("reference", "reference", {"numerics.dt_s": 0.1, "numerics.cg_tol": 1e-6}),
     ("draft", "preset", {}),
@@ -62,24 +62,24 @@ CONFIGS = [
     ("mesh-80-dt-0.25", "mesh", {"numerics.triangles_per_cell": 80, "numerics.dt_s": 0.25}),
     # The doublet study's Pareto front: 1 280 triangles at Δt = 0.5 s beat 320 at 0.1 s there.
     ("mesh-1280", "mesh", {"numerics.triangles_per_cell": 1280}),
-    # Issue 14 part 3: the second-order two-stage step (two solves per step).
+    # The second-order two-stage step (two solves per step).
     ("ros2", "integrator", {"numerics.integrator": "ros2"}),
     ("ros2-dt-1", "integrator", {"numerics.integrator": "ros2", "numerics.dt_s": 1.0}),
     ("ros2-dt-0.25", "integrator", {"numerics.integrator": "ros2", "numerics.dt_s": 0.25}),
-    # Issue 15 item 1: the contact stiffness k_AB as a numerical knob (h0 = √(W/k_AB) grows as
+    # The contact stiffness k_AB as a numerical knob (h0 = √(W/k_AB) grows as
     # k_AB shrinks; the supplement says h0 ≪ R does not matter). Softer springs, fewer CG
     # iterations; the rows at Δt = 0.1 s separate the model change from the Δt error.
     ("kab-0.25", "k_contact", {"cells.k_contact": 71.1 / 4}),
     ("kab-0.0625", "k_contact", {"cells.k_contact": 71.1 / 16}),
     ("standard-kab-0.0625", "k_contact", {"numerics.dt_s": 0.1, "cells.k_contact": 71.1 / 16}),
-    # Issue 15 item 2: the block incomplete-Cholesky preconditioner (same solution within ε_CG).
+    # The block incomplete-Cholesky preconditioner (same solution within ε_CG).
     ("ic", "preconditioner", {"numerics.preconditioner": "incomplete-cholesky"}),
     ("ros2-ic", "integrator", {"numerics.integrator": "ros2",
                                "numerics.preconditioner": "incomplete-cholesky"}),
     ("ros2-dt-1-ic", "integrator", {"numerics.integrator": "ros2", "numerics.dt_s": 1.0,
                                     "numerics.preconditioner": "incomplete-cholesky"}),
-    # Issue 15, 2026-11-24: the 3×3 block-Jacobi preconditioner at today's `draft` (ε_CG 1e-2) and
-    # at `standard`, beside today's `draft` run by the same engine (same ε_CG: the same residual).
+    # The 3×3 block-Jacobi preconditioner at ε_CG 1e-2 and at Δt 0.1 s, each beside its Jacobi
+    # row run by the same engine (same ε_CG: the same residual).
     ("standard-jacobi", "preconditioner", {"numerics.dt_s": 0.1}),
     ("draft-cg-1e-2", "cg_tol", {"numerics.cg_tol": 1e-2}),
     ("draft-cg-1e-2-block-jacobi", "preconditioner", {"numerics.cg_tol": 1e-2,

@@ -12,9 +12,8 @@
 //       [prep_max_s] [configs]
 // configs: comma-separated integrator:Δt:preconditioner[:ε_CG], e.g.
 // "contact-implicit:0.5:jacobi,ros2:0.5:incomplete-cholesky,contact-implicit:0.5:jacobi:1e-2"
-// (default: the `standard` and `draft` presets' settings — contact-implicit, block-Jacobi, at
-// 0.1 s, ε_CG 1e-3 and at 0.5 s, 1e-2 — the same with Jacobi, the presets' preconditioner until
-// 2026-11-24, and semi-implicit at 0.005 s, Jacobi, 1e-3).
+// (default: contact-implicit, block-Jacobi, at 0.1 s, ε_CG 1e-3 and at 0.5 s, 1e-2 — the same
+// with Jacobi — and semi-implicit at 0.005 s, Jacobi, 1e-3).
 // prep_max_s = 0 times the packed, unrelaxed spheroids (no preparation needed; contacts are
 // fewer than in relaxed ones, so it underestimates the cost per step).
 #include <chrono>

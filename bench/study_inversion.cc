@@ -1,9 +1,10 @@
 // What makes a triangle invert within one step of the motile fusion (docs/science/
-// motion-convergence.md, "Correction"): steps the 2 × N fusion without the adaptive step until a
-// step fails, then describes the failing triangle as it was before the step — its shape (area,
-// smallest height, largest angle), how far its corners moved in the step, its contact pairs —
-// against the same quantities over all triangles (quantiles). Without the adaptive step the run
-// ends at its first failure: max_events > 1 only matters for failures other runs would survive.
+// motion-convergence.md, "The contact law"): steps the 2 × N fusion without the adaptive step
+// until a step fails, then describes the failing triangle as it was before the step — its shape
+// (area, smallest height, largest angle), how far its corners moved in the step, its contact
+// pairs — against the same quantities over all triangles (quantiles). Without the adaptive step
+// the run ends at its first failure: max_events > 1 only matters for failures other runs would
+// survive.
 //
 //   OMP_NUM_THREADS=1 build/release/bench/study_inversion CACHE [n_cells] [prep_max_s] [config]
 //       [t_end_s] [max_events] [scan_every]

@@ -1,10 +1,11 @@
-// How much of the cells' motile velocity does one step's solve keep, per preset? The
-// preset-fitness study (docs/science/presets.md) found the MSRD of `draft` far below
-// `standard`'s; `draft` differs in two things, Δt 0.5 s (Γ carries Δt K_c, the contact
-// springs' stiffness) and ε_CG 1e-2. This separates them on one state of a fusing 2 × N
-// aggregate: the motile velocity is v(F) − v(F without migration), and per cell its centroid
-// (what the MSRD integrates). Exact solves (ε 1e-12) at Δt 0.1 and 0.5 s measure what Δt K_c
-// does; solves at ε 1e-2 and 1e-3 from the step's warm start what the tolerance loses.
+// How much of the cells' motile velocity does one step's solve keep, per step? The
+// preset-fitness study (docs/science/presets.md) found the MSRD of the contact-implicit step at
+// Δt 0.5 s, ε_CG 1e-2 far below that at Δt 0.1 s, ε_CG 1e-3; they differ in two things, Δt
+// (Γ carries Δt K_c, the contact springs' stiffness) and ε_CG. This separates them on one state
+// of a fusing 2 × N aggregate: the motile velocity is v(F) − v(F without migration), and per cell
+// its centroid (what the MSRD integrates). Exact solves (ε 1e-12) at Δt 0.1 and 0.5 s measure
+// what Δt K_c does; solves at ε 1e-2 and 1e-3 from the step's warm start what the tolerance
+// loses.
 //
 //   build/release/bench/study_motility_solve CACHE_DIR [n_cells] [relax_s] [seed]
 //
@@ -71,14 +72,14 @@ int main(int argc, char** argv) {
   spec.scene = SceneKind::Fusion;
   spec.seed = seed;
   spec.scene_params.n_cells = n;
-  // The retired draft preset's step (contact-implicit, Δt 0.5 s, ε_CG 1e-2, the law).
+  // The contact-implicit step at Δt 0.5 s, ε_CG 1e-2, the supplement's law.
   spec.numerics.integrator = IntegratorKind::ContactImplicit;
   spec.numerics.dt_s = 0.5;
   spec.numerics.cg_tol = 1e-2;
   spec.numerics.contact_law = ContactLawKind::Supplement;
   spec = resolve(spec);
   CellSet cells = buildFusionCells(spec, &cache);
-  // A fusing aggregate: `relax_s` of draft steps from the touching spheroids.
+  // A fusing aggregate: `relax_s` of those steps from the touching spheroids.
   Simulation run(spec, std::move(cells));
   while (run.time() < relax_s - 1e-9)
     if (!run.step().ok()) return std::fprintf(stderr, "the relaxation failed\n"), 3;

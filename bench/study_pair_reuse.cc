@@ -1,4 +1,4 @@
-// How much of the narrow phase could be reused between steps (issue 36, lever 2): on the 2 × N
+// How much of the narrow phase could be reused between steps: on the 2 × N
 // fusion, after each step, how far the six vertices of every active contact pair have moved
 // relative to each other (their displacement minus the pair's mean displacement: what changes
 // the pair's gap, overlap and normal) since the pair's geometry was last computed, and so which

@@ -1,4 +1,4 @@
-// Experiment (issue 15 item 2): which preconditioner pays on the relaxed reduced fusion
+// Experiment: which preconditioner pays on the relaxed reduced fusion
 // (2 × n cells)? Loads the spheroids from a cache (the fusion study's), runs `warm` steps, then
 // for the next 120 steps assembles the full Γ + Δt K_c and solves it (ε_CG of the spec, warm start
 // from the previous step's solution) with: Jacobi; a scalar IC(0) on Γ's pattern (the same
@@ -8,14 +8,14 @@
 // Eigen's IncompleteCholesky (AMD ordering) is timed once for its setup.
 //
 //   OMP_NUM_THREADS=1 build/release/bench/study_preconditioner CACHE [n] [dt] [warm] [integrator]
-// Results: docs/benchmarks.md, "Preconditioners".
-// Issue 36 (the consistent stiffness, integrator `contact-implicit-consistent`): with
+// Results: docs/benchmarks.md, "8. CG iterations".
+// The consistent stiffness (integrator `contact-implicit-consistent`): with
 // AGG="θ:cap:cross;…" it compares, over 30 steps, block-Jacobi, block symmetric Gauss–Seidel and
 // block-Jacobi on aggregates of strongly coupled vertices (coupling ≥ θ, at most `cap` vertices,
 // `cross` = 1: partners in other cells only); CG_TOL overrides the spec's ε_CG. Results:
 // docs/science/motion-convergence.md, "ε_CG at the consistent step".
 // AGG_SETUP="θ:cap": the setup such aggregates would cost built from the engine's own blocks
-// (sim.forEachFrictionBlock), over 10 steps: docs/benchmarks.md (2026-11-26, session 28).
+// (sim.forEachFrictionBlock), over 10 steps: docs/benchmarks.md, "8. CG iterations".
 #include <Eigen/Cholesky>
 #include <Eigen/IterativeLinearSolvers>
 #include <algorithm>

@@ -1,4 +1,4 @@
-// Stability of the integrators on the doublet (issue 3): for each integrator and time step, run
+// Stability of the integrators on the doublet: for each integrator and time step, run
 // the α = 0.4375 doublet from a 50 nm gap for `duration` seconds (equilibrium is reached in
 // ~400 s) and classify it: a failure the engine detected (its kind and time), "inaccurate"
 // (ran, but θ_c at the end is more than 2° from the reference: the contact-implicit run at the

@@ -1,11 +1,11 @@
-// Stability map (issue 6): for each integrator, the largest stable Δt on the doublet as a function
+// Stability map: for each integrator, the largest stable Δt on the doublet as a function
 // of the contact stiffness k_AB and of the motility p_a r/2γ, with the failure kind that ends the
 // next larger Δt (blow-up, CG stall, inverted triangles, volume drift, contact oscillation,
 // interpenetration, or `separated`: the cells ended out of contact range).
-// Issues 14 and 15 added ros2, softer contacts (k_AB × 1/16, 1/64) and the adaptive step: the
+// With ros2, softer contacts (k_AB × 1/16, 1/64) and the adaptive step: the
 // fixed-Δt ladders measure where a step fails; the adaptive ladders (numerics.adaptive = true,
 // the default) where a run still finishes, at what mean Δt, with how many rejected tries.
-// Issue 36 added contact-implicit-consistent (its refusals rest on its own rows).
+// contact-implicit-consistent's refusals rest on its own rows.
 //
 // A cell of the map: the α = 0.4375 doublet from a gap of min(50 nm, 0.8 h0), equal radii, run for
 // max(1000 steps, `duration` s of simulated time) at each Δt of the integrator's ladder; "stable"

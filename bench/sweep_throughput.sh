@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Sweep throughput on a node (issue 36 item 3): a sweep of JOBS equal fusion jobs on CORES cores,
+# Sweep throughput on a node: a sweep of JOBS equal fusion jobs on CORES cores,
 # run as P concurrent foam-run processes of T threads each (P × T ≤ CORES, waves of P until JOBS
 # are done), for each layout given. Prints one CSV row per layout and repetition: the sweep's wall
 # time and its throughput in jobs per hour, and whether every job's samples (wall time aside)

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# One job's threads (issue 36): the cost per step of the studies' step (contact-implicit-consistent,
+# One job's threads: the cost per step of the studies' step (contact-implicit-consistent,
 # Δt 0.5 s, block-Jacobi, ε_CG 1e-2) on the fused 2 × 100 and 2 × 20 scenes at T threads pinned to
 # cores 0 … T−1, and the same job as two one-thread processes side by side on cores 0 and 1 (a
 # sweep's layout), REPS repetitions. One markdown row per run under OUT (NAME.md: the row of

@@ -96,7 +96,7 @@ std::string stateName(v1::JobState s) {
 namespace {
 
 // At most kMaxSpecBytes from a stream, whatever it is: /dev/zero and `yes |` have no size to
-// check first (foam submit /dev/zero was OOM-killed at 24 GB; issue 39).
+// check first (foam submit /dev/zero was OOM-killed at 24 GB without the cap).
 std::string readCapped(std::istream& in, const std::string& name) {
   std::string out(kMaxSpecBytes + 1, '\0');
   in.read(out.data(), static_cast<std::streamsize>(out.size()));

@@ -49,7 +49,7 @@ int jobExit(const v1::Job& j);
 // ---- the spec of foam submit and foam sweep -------------------------------------------------
 
 inline constexpr const char* kPresetHelp =
-    "fidelity preset: draft | standard (the default) | reference (docs/study/presets.md); "
+    "fidelity preset: standard (the default) | reference (docs/science/presets.md); "
     "--set numerics.* keys win over it";
 inline constexpr const char* kAccuracyHelp =
     "accuracy target instead of numerics, e.g. --accuracy contact_angle_deg=2 or "

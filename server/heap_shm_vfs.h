@@ -1,5 +1,5 @@
 // The store's SQLite VFS: the default one, but the WAL index (SQLite's "shared memory") lives in
-// this process's heap instead of a memory-mapped `<db>-shm` file (issue 39 item 3). A mapped
+// this process's heap instead of a memory-mapped `<db>-shm` file. A mapped
 // file turns a storage fault into a signal: when the -shm file was made immutable mid-job (or
 // its storage turned read-only, or a full tmpfs could not back a page), SQLite's next store into
 // the mapping killed foamd with SIGBUS. With the index in the heap every failure of the storage

@@ -158,7 +158,7 @@ namespace {
 
 // A Host header naming this machine's loopback interface: localhost, 127.a.b.c, [::1] (with or
 // without a port). Without a token, only such requests are served: a page on another site that
-// rebinds its DNS name to 127.0.0.1 reaches the port, but sends its own name (issue 39).
+// rebinds its DNS name to 127.0.0.1 reaches the port, but sends its own name.
 bool loopbackHostHeader(std::string host) {
   if (!host.empty() && host.front() == '[') {
     host = host.substr(0, host.find(']') == std::string::npos ? host.size() : host.find(']') + 1);
@@ -306,7 +306,7 @@ HttpEndpoint::HttpEndpoint(Store& store, Executor& pool, HttpOptions options)
   if (port < 0 || port > 65535)
     throw std::invalid_argument("--http '" + options_.listen + "': port out of [0, 65535]");
   // cpp-httplib 0.11 set SO_REUSEPORT on its listener: a second foamd on a taken port bound
-  // too and the kernel split the requests between the two (issue 39). bindHttpListener sets
+  // too and the kernel split the requests between the two. bindHttpListener sets
   // SO_REUSEADDR only, so a taken port fails here.
   if (const std::string why = loopbackSiblingTaken(options_.listen); !why.empty())
     throw std::runtime_error("--http: cannot listen on " + options_.listen + ": " + why);

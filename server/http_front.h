@@ -1,4 +1,4 @@
-// The accept side of foamd's HTTP endpoint (issue 39 item 8). cpp-httplib's own loop gives each
+// The accept side of foamd's HTTP endpoint. cpp-httplib's own loop gives each
 // accepted connection a pool worker at once and reads its header there with a timeout per read:
 // idle sockets and clients sending a header line every few seconds occupied every worker, and
 // /healthz waited behind them (33 slow clients held it for 43 s, 200 idle sockets for 19 s).

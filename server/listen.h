@@ -21,7 +21,7 @@ inline bool isLoopback(const std::string& hostport) {
 // Empty, or why listening on `hostport` (HOST:PORT, checked by hostPortError) would be
 // ambiguous: the same port on the other loopback family (127.0.0.1 for ::1 and the reverse)
 // is taken, and `localhost:PORT` — which clients resolve to either — would then reach one
-// server or the other (issue 39: a foamd on [::1]:P started beside one on 127.0.0.1:P, and
+// server or the other (a foamd on [::1]:P started beside one on 127.0.0.1:P, and
 // `foam --server localhost:P` found none of the first's jobs). Port 0 (the system's choice)
 // is never ambiguous.
 inline std::string loopbackSiblingTaken(const std::string& hostport) {

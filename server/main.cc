@@ -98,7 +98,7 @@ std::string configErrorMessage(const CLI::App& app, const std::string& what) {
 }  // namespace
 
 // CLI11's PositiveNumber and Range let NaN through (every comparison with NaN is false):
-// `--checkpoint-every-s nan` started foamd (issue 39's corpus). Checked first: CLI11 reports
+// `--checkpoint-every-s nan` started foamd (tests/adversarial). Checked first: CLI11 reports
 // the first validator that fails.
 const CLI::Validator kFinite(
     [](std::string& s) {
@@ -196,7 +196,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.set_config("--config", "", "TOML config file (keys = long flag names)");
   // A key the config file misspells must not be dropped: `token_file = ...` for `token-file`
-  // started foamd without its token (issue 39).
+  // started foamd without its token.
   app.allow_config_extras(CLI::config_extras_mode::error);
   app.set_version_flag("--version", std::string("foamd ") + ACTIVEFOAM_VERSION);
   try {

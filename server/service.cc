@@ -245,7 +245,7 @@ struct FailedStream : grpc::ServerWriteReactor<Message> {
   void OnDone() override { delete this; }
 };
 
-// The API's limits, the same on every RPC (issue 39: a 15 MiB cancel reason made every later
+// The API's limits, the same on every RPC (a 15 MiB cancel reason made every later
 // ListJobs exceed the client's message limit; a sweep took a 1 MiB tag).
 constexpr std::size_t kMaxKeyBytes = 256;      // tags, names, idempotency keys
 constexpr std::size_t kMaxReasonBytes = 1024;  // free text stored with a job
@@ -443,7 +443,7 @@ class FoamService final : public v1::Foam::CallbackService {
         sets.emplace_back(ps.settings().begin(), ps.settings().end());
     }
     std::vector<std::uint64_t> seeds(req.seeds().begin(), req.seeds().end());
-    // The cap counts jobs, not sets: 1000 values × 101 seeds made 101 000 jobs (issue 39).
+    // The cap counts jobs, not sets: 1000 values × 101 seeds made 101 000 jobs.
     const std::size_t n_jobs = sets.size() * std::max<std::size_t>(seeds.size(), 1);
     if (sets.size() > kMaxSweepJobs || seeds.size() > kMaxSweepJobs || n_jobs > kMaxSweepJobs)
       return Status(StatusCode::INVALID_ARGUMENT,

@@ -1,4 +1,4 @@
-// The Slurm executor (issue 7, deploy/slurm/README.md): queued jobs go to a Slurm cluster as
+// The Slurm executor (deploy/slurm/README.md): queued jobs go to a Slurm cluster as
 // batch array tasks (a sweep's queued jobs as one `sbatch --array`). Each task runs
 // `foam report JOB RUN -- foam-run SPEC --out RUN/run --resume`: foam-run computes on the
 // compute node and checkpoints into the shared work directory; `foam report` sends what the run

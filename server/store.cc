@@ -157,7 +157,7 @@ std::string cappedQuote(const std::string& value, std::size_t max) {
 namespace {
 
 // Pages damaged on disk are found when foamd starts, not by the first query that happens to read
-// them (issue 39: health said SERVING, then ListJobs failed INTERNAL "database disk image is
+// them (health said SERVING, then ListJobs failed INTERNAL "database disk image is
 // malformed"). quick_check reads every page once: ~0.1 s for 100 MB.
 void checkIntegrity(sqlite3* db, const std::string& path) {
   std::string result;

@@ -53,7 +53,7 @@ struct StoreError : std::runtime_error {
 // the Store's life and released by the kernel when the process ends (a crash leaves no stale
 // lock). The .lock file names the holder (pid, host, start time) for the error a second server
 // gets; through a hard link the holder's pid comes from /proc/locks. Two foamd on one database
-// would each re-queue and run the other's jobs (issues 18, 39).
+// would each re-queue and run the other's jobs.
 class DbLock {
  public:
   // Throws StoreError(FailedPrecondition) naming the holder when another process holds it.
@@ -142,8 +142,8 @@ class Store {
   int requeueRunning(const std::string& reason);
   // The same without waiting for the write (foamd's start): queued ahead of any later write, so
   // no job is claimed before it, and retried like every write while the storage fails — a
-  // server restarted on a full disk listens at once, degraded, instead of blocking here
-  // (issue 39). Returns how many jobs it will re-queue (a read).
+  // server restarted on a full disk listens at once, degraded, instead of blocking here.
+  // Returns how many jobs it will re-queue (a read).
   int requeueRunningInBackground(const std::string& reason);
   // Before a (re)start: drops outputs after the checkpoint time (all of them without one).
   void resetOutputs(const std::string& id, std::optional<double> keep_until_t_s);

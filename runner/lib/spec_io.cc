@@ -370,7 +370,7 @@ std::string jsonKeyBefore(std::string_view text, const std::string& literal) {
 }
 
 // The dotted keys that a JSON text gives twice in one object: the JSON reader keeps the last
-// value without a word, so `"duration_s": 1, "duration_s": 2` ran for 2 s (issue 39's corpus).
+// value without a word, so `"duration_s": 1, "duration_s": 2` ran for 2 s (tests/adversarial).
 // The one repeat allowed is TOML's form `scene = "doublet"` with a `[scene]` table: a top-level
 // "scene" string beside a "scene" object (kept here, merged by `mergeScene`).
 struct DuplicateJsonKeys {

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""The adversarial corpus of issue 39: hostile and mistaken input, as data, through one runner.
+"""The adversarial corpus: hostile and mistaken input, as data, through one runner.
 
 Every case file in this directory (*.toml, `[[case]]` tables) names an input, the program or
 call that receives it and the answer it must get: an exit status or a gRPC status code, and

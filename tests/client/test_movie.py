@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Acceptance test of `foam export --movie` (issue 38): a real foamd (env FOAMD) runs a 2 x 8-cell
+"""Acceptance test of `foam export --movie`: a real foamd (env FOAMD) runs a 2 x 8-cell
 fusion job with five snapshots and a cell job without any; foam (env FOAM) renders the first to
 an MP4 and a GIF with Debian's ffmpeg, and ffprobe counts their frames. Also: the first frame
 shows both spheroids' colours; no snapshots, no ffmpeg, a bad file name: exit 2 with a message

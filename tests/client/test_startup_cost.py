@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""foam's start-up cost, counted rather than timed (issue 39 item 18).
+"""foam's start-up cost, counted rather than timed.
 
 `foam list` under 50 concurrent submits on 2 cores took seconds because every start of foam
 spent ~45 ms of CPU, most of it in the dynamic loader: 57 shared libraries, ~15 600 symbol
@@ -56,7 +56,7 @@ def main():
         failed = True
         print(f"FAIL: foam loads {len(objects)} shared objects (at most {MAX_OBJECTS}): it is "
               "linked against the shared gRPC/protobuf/absl again, and every start pays the "
-              "loader for them (issue 39 item 18: 57 objects, ~45 ms of CPU per start)")
+              "loader for them (linked shared: 57 objects, ~45 ms of CPU per start)")
     if relocations > MAX_RELOCATIONS:
         failed = True
         print(f"FAIL: {relocations} symbol relocations at start (at most {MAX_RELOCATIONS}): "

@@ -7,8 +7,8 @@ rendered DOM: the token prompt, the job list, a job's chart against its samples,
 download, and the sweep page. With SCREENSHOT_DIR set it saves dashboard-jobs.png,
 dashboard-job.png and dashboard-sweep.png there (1280x900).
 
-A 2 x 8-cell fusion job (examples/fusion.toml, five snapshots) checks the 3D view last (issue
-38): the binary mesh route and its token, the three.js scene's triangles against the snapshot's,
+A 2 x 8-cell fusion job (examples/fusion.toml, five snapshots) checks the 3D view last:
+the binary mesh route and its token, the three.js scene's triangles against the snapshot's,
 drawn pixels of both spheroids' colours read back from the canvas, the slider's first snapshot,
 the clip plane, the page without three.js; then a longer fusion job's page while it runs (the
 view follows its newest snapshot). With SCREENSHOT_DIR it also saves dashboard-3d.png and

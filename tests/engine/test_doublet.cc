@@ -357,7 +357,7 @@ TEST(Doublet, SemiImplicitIsStableWithASmallEnoughStep) {
 
 // Weak adhesion has a short range: at α = 0.9, h0 = √(w/k_AB) = 26.5 nm, and passive cells
 // placed the supplement's 50 nm apart never feel each other — a run that "succeeds" with a
-// contact angle of 0 (issue 16). The default gap, min(50 nm, 0.8 h0), puts them inside the range;
+// contact angle of 0. The default gap, min(50 nm, 0.8 h0), puts them inside the range;
 // the explicit 50 nm is what silentlyWrong names (foamd refuses it, foam-run warns).
 TEST(Doublet, WeakAdhesionTouchesFromTheDefaultGap) {
   SceneSpec s = doubletSpec(0.9);

@@ -1,5 +1,5 @@
 // A fusion run's outcome (fused, arrested, separated, no-contact) and the rule that only fused
-// and arrested trajectories are fitted (issue 16): the classifier on trajectories of known
+// and arrested trajectories are fitted: the classifier on trajectories of known
 // shape, then on real small spheroids pulled apart, kept apart, and placed touching.
 #include <cmath>
 #include <string>

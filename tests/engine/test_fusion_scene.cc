@@ -164,8 +164,8 @@ TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
   other.numerics.remesh_keep_out_um = 0.75;
   EXPECT_EQ(spheroidCacheKey(spheroidPrepSpec(other, 3, 11)), spheroidCacheKey(prep));
   EXPECT_EQ(spheroidPrepSpec(other, 3, 11).numerics.remesh_keep_out_um, 0);
-  // The preparation's preconditioner is its own, Jacobi, whatever the run's and the presets'
-  // (block-Jacobi since 2026-11-24): caches prepared before that stay valid.
+  // The preparation's preconditioner is its own, Jacobi, whatever the run's (the presets' is
+  // block-Jacobi): prepared aggregates keep their bits and cache keys.
   EXPECT_EQ(prep.numerics.preconditioner, PreconditionerKind::Jacobi);
   EXPECT_EQ(spheroidPrepSpec(other, 3, 11).numerics.preconditioner, PreconditionerKind::Jacobi);
   other.numerics.triangles_per_cell = s.numerics.triangles_per_cell == 80 ? 320 : 80;
@@ -182,7 +182,7 @@ TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
   EXPECT_TRUE(cache.load(prep).has_value());
 }
 
-// A spheroid still compacting would fuse while it shrinks (issue 16): unless the spec allows
+// A spheroid still compacting would fuse while it shrinks: unless the spec allows
 // it, the job fails with preparation-failed, naming the rate reached and the limit — also when
 // the uncompacted spheroid comes from the cache.
 // Soft cells (K = 0.02 nN/µm² against the default 0.5) are compressed past the preparation's

@@ -207,7 +207,7 @@ TEST(ActiveMigration, MotionConvergesInTheStepWithTheConsistentStiffnessOnly) {
             << ", 0.5 s " << ros2 << "; contact-implicit 0.125 s " << ci_fine << ", 0.5 s " << ci
             << "; contact-implicit-consistent 0.5 s " << consistent << ", 0.25 s "
             << consistent_half << "\n";
-  // Measured (2026-11-26), as fractions of ros2 at 0.125 s: ros2 0.95 at 0.5 s; consistent 0.89
+  // Measured, as fractions of ros2 at 0.125 s: ros2 0.95 at 0.5 s; consistent 0.89
   // (0.5 s), 0.96 (0.25 s), 0.99 (0.125 s), 0.99 (0.0625 s); contact-implicit 0.53 (0.5 s) and
   // 0.64 (0.125 s).
   ASSERT_GT(fine, 1.0);  // the cells moved

@@ -420,7 +420,7 @@ TEST(Spec, EnumNamesAreTheChoices) {
   EXPECT_EQ(toString(FidelityPreset::Reference), "reference");
 }
 
-// ---- fidelity presets and accuracy targets (issue 6) -------------------------------------------
+// ---- fidelity presets and accuracy targets -----------------------------------------------------
 
 TEST(SpecPresets, TheDefaultsAreTheStandardPreset) {
   NumericsParams n;
@@ -644,8 +644,8 @@ TEST(SpecPresets, MeasuredUnstableSettingsNameTheTimeStepAndItsLimit) {
   s.numerics.dt_s = 0.5;
   EXPECT_TRUE(measuredUnstable(s).empty());  // passive: 80 triangles ran at 0.5 s and 1 s
   s.cells.p_a = CellParams{}.p_a;
-  // Passive cells too, since the map of 2026-11-26 (k_AB × 1 oscillated at 1 s, a draw there:
-  // docs/study/README.md).
+  // Passive cells too, since the map with smoothing on the surface (k_AB × 1 oscillated at 1 s,
+  // a draw there: docs/study/README.md).
   s.numerics.dt_s = 1;
   s.cells.p_a = 0;
   s.numerics.triangles_per_cell = 320;

@@ -64,7 +64,7 @@ inline SceneSpec smallFusionSpec(std::uint64_t seed = 5, int n_cells_a = 3, int 
   return resolve(s);
 }
 
-// The figure studies' step (since 2026-11-28): the one-stage consistent stiffness at Δt 1 s with
+// The figure studies' step: the one-stage consistent stiffness at Δt 1 s with
 // ε_CG 1e-2 and the contact's overlapping part kept within the triangles' prisms.
 inline SceneSpec studiesStep(SceneSpec s) {
   s.numerics.integrator = IntegratorKind::ContactImplicitConsistent;

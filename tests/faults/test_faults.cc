@@ -1,4 +1,4 @@
-// Fault injection against foamd as a process (issue 18): the everyday mistakes of a deployment
+// Fault injection against foamd as a process: the everyday mistakes of a deployment
 // must not corrupt or split results.
 #include <algorithm>
 #include <fstream>
@@ -188,7 +188,7 @@ TEST(Faults, ASecondFoamdOnTheSameDatabaseIsRefused) {
   fs::remove_all(dir);
 }
 
-// The lock is the database file's, not its name's (issue 39: a second foamd through a symlink
+// The lock is the database file's, not its name's (a second foamd through a symlink
 // re-queued and resumed the first's running job — 56 samples where 31 belong — and through a
 // hard link migrated the schema of the shared file): through a symlink, a hard link, a
 // symlinked directory or a relative path, the second foamd exits 2 naming the first's pid, and
@@ -265,7 +265,7 @@ TEST(Faults, ASecondFoamdOnTheSamePortIsRefused) {
   fs::remove_all(dir);
 }
 
-// Issue 39 item 5: a foamd on [::1]:P started beside one on 127.0.0.1:P (`localhost:P` then
+// A foamd on [::1]:P started beside one on 127.0.0.1:P (`localhost:P` then
 // reached either), and a second --http on a taken port bound too (cpp-httplib's SO_REUSEPORT:
 // requests alternated between the two servers). Each is refused, naming the other listener.
 TEST(Faults, ListenersBesideAnotherFoamdAreRefused) {
@@ -307,7 +307,7 @@ TEST(Faults, ListenersBesideAnotherFoamdAreRefused) {
   if (!ipv6) GTEST_SKIP() << "no ::1 here: the IPv4/IPv6 half was not checked";
 }
 
-// Issue 39 item 3: pages of the database overwritten on disk went unnoticed at start (health
+// Pages of the database overwritten on disk went unnoticed at start (health
 // SERVING, then ListJobs INTERNAL "database disk image is malformed"). foamd checks the store
 // (PRAGMA quick_check) before it serves, and refuses a damaged one naming it.
 TEST(Faults, ADamagedDatabaseIsRefusedAtStart) {
@@ -332,7 +332,7 @@ TEST(Faults, ADamagedDatabaseIsRefusedAtStart) {
   fs::remove_all(dir);
 }
 
-// Issue 39: a hang-up stops foamd as SIGTERM does (exit 0, its running job re-queued to resume,
+// A hang-up stops foamd as SIGTERM does (exit 0, its running job re-queued to resume,
 // a log line saying why) instead of killing it silently (exit 129, no log).
 TEST(Faults, SighupStopsFoamdCleanlyWithALogLine) {
   const fs::path dir = tempDir();
@@ -350,7 +350,7 @@ TEST(Faults, SighupStopsFoamdCleanlyWithALogLine) {
   fs::remove_all(dir);
 }
 
-// Issue 39: a misspelt config key (`token_file` for `token-file`) started foamd without its
+// A misspelt config key (`token_file` for `token-file`) started foamd without its
 // token; a bogus --log-level ran with no log. Both exit 2 naming what is wrong.
 TEST(Faults, ConfigTyposAndBadLogLevelsAreRefused) {
   const fs::path dir = tempDir();
@@ -382,7 +382,7 @@ TEST(Faults, ConfigTyposAndBadLogLevelsAreRefused) {
   fs::remove_all(dir);
 }
 
-// Issue 39: ports beyond 65535 were taken modulo 65536 (--listen 127.0.0.1:92786 listened on
+// Ports beyond 65535 were taken modulo 65536 (--listen 127.0.0.1:92786 listened on
 // 27250; foam --server 127.0.0.1:87366 reached port 21830). Both refuse them, naming the flag.
 TEST(Faults, PortsOutsideTheirRangeAreRefused) {
   const fs::path dir = tempDir();
@@ -409,7 +409,7 @@ TEST(Faults, PortsOutsideTheirRangeAreRefused) {
   fs::remove_all(dir);
 }
 
-// Issue 39: a token file with a newline inside, binary or non-ASCII bytes, or 1 MB was accepted
+// A token file with a newline inside, binary or non-ASCII bytes, or 1 MB was accepted
 // by foamd, and foam then aborted in gRPC's metadata check (exit 134). Both refuse it at load,
 // naming the file and the byte; FOAM_TOKEN likewise.
 TEST(Faults, TokensThatCannotBeSentAreRefusedAtLoad) {
@@ -439,7 +439,7 @@ TEST(Faults, TokensThatCannotBeSentAreRefusedAtLoad) {
   fs::remove_all(dir);
 }
 
-// Issue 39: `foam submit /dev/zero` was OOM-killed at 24 GB and `yes | foam submit -` never
+// `foam submit /dev/zero` was OOM-killed at 24 GB and `yes | foam submit -` never
 // ended: foam reads at most the 1 MiB a spec may have, and says so (exit 2).
 TEST(Faults, UnboundedSpecInputIsCutAtItsLimit) {
   const Proc zero =

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Prometheus (Debian's 2.42) as a real scraper of foamd (issue 19, item 4).
+"""Prometheus (Debian's 2.42) as a real scraper of foamd.
 
 Starts foamd with a token and its HTTP endpoint, and Prometheus with deploy/prometheus.yml's
 scrape job pointed at it (the token from a credentials file); then asks Prometheus' HTTP API for

@@ -99,7 +99,7 @@ const BadSpec kBad[] = {
     {"scene = \"cell\"\n[numerics]\ntriangles_per_cell = 100\n", "numerics.triangles_per_cell"},
     {"scene = \"cell\"\n[mesh]\nx = 1\n", "mesh"},
     {"scene = \"cell\"\nduration_s = 10\nsample_every_s = 60\n", "sample_every_s"},
-    // [scene] keys that the scene does not read (issue 18): a mistake about what runs.
+    // [scene] keys that the scene does not read: a mistake about what runs.
     {"scene = \"cell\"\n[scene]\nn_cells = 20\n", "scene.n_cells"},
     {"scene = \"doublet\"\n[scene]\naxes_ratio = 2\n", "scene.axes_ratio"},
     {"scene = \"spheroid\"\n[scene]\ngap_um = 0.01\n", "scene.gap_um"},

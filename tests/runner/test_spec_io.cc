@@ -378,7 +378,7 @@ TEST(SpecIo, ValidateAndResolve) {
 
 }  // namespace
 
-// Issue 39's adversarial corpus: a JSON key given twice kept the last value without a word
+// The adversarial corpus: a JSON key given twice kept the last value without a word
 // (`"duration_s": 1, "duration_s": 2` ran for 2 s; a second "cells" object replaced the first).
 // Each repeat is refused naming its dotted key; TOML's form `scene = NAME` beside a scene table
 // stays allowed in JSON, unless the two disagree.

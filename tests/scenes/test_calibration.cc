@@ -1,11 +1,11 @@
 // The supplement's calibration of the model (its Fig. 7E): passive doublets of equal cells
-// settle at the Young–Dupré contact angle θ_c = arccos α. Issue 16 asks for α ∈ {0.15, 0.3,
-// 0.6, 0.9} within 1.5° at `standard` (the default numerics). Measured 2026-11-24
-// (`foam-run examples/doublet.toml --set cells.alpha=A --set duration_s=7000`): 81.8, 73.0,
-// 53.8 and 27.08° against 81.37, 72.54, 53.13 and 25.84° — the error grows as the junction
-// shrinks (fewer triangles span it). At α = 0.9 the first contact takes ~2500 s to zip open
-// (θ_c ≈ 4° until then) and settles by ~4000 s; the durations below leave each case ≥ 500 s
-// at its equilibrium.
+// settle at the Young–Dupré contact angle θ_c = arccos α, here for α ∈ {0.15, 0.3, 0.6, 0.9}
+// within 1.5° at `standard` (the default numerics). Measured at the one-spring contact-implicit
+// step, Δt 0.1 s, ε_CG 1e-3, the supplement's law (`foam-run examples/doublet.toml --set
+// cells.alpha=A --set duration_s=7000` with those numerics keys): 81.8, 73.0, 53.8 and 27.08°
+// against 81.37, 72.54, 53.13 and 25.84° — the error grows as the junction shrinks (fewer
+// triangles span it). At α = 0.9 the first contact takes ~2500 s to zip open (θ_c ≈ 4° until
+// then) and settles by ~4000 s; the durations below leave each case ≥ 500 s at its equilibrium.
 #include <algorithm>
 #include <cmath>
 #include <iostream>
@@ -72,14 +72,13 @@ INSTANTIATE_TEST_SUITE_P(Alphas, PassiveDoublet,
                            return "alpha_" + std::to_string(static_cast<int>(i.param.alpha * 100));
                          });
 
-// Spheroids (issue 16 item 4; the supplement's Fig. 7E): the surface contact angle between
-// neighbouring surface cells (`surfaceContactAngle`) of an aggregate of N = 20 cells. Measured
-// 2026-11-24 (docs/validation.md, bench/validation_spheroids.sh: N = 20 and 30, three seeds,
-// `draft`): passive aggregates settle within 0.6° of arccos α at α = 0.3 … 0.9 (the bound asked
-// is 3°); motile ones (the default p_a) sit 3.3–5.6° below it at every α — the protrusions keep
-// the junctions from their passive balance (−1.6° at half p_a, −11.5° at double), a property
-// of the active model rather than of the measure. α = 0.9 opens its junctions slowly
-// (≈ 3000 s passive).
+// Spheroids (the supplement's Fig. 7E): the surface contact angle between neighbouring surface
+// cells (`surfaceContactAngle`) of an aggregate of N = 20 cells. Measured (docs/validation.md,
+// bench/validation_spheroids.sh: N = 20 and 30, three seeds, the contact-implicit step at Δt
+// 0.5 s): passive aggregates settle within 0.6° of arccos α at α = 0.3 … 0.9 (the bound is 3°);
+// motile ones (the default p_a) sit 3.3–5.6° below it at every α — the protrusions keep the
+// junctions from their passive balance (−1.6° at half p_a, −11.5° at double), a property of the
+// active model rather than of the measure. α = 0.9 opens its junctions slowly (≈ 3000 s passive).
 namespace {
 
 struct SpheroidCase {
@@ -103,7 +102,7 @@ SpheroidAngle relaxSpheroid(const SpheroidCase& c) {
   s.cells.alpha = c.alpha;
   s.cells.p_a = c.p_a;
   // The step the calibration was measured at: contact-implicit, Δt 0.5 s, ε_CG 1e-2, the
-  // supplement's law (the retired `draft` preset's).
+  // supplement's law.
   s.numerics.integrator = IntegratorKind::ContactImplicit;
   s.numerics.dt_s = 0.5;
   s.numerics.cg_tol = 1e-2;
@@ -150,7 +149,7 @@ TEST_P(PassiveSpheroid, SurfaceContactAngleIsArccosAlpha) {
   const double target = std::acos(c.alpha) * 180 / M_PI;
   std::cout << "[ calibration ] spheroid α = " << c.alpha << ": θ_c = " << a.last_deg
             << "° (500 s before: " << a.before_deg << "°), arccos α = " << target << "°\n";
-  EXPECT_NEAR(a.last_deg, target, 3.0);        // the issue's bound; measured ≤ 0.6°
+  EXPECT_NEAR(a.last_deg, target, 3.0);        // the bound; measured ≤ 0.6°
   EXPECT_NEAR(a.last_deg, a.before_deg, 1.0);  // settled, not passing through
   EXPECT_LT(a.volume_error_max, 0.01);
 }

@@ -1,5 +1,5 @@
-// Every fidelity preset meets the errors it states (issue 6; the table is fidelityPresets(),
-// docs/study/presets.md), measured on the doublet as the speed/accuracy study measures them:
+// Every fidelity preset meets the errors it states (the table is fidelityPresets(),
+// docs/science/presets.md), measured on the doublet as the speed/accuracy study measures them:
 // the equilibrium contact angle against the analytic arccos α, and the contact angle's approach
 // θ_c(t) (RMS over samples every 5 s) against a finer run than any preset.
 #include <algorithm>

@@ -373,7 +373,7 @@ TEST(Cli, SweepResultsAggregateOverSeeds) {
   fs::remove_all(dir);
 }
 
-// Issue 39 item 14: TLS files are checked before anything starts, each error naming the option
+// TLS files are checked before anything starts, each error naming the option
 // and the file (a garbage --tls-ca was gRPC's "empty address list: (14)", a key of another
 // certificate "the port is taken"; a key that others can read was accepted).
 TEST(Cli, TlsFilesAreCheckedAtStartNamingTheFile) {

@@ -1,6 +1,6 @@
 // foamd's HTTP endpoint as a client meets it over the socket: a pool of workers that idle and
 // slow clients cannot hold, limits with their status codes, the token on every data route, TLS,
-// and the listener rules shared with gRPC (issue 19).
+// and the listener rules shared with gRPC.
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
 #include <netinet/in.h>
@@ -109,7 +109,7 @@ TEST_F(HttpTest, IdleConnectionsAndASlowClientDoNotDelayHealthz) {
   for (int fd : idle) close(fd);
 }
 
-// Issue 39 item 8: the library's pool gave each connection a worker while its header was read,
+// The library's pool gave each connection a worker while its header was read,
 // with a timeout per read: 33 clients sending a header line every 3 s held /healthz for 43 s, 200
 // idle sockets for 19 s. Now the front reads every header itself and hands a worker only whole
 // requests. The flood reconnects whatever the server closes, so it stays 200 idle and 50 slow
@@ -188,7 +188,7 @@ TEST_F(HttpTest, HealthzAnswersWithinASecondUnder200IdleAnd50SlowConnections) {
   std::printf("the flood reconnected %d times\n", reconnects.load());
 }
 
-// The front's two limits (issue 39 item 8). A header must be whole within its deadline however
+// The front's two limits. A header must be whole within its deadline however
 // it trickles in: a line every 300 ms never let the library's per-read timeout fire. And one
 // address holds at most its share of connections: one more closes its oldest unfinished one.
 TEST_F(HttpTest, AHeaderHasADeadlineAndAnAddressHoldsItsShareOfConnections) {
@@ -282,7 +282,7 @@ RawAnswer rawExchange(int port, const std::string& request) {
   return a;
 }
 
-// Issue 39 item 15: a GET with a body (100 KiB, or a chunked 1 MiB) was answered 200 and its
+// A GET with a body (100 KiB, or a chunked 1 MiB) was answered 200 and its
 // unread body parsed as a second request; a POST without Content-Length got 400 after 10 s; every
 // refusal held the connection for the 5 s keep-alive. Now: 413 / 405 / 414 at once, the
 // connection closed after the one answer.
@@ -311,7 +311,7 @@ TEST_F(HttpTest, RefusalsAnswerAtOnceAndCloseTheConnection) {
   }
 }
 
-// Issue 39: without a token the dashboard answered any Host, so a page elsewhere that rebinds
+// Without a token the dashboard answered any Host, so a page elsewhere that rebinds
 // its DNS name to 127.0.0.1 could read every job. Only loopback names are served then; with a
 // token the token decides.
 TEST_F(HttpTest, WithoutATokenOnlyLoopbackHostNamesAreServed) {

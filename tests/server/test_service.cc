@@ -506,7 +506,7 @@ TEST_F(ServiceTest, RecordedSnapshotsOfARunCanBeFetched) {
   EXPECT_EQ(info.vertices(), 42);
 }
 
-// Requests that used to be accepted silently or answered opaquely (issue 18): each is
+// Requests that used to be accepted silently or answered opaquely: each is
 // INVALID_ARGUMENT naming the field, a huge value is not echoed back whole, and the server
 // keeps serving.
 TEST_F(ServiceTest, BadRequestsAreInvalidArgumentNamingTheField) {
@@ -611,7 +611,7 @@ TEST_F(ServiceTest, SweepCreatesGridTimesSeedsJobs) {
   EXPECT_EQ(store_->countRows("jobs"), jobs0);
 }
 
-// Issue 39: every string the API stores has a cap, the same on every RPC and named in the
+// Every string the API stores has a cap, the same on every RPC and named in the
 // error; a sweep's job count is capped through its seeds too (1000 values × 101 seeds made
 // 101 000 jobs). Nothing is stored by a refused request.
 TEST_F(ServiceTest, EveryStoredStringAndSweepSizeIsCapped) {
@@ -784,7 +784,7 @@ TEST_F(ServiceTest, RequestsThatAreNotUtf8OrNotAMessageAreInvalidArgumentNamingT
   EXPECT_EQ(get(id).id(), id);
 }
 
-// Disk full mid-run (issue 18): every write fails with SQLITE_FULL for a while. The server
+// Disk full mid-run: every write fails with SQLITE_FULL for a while. The server
 // does not abort; it logs, counts the failures, reports NOT_SERVING and refuses new submits
 // while still answering reads; the running job's queued outputs are kept and committed when
 // space returns, and it ends with the samples of an uninterrupted run.
@@ -830,7 +830,7 @@ TEST_F(ServiceTest, StoreWriteFailuresAreRetriedAndTheJobEndsIntact) {
   }
 }
 
-// Issue 39 item 2: foamd restarted (after kill -9) on a full disk re-queued the jobs left running
+// foamd restarted (after kill -9) on a full disk re-queued the jobs left running
 // with a write that waited for space, before it listened: neither gRPC nor /healthz answered
 // until space returned. Now the start's re-queue is one more write of the writer thread: retried
 // while the storage fails, the server listens at once and is degraded (NOT_SERVING, submits

@@ -149,8 +149,8 @@ TEST(SpecConvert, SceneKeysTheSceneDoesNotUseAreRefused) {
 }
 
 // A single cell has no contacts: adhesion, contact friction, the contact springs and motility
-// are never built (Simulation::init), so their keys change nothing and are refused (issue 39
-// item 17: such a run had the same bits as one without them). The same keys run on a doublet.
+// are never built (Simulation::init), so their keys change nothing and are refused (such a run
+// had the same bits as one without them). The same keys run on a doublet.
 TEST(SpecConvert, ContactAndMotilityKeysOnASingleCellAreRefused) {
   for (const char* set : {"cells.alpha=0.5", "cells.k_contact=50", "cells.xi=0.5",
                           "cells.xi_normal=0.5", "cells.xi_tangential=0.1", "cells.p_a=0",

@@ -209,7 +209,7 @@ activefoam::testing::Proc pythonCount(const fs::path& db) {
 
 }  // namespace
 
-// Issue 39 item 3: SQLite kept its WAL index in a memory-mapped `-shm` file, so a storage fault
+// SQLite kept its WAL index in a memory-mapped `-shm` file, so a storage fault
 // under it (the file made immutable mid-job) was a SIGBUS that killed foamd. The index is now in
 // the heap (server/heap_shm_vfs.h): no file of the database is mapped, both connections of the
 // store share it, and another process cannot use the database beside it.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 7's end-to-end test on a real, single-node Slurm (tests/slurm/slurm-single-node.sh):
+# The Slurm executor's end-to-end test on a real, single-node Slurm (tests/slurm/slurm-single-node.sh):
 # foamd with the Slurm executor runs a sweep as one sbatch array and stores the same results as
 # the local pool for the same seeds; a cancelled task ends CANCELLED (scancel), a failing one
 # FAILED with its reason; foamd killed mid-sweep and restarted loses nothing.

@@ -1,6 +1,6 @@
 // HOST:PORT addresses as foam and foamd take them: the port must be a number in 1..65535
 // (gRPC and the HTTP library take the port modulo 65536 otherwise: --listen 127.0.0.1:92786
-// listened on 27250, issue 39).
+// listened on 27250).
 #pragma once
 
 #include <string>

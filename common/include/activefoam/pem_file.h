@@ -1,4 +1,4 @@
-// TLS certificate and key files, read so that a wrong file is named as such (issue 39: a garbage
+// TLS certificate and key files, read so that a wrong file is named as such (a garbage
 // --tls-ca surfaced as gRPC's "empty address list: (14)", a key that is not the certificate's as
 // "the port is taken"). A private key is refused when other users could read it, as token files.
 #pragma once

@@ -1,5 +1,5 @@
 // Bearer-token files, read the way ssh reads private keys: refused when other users could read
-// them or when they are too short to be a secret (issue 18).
+// them or when they are too short to be a secret.
 #pragma once
 
 #include <sys/stat.h>
@@ -18,7 +18,7 @@ inline constexpr std::size_t kMaxTokenBytes = 4096;
 
 // "" when `token` can be a bearer token: kMinTokenBytes..kMaxTokenBytes of printable ASCII
 // without spaces (what an HTTP header and gRPC metadata carry as they are). Otherwise what is
-// wrong (issue 39: a token with a newline inside or binary bytes aborted foam in gRPC's
+// wrong (a token with a newline inside or binary bytes aborted foam in gRPC's
 // metadata check, and a 1 MB one broke every client).
 inline std::string tokenError(const std::string& token) {
   if (token.size() < kMinTokenBytes)

@@ -17,7 +17,7 @@ namespace activefoam {
 // What a step reads of a TriangleContact, kept per pair: 144 of its 224 bytes (the force, centroid
 // and centre of pressure are for tests of the contact geometry). The pair list of the 2 × 100
 // fusion is written once per detection and read by every contact term and guard: its size is
-// bandwidth (docs/benchmarks.md, "Where one thread's draft step goes").
+// bandwidth (docs/benchmarks.md, "6. Where a step goes").
 struct PairContact {
   Vec3 normal = Vec3::Zero();
   double area = 0;

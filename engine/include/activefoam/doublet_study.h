@@ -1,4 +1,4 @@
-// The doublet as a measuring instrument (issue 6): two passive cells from a small gap, run to
+// The doublet as a measuring instrument: two passive cells from a small gap, run to
 // equilibrium, their contact angle averaged over the last stretch. The speed/accuracy study
 // (bench/study_accuracy) and its quick version in the tests measure every numerical setting
 // this way, so that both judge the same quantity.

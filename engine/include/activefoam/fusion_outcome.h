@@ -1,4 +1,4 @@
-// How a fusion run ended, and the fits that only make sense when it fused (issue 16).
+// How a fusion run ended, and the fits that only make sense when it fused.
 //
 // The supplement sorts its experiments into "no contact", "no fusion" and "(partial) fusion"
 // and fits Eq. 1 only to the last (its Supp. Fig. 1B); simulated spheroids can also touch and

@@ -1,7 +1,7 @@
 // Block incomplete Cholesky, IC(0) on 3×3 blocks: L Lᵀ ≈ P A Pᵀ with L restricted to A's own
 // block pattern (no fill). The preconditioner for Γ v = F that sees the contact couplings: the
 // stiffness that slows CG sits in the springs between cells (Δt k_AB S ≫ the friction), which
-// Jacobi and per-cell blocks cannot see (issue 15's measurements: 51 CG iterations with Jacobi,
+// Jacobi and per-cell blocks cannot see (on a reduced fusion: 51 CG iterations with Jacobi,
 // 26 with exact per-cell blocks, ~9 with this factor).
 //
 // The factor is built from blocks handed to it in any order (duplicates summed in the order

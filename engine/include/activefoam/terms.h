@@ -52,7 +52,7 @@ class MediumDrag : public ForceTerm {
 // S13: per edge ij, G = (η/√3)(n̂n̂ᵀ + t̂t̂ᵀ + ε_n b̂b̂ᵀ) as a coupling between i and j: +G on
 // the diagonal blocks of i and j, −G across. The couplings are a product, edge by edge (32 bytes
 // an edge): assembled, they were ~85 % of Γ's 2 M non-zeros on the 2 × 100 fusion, which every
-// CG iteration streamed (docs/benchmarks.md, "The cortex viscosity's couplings as a product").
+// CG iteration streamed (docs/benchmarks.md, "6. Where a step goes").
 class CortexViscosity : public ForceTerm {
  public:
   explicit CortexViscosity(const CellParams& p) : eps_n_(p.eps_n), g_(p.eta / std::sqrt(3.0)) {}

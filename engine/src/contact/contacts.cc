@@ -322,7 +322,7 @@ class PairCoupling : public Coupling {
   }
 
   // What a pair adds, computed for two pairs at once in the two lanes of an SSE2 register (the
-  // product was scalar arithmetic, bound by instructions rather than memory: perf, 2026-11-26).
+  // product was scalar arithmetic, bound by instructions rather than memory: perf).
   // Each lane runs pairValues' operations in the scalar order, and IEEE arithmetic is exact per
   // lane, so the values are the scalar ones bit for bit; they are added to y pair by pair in the
   // pair order, as before.

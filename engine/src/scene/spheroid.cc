@@ -330,7 +330,7 @@ CellSet buildFusionCells(const SceneSpec& spec, const SpheroidCache* cache, cons
   PreparedSpheroid a = prepare(na, 0);
   PreparedSpheroid b = prepare(nb, 1);
   // A spheroid still compacting would fuse while it shrinks: θ(t) and the fits would mix the
-  // two (issue 16). prep_max_s = 0 asks for the packed cells as they are.
+  // two. prep_max_s = 0 asks for the packed cells as they are.
   if (sp.prep_max_s > 0 && !sp.allow_uncompacted)
     for (const PreparedSpheroid* s : {&a, &b})
       if (!s->compact)

@@ -157,12 +157,12 @@ std::vector<SpecError> validate(const SceneSpec& spec) {
         error("accuracy.contact_angle_deg",
               formatNumber(*spec.accuracy.contact_angle_deg) +
                   "° is finer than any preset promises; allowed [" + formatNumber(ca) +
-                  ", 90] ° (the finest: `reference`, docs/study/presets.md)");
+                  ", 90] ° (the finest: `reference`, docs/science/presets.md)");
       if (spec.accuracy.trajectory_deg && *spec.accuracy.trajectory_deg < tr)
         error("accuracy.trajectory_deg",
               formatNumber(*spec.accuracy.trajectory_deg) +
                   "° is finer than any preset promises; allowed [" + formatNumber(tr) +
-                  ", 90] ° (the finest: `reference`, docs/study/presets.md)");
+                  ", 90] ° (the finest: `reference`, docs/science/presets.md)");
     } else {
       SceneSpec want = spec;  // the numerics the target chooses
       want.numerics.pinned.bits = 0;
@@ -228,14 +228,14 @@ std::vector<SpecError> measuredUnstable(const SceneSpec& spec) {
         "to fail from " +
         formatNumber(limit) + " s at k_AB = " + formatNumber(spec.cells.k_contact) + " nN/µm³";
   } else if (n.integrator == IntegratorKind::Ros2) {
-    // ros2's own map (2026-11-24): 2 s ran everywhere (k_AB × 1/64 … 4, p_a r/2γ 0 … 1; and on
+    // ros2's own map: 2 s ran everywhere (k_AB × 1/64 … 4, p_a r/2γ 0 … 1; and on
     // 1280 triangles in the doublet study), 4 s drifted out of volume everywhere.
     limit = 4.0;
     why = "ros2 was measured to fail from 4 s (volume-drift at every k_AB and motility of the map)";
     kind = "docs/study/stability-map.md";
   } else if (n.integrator == IntegratorKind::ContactImplicitConsistent &&
              n.triangles_per_cell < 1280) {
-    // Its own map (2026-11-26): 1 s ran at every k_AB × 1/64 … 4 and p_a r/2γ 0 … 1, 2 s
+    // Its own map: 1 s ran at every k_AB × 1/64 … 4 and p_a r/2γ 0 … 1, 2 s
     // oscillated everywhere. But the motile 2 × 20 fusion at 1 s (ε_CG 1e-2) inverted triangles
     // at 53 and 86 min and died of a cell's volume error at 86 min, which the rollback cannot
     // undo: with motility the limit is 1 s, as contact-implicit's.
@@ -258,7 +258,7 @@ std::vector<SpecError> measuredUnstable(const SceneSpec& spec) {
   } else {
     // contact-implicit. The first map (polarity noise keyed by step) failed at 1 s with
     // motility; the map with the noise keyed by time ran 1 s there and failed at 2 s: the
-    // lower limit stays. The map of 2026-11-26 (smoothing on the surface) failed at 1 s without
+    // lower limit stays. The map with smoothing on the surface failed at 1 s without
     // motility too, at k_AB × 1, and 1 s is a draw there: with k_AB within ±3 % 3 of 6 runs
     // oscillated with the earlier smoothing, 4 of 6 with today's. contact-implicit-consistent
     // with 1280 triangles has no map: it gets contact-implicit's limit there.
