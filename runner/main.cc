@@ -108,27 +108,45 @@ void printHelp() {
          "written: continue with --resume)\n";
 }
 
+// A value as a spec file writes it: 0.1, 3, "ros2", true.
+std::string specText(const SpecValue& v) {
+  return std::visit(
+      [](const auto& x) -> std::string {
+        using T = std::decay_t<decltype(x)>;
+        if constexpr (std::is_same_v<T, double>)
+          return formatNumber(x);
+        else if constexpr (std::is_same_v<T, std::int64_t>)
+          return std::to_string(x);
+        else if constexpr (std::is_same_v<T, std::string>)
+          return "\"" + x + "\"";
+        else
+          return x ? "true" : "false";
+      },
+      v);
+}
+
+// Every key with its default, range and meaning, and what the key table knows of its history:
+// the value that reproduces runs made before it existed, what the spheroids' preparation runs
+// it at, and the scenes that read it.
 void printKeys() {
   const SceneSpec defaults;
   for (const SpecField& f : specFields()) {
-    std::string value = "(derived)";
-    if (const auto v = getField(defaults, f.key)) {
-      std::visit(
-          [&](const auto& x) {
-            using T = std::decay_t<decltype(x)>;
-            if constexpr (std::is_same_v<T, double>)
-              value = formatNumber(x);
-            else if constexpr (std::is_same_v<T, std::int64_t>)
-              value = std::to_string(x);
-            else if constexpr (std::is_same_v<T, std::string>)
-              value = "\"" + x + "\"";
-            else
-              value = x ? "true" : "false";
-          },
-          *v);
+    const auto v = getField(defaults, f.key);
+    std::cout << f.key << " = " << (v ? specText(*v) : "(derived)") << "  " << f.range()
+              << (f.unit.empty() ? "" : " ") << f.unit << "\n    " << f.help << "\n";
+    std::string notes;
+    if (f.label) notes += "names other keys' values; ";
+    if (f.before) notes += "before it existed: " + specText(*f.before) + "; ";
+    if (f.prep == SpecField::Prep::Fixed)
+      notes += "spheroid preparation: " + (f.prep_value ? specText(*f.prep_value) : "unset") + "; ";
+    if (f.scenes != 0xF) {
+      std::string list;
+      for (SceneKind k :
+           {SceneKind::Cell, SceneKind::Doublet, SceneKind::Spheroid, SceneKind::Fusion})
+        if (f.readBy(k)) list += (list.empty() ? "" : ", ") + std::string(toString(k));
+      notes += "read by: " + list + "; ";
     }
-    std::cout << f.key << " = " << value << "  " << f.range() << (f.unit.empty() ? "" : " ")
-              << f.unit << "\n    " << f.help << "\n";
+    if (!notes.empty()) std::cout << "    (" << notes.substr(0, notes.size() - 2) << ")\n";
   }
 }
 

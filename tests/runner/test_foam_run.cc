@@ -197,6 +197,15 @@ TEST_F(FoamRun, HelpVersionKeys) {
   r = run("--keys");
   EXPECT_EQ(r.code, 0);
   for (const SpecField& f : specFields()) EXPECT_NE(r.out.find(f.key + " = "), std::string::npos);
+  // The key table's history, said where it applies: the contact law's value before the key,
+  // what the preparation runs it at, the scenes that read it.
+  const auto law = r.out.find("numerics.contact_law = \"prisms-overlap\"");
+  ASSERT_NE(law, std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("(before it existed: \"supplement\"; spheroid preparation: \"supplement\"; "
+                       "read by: doublet, spheroid, fusion)",
+                       law),
+            std::string::npos)
+      << r.out.substr(law, 400);
 }
 
 TEST_F(FoamRun, RefusesANonEmptyOutputDir) {
