@@ -308,6 +308,25 @@ TEST(Threads, StudiesStepFusionRunIsBitIdenticalForAnyThreadCount) {
   expectSameRuns(studiesStep(fusion2x4()), kFine);
 }
 
+// Every preset as it ships (its repairs, guard and polarities the defaults'), on the fusion.
+TEST(Threads, EveryPresetsFusionRunIsBitIdenticalForAnyThreadCount) {
+  for (const PresetInfo& p : fidelityPresets()) {
+    SCOPED_TRACE(std::string(toString(p.preset)));
+    SceneSpec s = fusion2x4();
+    const SceneSpec plain;
+    s.numerics = plain.numerics;
+    s.numerics.triangles_per_cell = 80;  // small cells: fast enough for the sanitizer passes
+    s.scene_params.polarity_from_preparation = plain.scene_params.polarity_from_preparation;
+    applyPreset(s.numerics, p.preset);
+    s.numerics.triangles_per_cell = 80;
+    s.numerics.remesh_every_s.reset();
+    s.numerics.dt_min_s.reset();
+    s.duration_s = 12;
+    ASSERT_TRUE(validate(s).empty()) << validate(s)[0].str();
+    expectSameRuns(resolve(s), kFine);
+  }
+}
+
 TEST(Threads, StudiesStepMotileDoubletRunIsBitIdenticalForAnyThreadCount) {
   expectSameRuns(studiesStep(motileDoublet()), kFine);
 }
