@@ -182,7 +182,7 @@ def test_a_changed_study_names_its_stale_jobs_and_cancels_them_when_asked(foamd,
     old = set(client.jobs(tag="study:stale")["job_id"])
     # The step changed (as a study moving to another Δt): the two jobs are no runs of it now.
     f.write_text(f.read_text().replace("duration_s = 240", "duration_s = 240\n"
-                                       '"numerics.cg_tol" = 0.01'))
+                                       '"numerics.cg_tol" = 0.001'))
     r = _run(["run", str(f), "--no-wait"], foamd)
     assert r.returncode == 0 and "2 runs submitted" in r.stderr, r.stderr
     named = re.search(r"(\d+) queued or running jobs of tag study:stale are no run .*\((.*)\)",

@@ -123,7 +123,8 @@ TEST_F(FoamRun, InvalidSpecExits2NamingTheKeyAndWritesNothing) {
 TEST_F(FoamRun, AGapBeyondTheAdhesionRangeRunsWithAWarning) {
   const fs::path s = spec(
       "scene = \"doublet\"\nduration_s = 1\nsample_every_s = 0.5\nsnapshot_every_s = 0\n"
-      "[cells]\nalpha = 0.9\n[scene]\ngap_um = 0.05\n[numerics]\ntriangles_per_cell = 80\n");
+      "[cells]\nalpha = 0.9\n[scene]\ngap_um = 0.05\n[numerics]\ntriangles_per_cell = 80\n"
+      "dt_s = 0.1\n");
   const Result r = run(quote(s.string()) + " -q --out " + quote((dir_ / "o").string()));
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.err.find("foam-run: warning: scene.gap_um: 0.05 µm is at or beyond the adhesion "
@@ -224,7 +225,7 @@ TEST_F(FoamRun, RefusesANonEmptyOutputDir) {
 
 constexpr const char* kCell =
     "scene = \"cell\"\nduration_s = 5\nsample_every_s = 1\nsnapshot_every_s = 0\n"
-    "[numerics]\ntriangles_per_cell = 80\n";
+    "[numerics]\ntriangles_per_cell = 80\ndt_s = 0.1\n";
 
 void expectCompleteOutput(const fs::path& out, SceneKind scene, std::size_t rows) {
   ASSERT_TRUE(fs::exists(out / "spec.json"));

@@ -214,7 +214,7 @@ TEST(Cli, KillDashNineThenRestartFinishesEveryJobWithTheSameResults) {
   const int port = freePort();
   auto d = std::make_unique<Foamd>(dir / "foamd.db", port, 1);
   const std::string spec =
-      " --scene cell --set duration_s=1500 --set sample_every_s=100"
+      " --scene cell --set duration_s=1500 --set sample_every_s=100 --set numerics.dt_s=0.1"
       " --set numerics.triangles_per_cell=80 --set snapshot_every_s=0 --set seed=5";
   Proc r;
   for (int i = 0; i < 50; ++i) {
@@ -262,7 +262,8 @@ TEST(Cli, SigtermRequeuesRunningJobs) {
   for (int i = 0; i < 50; ++i) {
     r = sh(d->foam() +
            " submit --scene cell --set duration_s=1500 --set sample_every_s=100"
-           " --set numerics.triangles_per_cell=80 --set snapshot_every_s=0 2>/dev/null");
+           " --set numerics.dt_s=0.1 --set numerics.triangles_per_cell=80"
+           " --set snapshot_every_s=0 2>/dev/null");
     if (r.rc == 0) break;
     std::this_thread::sleep_for(100ms);
   }

@@ -73,17 +73,21 @@ std::optional<std::optional<SpecError>> setRetiredField(SceneSpec& spec, std::st
       return setField(spec, "numerics.contact_law", std::string("prisms"));
     return std::optional<SpecError>{};
   }
-  // The remesher's two switches of earlier versions: rescue, and rebuild after it.
-  if (key == "numerics.remesh_rescue" || key == "numerics.remesh_rebuild") {
+  // The remesher's two switches of earlier versions: rescue, and rebuild after it (a rebuild
+  // without the rescue, which no study ran, reads as both). Either order of arrival gives the
+  // policy both name.
+  if (key == "numerics.remesh_rescue") {
     if (!b) return needBool();
-    const bool rescue =
-        key == "numerics.remesh_rescue" ? *b : n.remesh_repair != RemeshRepair::None;
-    const bool rebuild =
-        key == "numerics.remesh_rebuild" ? *b : n.remesh_repair == RemeshRepair::RescueRebuild;
-    const RemeshRepair r = rebuild  ? RemeshRepair::RescueRebuild
-                           : rescue ? RemeshRepair::Rescue
-                                    : RemeshRepair::None;
+    RemeshRepair r = RemeshRepair::None;
+    if (*b) r = n.remesh_repair == RemeshRepair::None ? RemeshRepair::Rescue : n.remesh_repair;
     return setField(spec, "numerics.remesh_repair", std::string(toString(r)));
+  }
+  if (key == "numerics.remesh_rebuild") {
+    if (!b) return needBool();
+    if (*b) return setField(spec, "numerics.remesh_repair", std::string("rescue-rebuild"));
+    if (n.remesh_repair == RemeshRepair::RescueRebuild)
+      return setField(spec, "numerics.remesh_repair", std::string("rescue"));
+    return std::optional<SpecError>{};
   }
   if (key == "numerics.contact_max_facing_deg")
     return retiredAt(key, value, 90.0,

@@ -10,6 +10,7 @@ import hashlib
 import json
 import math
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Tuple
@@ -133,10 +134,16 @@ def _base_keys(study: Study) -> set:
     try:
         doc = tomllib.loads(study.base_text)
     except tomllib.TOMLDecodeError:
+        # `scene = "fusion"` beside a [scene] table, as the engine reads it (the kind may be
+        # written either way): the table's keys without the top-level one.
+        lifted = re.sub(r'(?m)^scene\s*=.*$', "", study.base_text)
         try:
-            doc = json.loads(study.base_text)
-        except ValueError:
-            return set()
+            doc = tomllib.loads(lifted)
+        except tomllib.TOMLDecodeError:
+            try:
+                doc = json.loads(study.base_text)
+            except ValueError:
+                return set()
     return set(flatten(doc)) if isinstance(doc, dict) else set()
 
 
