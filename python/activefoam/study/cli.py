@@ -134,6 +134,10 @@ def _main(argv: List[str]) -> int:
                             "results are bit-identical)")
     p_res.add_argument("--engine", default=None, help="the engine the restored store's foamd "
                        "will run (default: git tree of this checkout's engine/)")
+    p_res.add_argument("--max-unpacked-gib", type=float,
+                       default=store_copy.MAX_UNPACKED_BYTES / 2**30, metavar="GIB",
+                       help="the most the two archives may unpack to together (default "
+                       "%(default)g GiB): a damaged or hostile copy stops there")
     args = ap.parse_args(argv)
     if args.cmd in ("save-store", "restore-store"):
         try:
@@ -142,14 +146,21 @@ def _main(argv: List[str]) -> int:
                                     snapshots=not args.without_snapshots,
                                     engine_commit=args.engine_commit)
             else:
+                if not 0 < args.max_unpacked_gib < 2**20:  # nan and inf too
+                    raise StudyError(f"--max-unpacked-gib: {args.max_unpacked_gib} is not "
+                                     "a size in (0, 2^20) GiB")
                 m = store_copy.restore(args.dir, args.db, engine=args.engine,
-                                       engine_changed_ok=args.engine_changed)
+                                       engine_changed_ok=args.engine_changed,
+                                       max_unpacked=int(args.max_unpacked_gib * 2**30))
         except store_copy.StoreCopyError as e:
             raise StudyError(str(e)) from None
-        states = ", ".join(f"{n} {s}" for s, n in m["by_state"].items())
-        print(f"{args.cmd}: {m['jobs']} jobs ({states}), "
-              f"{m['checkpoints']} checkpoints, {m['spheroids']} prepared spheroids; "
-              f"engine {m['engine']}, saved {m['saved_utc']}", file=sys.stderr)
+        by_state = m.get("by_state")
+        states = ", ".join(f"{n} {s}" for s, n in by_state.items()) \
+            if isinstance(by_state, dict) else "?"
+        print(f"{args.cmd}: {m.get('jobs', '?')} jobs ({states}), "
+              f"{m.get('checkpoints', '?')} checkpoints, {m.get('spheroids', '?')} prepared "
+              f"spheroids; engine {m.get('engine', '?')}, saved {m.get('saved_utc', '?')}",
+              file=sys.stderr)
         return 0
     if args.cmd == "verdicts":
         from activefoam.study import verdicts
