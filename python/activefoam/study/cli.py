@@ -13,6 +13,7 @@ from activefoam.inputs import read_token_file
 from activefoam.study import store_copy
 from activefoam.study.data import collect, load_data
 from activefoam.study.matching import Carried, carried_runs
+from activefoam.study.outputs import check_folder
 from activefoam.study.report import render
 from activefoam.study.studyfile import Study, StudyError, load
 from activefoam.study.submission import (_retry_kinds, cancel_stale, submit_diagnoses,
@@ -186,6 +187,11 @@ def _main(argv: List[str]) -> int:
                 (f" at seeds {sh.seeds}" if sh.seeds is not None else "") + ")"
                 for sh in held))
         return 0
+    # Where the report goes is checked before any work (report --out /dev/full).
+    out = check_folder(args.out or study.path.parent / f"{study.name}-report") \
+        if args.cmd == "report" else None
+    if args.cmd == "run" and args.report:
+        check_folder(args.report, "--report")
     carried = None
     if getattr(args, "with_data", None):
         if args.cmd == "report" and args.from_data:
@@ -215,7 +221,7 @@ def _main(argv: List[str]) -> int:
             if args.report:
                 _report(study, c, Path(args.report), carried)
             return 1 if counts.get("failed", 0) or counts.get("cancelled", 0) else 0
-    out = Path(args.out) if args.out else study.path.parent / f"{study.name}-report"
+    assert out is not None
     if args.from_data:
         data = load_data(study, args.from_data)
         for f in render(study, data, out):

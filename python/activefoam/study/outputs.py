@@ -14,12 +14,18 @@ from typing import Iterator, Union
 PathLike = Union[str, os.PathLike]
 
 
-def folder(path: PathLike, what: str = "--out") -> Path:
-    """`path` as an output folder, made where missing. ValueError when something else is there
-    (report --out /dev/full)."""
+def check_folder(path: PathLike, what: str = "--out") -> Path:
+    """ValueError when something other than a folder is at `path` (report --out /dev/full):
+    said before any work is done."""
     p = Path(path)
     if p.exists() and not p.is_dir():
         raise ValueError(f"{what}: {str(p)!r} is not a folder")
+    return p
+
+
+def folder(path: PathLike, what: str = "--out") -> Path:
+    """`path` as an output folder, made where missing (check_folder first)."""
+    p = check_folder(path, what)
     try:
         p.mkdir(parents=True, exist_ok=True)
     except OSError as e:
