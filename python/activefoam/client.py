@@ -483,6 +483,9 @@ class Job:
         LookupError when the job has no snapshots (or does not exist), FileNotFoundError when
         foam or ffmpeg is missing, ValueError for a bad argument, RuntimeError otherwise; each
         with foam's message."""
+        if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not \
+                (math.isfinite(fps) and fps > 0):  # `--fps nan` reached ffmpeg
+            raise ValueError(f"fps: a positive number of frames a second, got {fps!r}")
         exe = foam or os.environ.get("FOAM_EXE") or shutil.which("foam")
         if not exe:
             raise FileNotFoundError("Job.movie runs `foam export --movie`: no foam executable "

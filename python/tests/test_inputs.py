@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from activefoam import Client
+from activefoam import Client, Job
 from activefoam.inputs import read_bounded, read_token_file
 
 CERT = "-----BEGIN CERTIFICATE-----\nMIIB\n-----END CERTIFICATE-----\n"
@@ -127,3 +127,9 @@ def test_a_file_without_a_size_is_read_to_its_cap_plus_one_byte():
     os.close(w)
     assert read_bounded(f"/dev/fd/{r}", 10, "spec") == b"x" * 10
     os.close(r)
+
+
+@pytest.mark.parametrize("fps", [float("nan"), float("inf"), 0, -1, "4", True])
+def test_a_movie_rate_that_is_no_rate_is_refused_before_foam_runs(fps, tmp_path):
+    with pytest.raises(ValueError, match="fps: a positive number"):
+        Job(Client("127.0.0.1:1"), "j-x").movie(tmp_path / "m.mp4", fps=fps, foam="/nonexistent")
