@@ -110,7 +110,9 @@ def _save(db: Path, out: Path, engine: Optional[str], cache: Optional[os.PathLik
         try:
             src.backup(dst)
         except sqlite3.DatabaseError as e:
-            if "locked" not in str(e) and "busy" not in str(e):  # a full disk is no foamd
+            # foamd's hold shows as locked, busy or a locking protocol error; a full disk or
+            # a file that is no database is no foamd.
+            if not any(w in str(e) for w in ("lock", "busy", "protocol")):
                 raise StoreCopyError(f"save-store: cannot copy {db} into {out}: {e}") from None
             raise StoreCopyError(
                 f"save-store: {db} is in use ({e}): stop foamd first (SIGTERM checkpoints its "
