@@ -11,7 +11,7 @@ import time
 import pytest
 
 from activefoam import study as st
-from activefoam.study import outputs
+from activefoam.study import outputs, verdicts
 from test_study import _run, _synthetic
 
 SPEC = 'scene = "fusion"\nduration_s = 60\n'
@@ -172,3 +172,14 @@ def test_a_file_is_replaced_whole_or_not_at_all(tmp_path):
     outputs.write_text(target, "new")
     assert target.read_text() == "new" and os.listdir(tmp_path) == ["t.md"]
     assert oct(target.stat().st_mode & 0o777) == oct(0o666 & ~outputs._umask())
+
+
+def test_the_other_files_the_study_tool_reads_are_capped_and_named(tmp_path):
+    big = tmp_path / "verdicts.toml"
+    big.write_text("# " + "x" * (1 << 20) + "\n")
+    with pytest.raises(st.StudyError, match=f"verdicts '{big}' holds .* more than the 1 MiB"):
+        verdicts.load(big)
+    f, d = _synthetic(tmp_path, shift_theta=0.5)
+    (d / "collected.json").write_text("{not json")
+    with pytest.raises(st.StudyError, match=f"--with-data: {d / 'collected.json'}: not JSON"):
+        st.carried_runs(st.load(f), d)

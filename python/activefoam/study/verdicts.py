@@ -44,6 +44,7 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.9/3.10: the tomli pac
     import tomli as tomllib  # type: ignore
 
 from activefoam import trends
+from activefoam.inputs import SPEC_MAX_BYTES, read_text
 from activefoam.study import studyfile as sf
 from activefoam.study.data import _ran_past, load_data
 from activefoam.study.outputs import folder, to_csv, write_text
@@ -77,8 +78,12 @@ def load(path: os.PathLike) -> List[TrendSpec]:
     if not p.is_file():
         raise sf.StudyError(f"verdicts: no such file {str(p)!r}")
     try:
-        doc = tomllib.loads(p.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        text = read_text(p, SPEC_MAX_BYTES, "verdicts", regular=True)
+    except ValueError as e:  # over 1 MiB, or not UTF-8
+        raise sf.StudyError(str(e)) from None
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
         raise sf.StudyError(f"verdicts: {p}: not TOML: {e}") from None
     sf._unknown(doc, {"trend"}, "")
     items = doc.get("trend")
