@@ -17,6 +17,8 @@ import grpc
 import pandas as pd
 
 from activefoam import vtk
+from activefoam.inputs import (SPEC_MAX_BYTES, host_port_error, read_certificates, read_text,
+                               token_error)
 from activefoam.v1 import job_pb2, service_pb2, service_pb2_grpc
 
 Spec = Union[Mapping[str, Any], str, os.PathLike]
@@ -95,22 +97,8 @@ def _spec_fields(spec: Spec, overrides: Optional[Mapping[str, Any]] = None) -> D
 
 
 def _spec_text(spec: Union[str, os.PathLike]) -> str:
-    path = Path(spec)
-    if path.is_dir():
-        raise ValueError(f"spec: {str(path)!r} is a directory, not a spec file")
-    if not path.exists():
-        raise ValueError(f"spec: no such file {str(path)!r}")
-    if path.stat().st_size > 1 << 20:
-        raise ValueError(f"spec: {str(path)!r} is larger than the 1 MiB a spec may have")
     # At most 1 MiB whatever the file is (a device or a pipe has no size to check first).
-    with open(path, "rb") as f:
-        data = f.read((1 << 20) + 1)
-    if len(data) > 1 << 20:
-        raise ValueError(f"spec: {str(path)!r} holds more than the 1 MiB a spec may have")
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as e:
-        raise ValueError(f"spec: {str(path)!r} is not UTF-8 (byte {e.start})") from None
+    return read_text(spec, SPEC_MAX_BYTES, "spec")
 
 
 def _one_tag(tags: Optional[Sequence[str]]) -> str:
@@ -124,22 +112,14 @@ def _one_tag(tags: Optional[Sequence[str]]) -> str:
     return tags[0] if tags else ""
 
 
-MIN_TOKEN_BYTES, MAX_TOKEN_BYTES = 16, 4096   # as foamd and foam (common/.../token_file.h)
-
-
-def _check_token(token: str) -> None:
+def _check_token(token: str, what: str = "token") -> None:
     """A bearer token is 16..4096 bytes of printable ASCII without spaces; anything else would
     abort gRPC's metadata check or be refused by foamd (ValueError says which byte)."""
     if not isinstance(token, str):
-        raise ValueError(f"token: a string, got {type(token).__name__}")
-    if not MIN_TOKEN_BYTES <= len(token) <= MAX_TOKEN_BYTES:
-        raise ValueError(f"token: {len(token)} characters; a token has {MIN_TOKEN_BYTES} to "
-                         f"{MAX_TOKEN_BYTES}")
-    for i, ch in enumerate(token):
-        if not 0x21 <= ord(ch) <= 0x7E:
-            raise ValueError(f"token: character {ch!r} at offset {i}: a token is printable "
-                             "ASCII without spaces")
-
+        raise ValueError(f"{what}: a string, got {type(token).__name__}")
+    bad = token_error(token)
+    if bad:
+        raise ValueError(f"{what} {bad}")
 
 
 class _Progress:
@@ -181,23 +161,36 @@ class _Progress:
 class Client:
     """A connection to foamd. Defaults from FOAM_SERVER, FOAM_TOKEN, FOAM_TLS_CA.
 
-    token: the bearer token (the server's --token-file); tls_ca: PEM file of the server's
-    certificate or CA (its --tls-cert). A token without TLS is sent over local TCP credentials,
-    which gRPC allows to loopback addresses only (as foam does).
+    server: HOST:PORT, the port in 1..65535; token: the bearer token (the server's
+    --token-file; a FOAM_TOKEN that is set must hold one: set but empty is an error, not "no
+    token"); tls_ca: PEM file of the server's certificate or CA (its --tls-cert), at most 1 MiB.
+    A token without TLS is sent over local TCP credentials, which gRPC allows to loopback
+    addresses only (as foam does). ValueError names what is wrong with any of them.
     """
 
     def __init__(self, server: Optional[str] = None, token: Optional[str] = None,
                  tls_ca: Optional[str] = None, timeout_s: float = 60.0):
         self.server = server or os.environ.get("FOAM_SERVER") or "127.0.0.1:50051"
-        token = token if token is not None else os.environ.get("FOAM_TOKEN") or None
+        bad = host_port_error(self.server)
+        if bad:
+            raise ValueError(f"{'server' if server else 'FOAM_SERVER'}: {bad}")
         if token is not None:
             _check_token(token)
-        tls_ca = tls_ca if tls_ca is not None else os.environ.get("FOAM_TLS_CA") or None
+        elif "FOAM_TOKEN" in os.environ:
+            # Set but empty is a mistake, not "no auth": the token would go unsent in silence.
+            token = os.environ["FOAM_TOKEN"]
+            _check_token(token, "FOAM_TOKEN")
+        if tls_ca is None:
+            tls_ca = os.environ.get("FOAM_TLS_CA") or None
+            ca_what = "FOAM_TLS_CA"
+        else:
+            ca_what = "tls_ca"
         self.timeout_s = timeout_s
         self._token, self._tls_ca = token, tls_ca  # for `foam` run on this client's behalf
         options = [("grpc.max_receive_message_length", 64 << 20)]
-        if tls_ca:
-            creds = grpc.ssl_channel_credentials(root_certificates=Path(tls_ca).read_bytes())
+        if tls_ca is not None:  # tls_ca="" is a mistake, not "no TLS"
+            creds = grpc.ssl_channel_credentials(
+                root_certificates=read_certificates(tls_ca, ca_what))
             if token:
                 creds = grpc.composite_channel_credentials(
                     creds, grpc.access_token_call_credentials(token))
@@ -490,6 +483,9 @@ class Job:
         LookupError when the job has no snapshots (or does not exist), FileNotFoundError when
         foam or ffmpeg is missing, ValueError for a bad argument, RuntimeError otherwise; each
         with foam's message."""
+        if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not \
+                (math.isfinite(fps) and fps > 0):  # `--fps nan` reached ffmpeg
+            raise ValueError(f"fps: a positive number of frames a second, got {fps!r}")
         exe = foam or os.environ.get("FOAM_EXE") or shutil.which("foam")
         if not exe:
             raise FileNotFoundError("Job.movie runs `foam export --movie`: no foam executable "

@@ -14,6 +14,8 @@ through what the case names:
   specs.toml     spec texts (JSON/TOML) and --set values: foam-run, foam submit and SubmitJob
   rpc.toml       raw gRPC requests at and beyond each field's limit (the generated stubs)
   http.toml      raw HTTP requests on a socket, and a small flood of idle and slow clients
+  python.toml    the Python client's arguments and environment (a process per case), and
+                 the study tool's command line (python3 -m activefoam.study, a process per case)
 
 and at the end requires the server to be healthy (gRPC health, /healthz), a normal submit and
 list to work, and the number of stored jobs to be exactly what the accepted cases stored:
@@ -28,6 +30,7 @@ it is reported, and fails the run only if it passes (then the note is stale).
 Exit 0: every case held; 1: a case failed; 77: something needed is missing (SKIPPED).
 """
 import base64
+import json
 import os
 import re
 import socket
@@ -75,6 +78,13 @@ try:
 except ImportError as e:
     activefoam = None
     PY_CLIENT_MISSING = str(e)
+
+
+def limit_memory():
+    """In a Python case's process: a 4 GiB address space. A regression that reads /dev/zero to
+    its end fails its case, not the machine."""
+    import resource
+    resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))
 
 
 def free_port(family=socket.AF_INET, host="127.0.0.1"):
@@ -169,10 +179,10 @@ class Runner:
         values.update(extra or {})
         return re.sub(r"\{(\w+)\}", lambda m: values.get(m.group(1), m.group(0)), s)
 
-    def run(self, argv, env=None, stdin=None, timeout=PROC_TIMEOUT_S):
+    def run(self, argv, env=None, stdin=None, timeout=PROC_TIMEOUT_S, preexec_fn=None):
         try:
             r = subprocess.run(argv, env=env or self.env, input=stdin, capture_output=True,
-                               timeout=timeout)
+                               timeout=timeout, preexec_fn=preexec_fn)
             return r.returncode, (r.stdout + r.stderr).decode(errors="replace")
         except subprocess.TimeoutExpired as e:
             out = ((e.stdout or b"") + (e.stderr or b"")).decode(errors="replace")
@@ -247,6 +257,16 @@ class Runner:
                         problems.append(f"Python: the ValueError lacks {w!r}: {short(str(e))}")
             except Exception as e:  # noqa: BLE001 — anything but ValueError is the defect
                 problems.append(f"Python: {type(e).__name__} instead of ValueError: {short(str(e))}")
+        if activefoam is not None:  # the study tool's --token-file
+            from activefoam.inputs import read_token_file
+            try:
+                read_token_file(f)
+                problems.append("Python read_token_file accepted it")
+            except ValueError as e:
+                for w in [f"token file '{f}'"] + words:
+                    if w not in str(e):
+                        problems.append(f"Python read_token_file: the ValueError lacks {w!r}: "
+                                        f"{short(str(e))}")
         self.outcome(case, problems)
 
     # -- specs -----------------------------------------------------------------------------
@@ -395,6 +415,94 @@ class Runner:
                             f"(each at most {bound} s)")
         self.outcome(case, problems)
 
+    # -- the Python client and the study tool -----------------------------------------------
+    def python_files(self, case):
+        """The case's folder with its `files` (text or expansions; {case_dir} in text) and
+        `sparse` files (name = size: a large file without the disk), and the placeholders
+        {case_dir} and {file_NAME} (dots as underscores)."""
+        d = Path(tempfile.mkdtemp(dir=self.tmp))
+        extra = {"case_dir": str(d)}
+        for name, content in case.get("files", {}).items():
+            p = d / name
+            p.parent.mkdir(parents=True, exist_ok=True)
+            p.write_bytes(to_bytes(self.placeholders(content, extra) if isinstance(content, str)
+                                   else content))
+            p.chmod(0o600)
+            extra[f"file_{name.replace('.', '_').replace('/', '_')}"] = str(p)
+        for name, size in case.get("sparse", {}).items():
+            with (d / name).open("wb") as fh:
+                fh.truncate(size)
+        return d, extra
+
+    def study_case(self, case):
+        """python3 -m activefoam.study ARGS: the exit status, the words, one line on stderr
+        and no traceback, within the time bound, and nothing left at the `absent` paths."""
+        d, extra = self.python_files(case)
+        args = [self.placeholders(a, extra) for a in case["args"]]
+        env = dict(self.env, PYTHONPATH=str(BUILD / "python"))
+        env.update({k: self.placeholders(v, extra) for k, v in case.get("env", {}).items()})
+        t0 = time.monotonic()
+        rc, out = self.run([sys.executable, "-m", "activefoam.study"] + args, env=env,
+                           timeout=60, preexec_fn=limit_memory)
+        dt = time.monotonic() - t0
+        problems = []
+        self.expect_exit(rc, out, case.get("exit", 2),
+                         [self.placeholders(w, extra) for w in case.get("error", [])], problems,
+                         "study")
+        if "Traceback" in out or len(out.strip().splitlines()) != 1:
+            problems.append(f"study: not one line: {short(out)}")
+        if dt > case.get("within_s", PROC_TIMEOUT_S):
+            problems.append(f"study: answered in {dt:.1f} s (at most {case.get('within_s')} s)")
+        for a in case.get("absent", []):
+            p = Path(self.placeholders(a, extra))
+            if p.exists():
+                problems.append(f"study: {p} was left behind")
+        self.outcome(case, problems)
+
+    CLIENT_PROBE = (
+        "import json, sys, time\n"
+        "import activefoam\n"
+        "t0 = time.monotonic()\n"
+        "try:\n"
+        "    activefoam.Client(**json.loads(sys.argv[1])).close()\n"
+        "    print('accepted')\n"
+        "except ValueError as e:\n"
+        "    print(f'ValueError {time.monotonic() - t0:.3f} {e}')\n"
+        "except Exception as e:\n"
+        "    print(f'{type(e).__name__} {time.monotonic() - t0:.3f} {e}')\n")
+
+    def client_case(self, case):
+        """activefoam.Client(**args) with `env` set (FOAM_* unset otherwise), in a process of
+        its own (limit_memory): a ValueError holding the words, within 1 s."""
+        d, extra = self.python_files(case)
+        kwargs = {k: self.placeholders(v, extra) if isinstance(v, str) else v
+                  for k, v in case.get("args", {}).items()}
+        env = {k: v for k, v in self.env.items() if k not in ("FOAM_SERVER",)}
+        env.update(PYTHONPATH=str(BUILD / "python"))
+        env.update({k: self.placeholders(v, extra) for k, v in case.get("env", {}).items()})
+
+        problems = []
+        try:
+            r = subprocess.run([sys.executable, "-c", self.CLIENT_PROBE, json.dumps(kwargs)],
+                               env=env, capture_output=True, timeout=PROC_TIMEOUT_S,
+                               preexec_fn=limit_memory)
+            out = (r.stdout + r.stderr).decode(errors="replace").strip()
+        except subprocess.TimeoutExpired:
+            out = f"still running after {PROC_TIMEOUT_S} s (killed)"
+        kind, _, rest = out.partition(" ")
+        seconds, _, message = rest.partition(" ")
+        if kind != "ValueError":
+            problems.append(f"Python: {short(out)} (not a ValueError)")
+        else:
+            for w in case.get("error", []):
+                w = self.placeholders(w, extra)
+                if w not in message:
+                    problems.append(f"Python: the ValueError lacks {w!r}: {short(message)}")
+            if float(seconds) > case.get("within_s", 1.0):
+                problems.append(f"Python: refused in {seconds} s (at most "
+                                f"{case.get('within_s', 1.0)} s)")
+        self.outcome(case, problems)
+
     # -- after the corpus ------------------------------------------------------------------
     def final_checks(self):
         case = {"_file": "after the corpus", "name": "the server still serves, nothing refused "
@@ -442,6 +550,7 @@ class Runner:
 
 KINDS = {"foamd": Runner.foamd_case, "token": Runner.token_case, "spec": Runner.spec_case,
          "rpc": Runner.rpc_case, "http": Runner.http_case, "flood": Runner.flood_case}
+KINDS.update(study=Runner.study_case, client=Runner.client_case)
 
 
 def load_cases():

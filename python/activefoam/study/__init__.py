@@ -23,13 +23,14 @@ is named when it is queued or running, and cancelled with `--cancel-stale`. A ru
 in the simulation is rerun once per [[diagnose]] table of the file that names its failure kind,
 with that table's keys changed (tag `diag:NAME`): the report says whether the rerun ran past the
 failure (then the failure is those numerics', not the point's, and the verdict table's `failed`
-leaves it out). Exit codes: 0 done, 1 some runs failed, 2 bad study file or spec, 3 foamd
-unreachable, 4 token refused, 130 interrupted (the jobs go on in foamd; rerun to follow them).
+leaves it out). Exit codes: 0 done, 1 some runs failed, 2 bad study file or spec, or a file
+that cannot be read or written (named), 3 foamd unreachable, 4 token refused, 130 interrupted
+(the jobs go on in foamd; rerun to follow them).
 
-The modules, each importing only those before it: studyfile (the format), matching (jobs to
-runs), submission (submit, wait), data (collect, load, derive the metrics), tables, power,
-fitness, report (figures), verdicts (the trend statements), store_copy (save-store,
-restore-store) and cli.
+The modules, each importing only those before it: outputs (files written whole or not at all),
+studyfile (the format), matching (jobs to runs), submission (submit, wait), data (collect,
+load, derive the metrics), tables, power, fitness, report (figures), verdicts (the trend
+statements), store_copy (save-store, restore-store) and cli.
 """
 
 from activefoam.study.studyfile import (FITNESS_METRICS, MAX_ATTEMPTS, MAX_RUNS, METRICS,

@@ -7,10 +7,13 @@ import argparse
 import os
 import sys
 from pathlib import Path
-from typing import Any, Optional, Sequence
+from typing import Any, List, Optional, Sequence
 
+from activefoam.inputs import read_token_file
+from activefoam.study import store_copy
 from activefoam.study.data import collect, load_data
 from activefoam.study.matching import Carried, carried_runs
+from activefoam.study.outputs import check_folder
 from activefoam.study.report import render
 from activefoam.study.studyfile import Study, StudyError, load
 from activefoam.study.submission import (_retry_kinds, cancel_stale, submit_diagnoses,
@@ -23,13 +26,40 @@ def _client(args: Any) -> Any:
 
 
 def _token(args: Any) -> Optional[str]:
-    if args.token_file:
-        return Path(args.token_file).read_text().strip()
+    # --token-file '' is an error (read_token_file says so), not "no auth".
+    if args.token_file is not None:
+        return read_token_file(args.token_file)
     return None
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        return _main(argv)
+    except ValueError as e:  # StudyError, or a spec foamd refused
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # a ConnectionError too, but of stdout (`check | head`)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
+    except OSError as e:
+        if e.filename is not None:  # a file that could not be written or read: which one
+            print(f"error: {e.filename}: {e.strerror or e}", file=sys.stderr)
+            return 2
+        if isinstance(e, PermissionError):  # foamd refused the token
+            print(f"error: {e}", file=sys.stderr)
+            return 4
+        if isinstance(e, ConnectionError):
+            print(f"error: {e} (is foamd running? --server / FOAM_SERVER)", file=sys.stderr)
+            return 3
+        raise
+    except KeyboardInterrupt:
+        print("\ninterrupted: the submitted jobs go on in foamd; run the same command again to "
+              "follow them (nothing is submitted twice)", file=sys.stderr)
+        return 130
+
+
+def _main(argv: List[str]) -> int:
     if argv[:1] == ["power"]:  # its own options (activefoam.study.power)
         from activefoam.study import power
         return power.main(argv[1:])
@@ -40,6 +70,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                     "127.0.0.1:50051)")
     ap.add_argument("--token-file", default=None, help="bearer token file (default FOAM_TOKEN)")
     ap.add_argument("--tls-ca", default=None, help="PEM of foamd's certificate or CA")
+    ap.add_argument("--base-root", default=None, metavar="DIR",
+                    help="the folder a study's `base =` file may be read from (default: the "
+                    "study file's own folder)")
     sub = ap.add_subparsers(dest="cmd", required=True)
     p_run = sub.add_parser("run", help="submit the runs that are missing or failed, then wait")
     p_run.add_argument("study")
@@ -102,103 +135,101 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                             "results are bit-identical)")
     p_res.add_argument("--engine", default=None, help="the engine the restored store's foamd "
                        "will run (default: git tree of this checkout's engine/)")
+    p_res.add_argument("--max-unpacked-gib", type=float,
+                       default=store_copy.MAX_UNPACKED_BYTES / 2**30, metavar="GIB",
+                       help="the most the two archives may unpack to together (default "
+                       "%(default)g GiB): a damaged or hostile copy stops there")
     args = ap.parse_args(argv)
-    try:
-        if args.cmd in ("save-store", "restore-store"):
-            from activefoam.study import store_copy
-            try:
-                if args.cmd == "save-store":
-                    m = store_copy.save(args.db, args.dir, engine=args.engine,
-                                        snapshots=not args.without_snapshots,
-                                        engine_commit=args.engine_commit)
-                else:
-                    m = store_copy.restore(args.dir, args.db, engine=args.engine,
-                                           engine_changed_ok=args.engine_changed)
-            except store_copy.StoreCopyError as e:
-                raise StudyError(str(e)) from None
-            states = ", ".join(f"{n} {s}" for s, n in m["by_state"].items())
-            print(f"{args.cmd}: {m['jobs']} jobs ({states}), "
-                  f"{m['checkpoints']} checkpoints, {m['spheroids']} prepared spheroids; "
-                  f"engine {m['engine']}, saved {m['saved_utc']}", file=sys.stderr)
-            return 0
-        if args.cmd == "verdicts":
-            from activefoam.study import verdicts
-            def rel(x: str) -> str:  # as typed from the checkout, not this machine's paths
-                r = os.path.relpath(x)
-                return x if r.startswith("..") else r
-            command = (f"scripts/study.sh verdicts {rel(args.study)} --data {rel(args.data)} "
-                       f"--out {rel(args.out)}")
-            for f in verdicts.write(verdicts.load(args.study), args.data, args.out,
-                                    command=command):
-                print(f)
-            return 0
-        study = load(args.study)
-        if args.cmd == "check":
-            runs = study.runs()
-            print(f"study {study.name}: {len(study.points())} points × {len(study.seeds)} seeds "
-                  f"= {len(runs)} runs, tag {study.tag}")
-            for p in study.points():
-                held = [x for x in study.shares if x.covers(p)]
-                print("  " + ", ".join(f"{k}={v}" for k, v in p.items()) + "".join(
-                    f"  (shared: {sh.other.name}'s " +
-                    ", ".join(f"{k}={v}" for k, v in sh.that.items()) +
-                    (f" at seeds {sh.seeds}" if sh.seeds is not None else "") + ")"
-                    for sh in held))
-            return 0
-        carried = None
-        if getattr(args, "with_data", None):
-            if args.cmd == "report" and args.from_data:
-                raise StudyError("--with-data: not with --from-data (which reads no store)")
-            carried = carried_runs(study, args.with_data)
-            print(f"study {study.name}: {len(carried.rows)} ended runs in {args.with_data}",
-                  file=sys.stderr)
-        if args.cmd == "run":
-            if args.retry_failed and args.retry_kinds:
-                raise StudyError("--retry-failed reruns every failure kind: not with "
-                                 "--retry-kinds")
-            retry = True if args.retry_failed else _retry_kinds(args.retry_kinds)
-            with _client(args) as c:
-                # Stale jobs first: a changed step must not leave the old one's queue running.
-                cancel_stale(study, c, args.cancel_stale)
-                n_new, n_held = submit_missing(study, c, retry_failed=retry,
-                                               carried=carried)
-                print(f"study {study.name}: {n_new} runs submitted, {n_held} already in the "
-                      f"store{' or the data' if carried else ''} (tag {study.tag})",
-                      file=sys.stderr)
-                submit_diagnoses(study, c)
-                if args.no_wait:
-                    return 0
-                counts = wait(study, c, poll_s=args.poll, carried=carried)
-                print(f"study {study.name}: " + ", ".join(f"{n} {s}" for s, n in
-                                                         sorted(counts.items())), file=sys.stderr)
-                if args.report:
-                    _report(study, c, Path(args.report), carried)
-                return 1 if counts.get("failed", 0) or counts.get("cancelled", 0) else 0
-        out = Path(args.out) if args.out else study.path.parent / f"{study.name}-report"
-        if args.from_data:
-            data = load_data(study, args.from_data)
-            for f in render(study, data, out):
-                print(f)
-            return 0
-        with _client(args) as c:
-            _report(study, c, out, carried)
+    if args.cmd in ("save-store", "restore-store"):
+        try:
+            if args.cmd == "save-store":
+                m = store_copy.save(args.db, args.dir, engine=args.engine,
+                                    snapshots=not args.without_snapshots,
+                                    engine_commit=args.engine_commit)
+            else:
+                if not 0 < args.max_unpacked_gib < 2**20:  # nan and inf too
+                    raise StudyError(f"--max-unpacked-gib: {args.max_unpacked_gib} is not "
+                                     "a size in (0, 2^20) GiB")
+                m = store_copy.restore(args.dir, args.db, engine=args.engine,
+                                       engine_changed_ok=args.engine_changed,
+                                       max_unpacked=int(args.max_unpacked_gib * 2**30))
+        except store_copy.StoreCopyError as e:
+            raise StudyError(str(e)) from None
+        by_state = m.get("by_state")
+        states = ", ".join(f"{n} {s}" for s, n in by_state.items()) \
+            if isinstance(by_state, dict) else "?"
+        print(f"{args.cmd}: {m.get('jobs', '?')} jobs ({states}), "
+              f"{m.get('checkpoints', '?')} checkpoints, {m.get('spheroids', '?')} prepared "
+              f"spheroids; engine {m.get('engine', '?')}, saved {m.get('saved_utc', '?')}",
+              file=sys.stderr)
         return 0
-    except ValueError as e:  # StudyError, or a spec foamd refused
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    except PermissionError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 4
-    except BrokenPipeError:  # a ConnectionError too, but of stdout (`check | head`)
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 141
-    except ConnectionError as e:
-        print(f"error: {e} (is foamd running? --server / FOAM_SERVER)", file=sys.stderr)
-        return 3
-    except KeyboardInterrupt:
-        print("\ninterrupted: the submitted jobs go on in foamd; run the same command again to "
-              "follow them (nothing is submitted twice)", file=sys.stderr)
-        return 130
+    if args.cmd == "verdicts":
+        from activefoam.study import verdicts
+        def rel(x: str) -> str:  # as typed from the checkout, not this machine's paths
+            r = os.path.relpath(x)
+            return x if r.startswith("..") else r
+        command = (f"scripts/study.sh verdicts {rel(args.study)} --data {rel(args.data)} "
+                   f"--out {rel(args.out)}")
+        for f in verdicts.write(verdicts.load(args.study), args.data, args.out,
+                                command=command):
+            print(f)
+        return 0
+    study = load(args.study, base_root=args.base_root)
+    if args.cmd == "check":
+        runs = study.runs()
+        print(f"study {study.name}: {len(study.points())} points × {len(study.seeds)} seeds "
+              f"= {len(runs)} runs, tag {study.tag}")
+        for p in study.points():
+            held = [x for x in study.shares if x.covers(p)]
+            print("  " + ", ".join(f"{k}={v}" for k, v in p.items()) + "".join(
+                f"  (shared: {sh.other.name}'s " +
+                ", ".join(f"{k}={v}" for k, v in sh.that.items()) +
+                (f" at seeds {sh.seeds}" if sh.seeds is not None else "") + ")"
+                for sh in held))
+        return 0
+    # Where the report goes is checked before any work (report --out /dev/full).
+    out = check_folder(args.out or study.path.parent / f"{study.name}-report") \
+        if args.cmd == "report" else None
+    if args.cmd == "run" and args.report:
+        check_folder(args.report, "--report")
+    carried = None
+    if getattr(args, "with_data", None):
+        if args.cmd == "report" and args.from_data:
+            raise StudyError("--with-data: not with --from-data (which reads no store)")
+        carried = carried_runs(study, args.with_data)
+        print(f"study {study.name}: {len(carried.rows)} ended runs in {args.with_data}",
+              file=sys.stderr)
+    if args.cmd == "run":
+        if args.retry_failed and args.retry_kinds:
+            raise StudyError("--retry-failed reruns every failure kind: not with "
+                             "--retry-kinds")
+        retry = True if args.retry_failed else _retry_kinds(args.retry_kinds)
+        with _client(args) as c:
+            # Stale jobs first: a changed step must not leave the old one's queue running.
+            cancel_stale(study, c, args.cancel_stale)
+            n_new, n_held = submit_missing(study, c, retry_failed=retry,
+                                           carried=carried)
+            print(f"study {study.name}: {n_new} runs submitted, {n_held} already in the "
+                  f"store{' or the data' if carried else ''} (tag {study.tag})",
+                  file=sys.stderr)
+            submit_diagnoses(study, c)
+            if args.no_wait:
+                return 0
+            counts = wait(study, c, poll_s=args.poll, carried=carried)
+            print(f"study {study.name}: " + ", ".join(f"{n} {s}" for s, n in
+                                                     sorted(counts.items())), file=sys.stderr)
+            if args.report:
+                _report(study, c, Path(args.report), carried)
+            return 1 if counts.get("failed", 0) or counts.get("cancelled", 0) else 0
+    assert out is not None
+    if args.from_data:
+        data = load_data(study, args.from_data)
+        for f in render(study, data, out):
+            print(f)
+        return 0
+    with _client(args) as c:
+        _report(study, c, out, carried)
+    return 0
 
 
 def _report(study: Study, client: Any, out: Path, carried: Optional[Carried] = None) -> None:

@@ -16,6 +16,7 @@ from typing import Any, Dict, Optional, Tuple
 from activefoam.client import state_name
 from activefoam.study.matching import (NOOP_TEXT, Carried, _base_sha, _diag_is_noop,
                                        _diag_of_runs, _run_jobs, _takes_carried)
+from activefoam.study.outputs import folder, to_csv, write_text
 from activefoam.study.studyfile import SAMPLE_COLUMNS, SIMULATION_FAILURES, Study, StudyError
 
 
@@ -43,8 +44,7 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
     no live or ended job in the store takes its row, samples and curve from `carried` (an
     earlier store's data), if that holds it. Returns out_dir."""
     import pandas as pd
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = folder(out_dir, "data folder")
     found, source, stale = _run_jobs(study, client)
     diag = _diag_of_runs(study, client, source)
     rows, samples, curves = [], [], []
@@ -102,20 +102,20 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
                 if c.name == "msrd":
                     curves += [[j.id, x, y] for x, y in zip(c.x, c.y)]
         rows.append(row)
-    pd.DataFrame(rows).to_csv(out / "runs.csv", index=False)
+    to_csv(pd.DataFrame(rows), out / "runs.csv", index=False)
     # gzip without a timestamp: the same data gives the same bytes (a report regenerated from
     # the store changes nothing in git unless the runs changed).
     gz = {"method": "gzip", "mtime": 0}
-    pd.DataFrame(samples, columns=["job_id", "t_s", *SAMPLE_COLUMNS]).to_csv(
-        out / "samples.csv.gz", index=False, compression=gz)
-    pd.DataFrame(curves, columns=["job_id", "lag_s", "msrd_um2"]).to_csv(
-        out / "msrd.csv.gz", index=False, compression=gz)
+    to_csv(pd.DataFrame(samples, columns=["job_id", "t_s", *SAMPLE_COLUMNS]),
+           out / "samples.csv.gz", index=False, compression=gz)
+    to_csv(pd.DataFrame(curves, columns=["job_id", "lag_s", "msrd_um2"]),
+           out / "msrd.csv.gz", index=False, compression=gz)
     meta = {"study": study.name, "file": str(study.path), "tag": study.tag,
             "collected_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
             "runs": len(rows), "stale_jobs": [j.id for j in stale],
             "shared_runs": {str(i): src for i, src in source.items()},
             "carried_runs": n_carried}
-    (out / "collected.json").write_text(json.dumps(meta, indent=1) + "\n")
+    write_text(out / "collected.json", json.dumps(meta, indent=1) + "\n")
     return out
 
 

@@ -13,6 +13,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 from activefoam import trends
 from activefoam.study import power
 from activefoam.study.data import Data, _series
+from activefoam.study.outputs import savefig, to_csv, write_text
 from activefoam.study.studyfile import SIMULATION_FAILURES, Study, _same
 from activefoam.study.tables import _markdown, _point_label, _runs_of_point
 
@@ -238,7 +239,7 @@ def render_fitness(study: Study, data: Data, out: Path) -> List[Path]:
     import numpy as np
     f = study.fitness or {}
     table = fitness_table(study, data.runs)
-    table.to_csv(out / "fitness.csv", index=False)
+    to_csv(table, out / "fitness.csv", index=False)
     verdicts = []
     for cand, g in table.groupby("candidate", sort=False) if len(table) else []:
         judged = g[g["fit"] != "—"]
@@ -252,7 +253,7 @@ def render_fitness(study: Study, data: Data, out: Path) -> List[Path]:
             bad = ", ".join(judged[judged["fit"] == "no"]["metric"])
             verdicts.append((cand, f"- `{cand}`: **not fit** — {bad}"))
     calibration = fitness_calibration(study, data.runs)
-    calibration.to_csv(out / "fitness-calibration.csv", index=False)
+    to_csv(calibration, out / "fitness-calibration.csv", index=False)
     by_candidate = {c["candidate"]: c for _, c in calibration.iterrows()}
     lines = []
     for cand, verdict in verdicts:
@@ -291,10 +292,11 @@ def render_fitness(study: Study, data: Data, out: Path) -> List[Path]:
         lines += failed
     show = table.drop(columns=["why"]) if len(table) else table
     paired = fitness_paired(study, data.runs)
-    paired.to_csv(out / "fitness-paired.csv", index=False)
+    to_csv(paired, out / "fitness-paired.csv", index=False)
     seed_by_seed = ("\n## Seed by seed\n\n" + _markdown(paired) + "\n" + PAIRED_NOTE
                     if len(paired) else "")
-    (out / "fitness.md").write_text(
+    write_text(
+        out / "fitness.md",
         f"# {study.title}: fitness against `{f['key']} = {f['reference']}`\n\n"
         + "\n".join(lines) + "\n\n" + _markdown(show) + "\n" + CALIBRATION_NOTE
         + seed_by_seed)
@@ -313,7 +315,7 @@ def render_fitness(study: Study, data: Data, out: Path) -> List[Path]:
     ax.set_title(textwrap.fill(f"{study.title}: θ(t) ensembles", 80), fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(out / f"{study.name}-theta-bands.png", dpi=110)
+    savefig(fig, out / f"{study.name}-theta-bands.png", dpi=110)
     plt.close(fig)
     return [out / "fitness.csv", out / "fitness-calibration.csv", out / "fitness-paired.csv",
             out / "fitness.md",

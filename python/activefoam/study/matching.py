@@ -21,6 +21,7 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.9/3.10: the tomli pac
     import tomli as tomllib  # type: ignore
 
 from activefoam.client import flatten, state_name
+from activefoam.inputs import read_bounded
 from activefoam.study.studyfile import (SIMULATION_FAILURES, Diagnosis, Run, Share, Study,
                                         StudyError, _same, _same_point)
 
@@ -395,7 +396,15 @@ def carried_runs(study: Study, data_dir: os.PathLike) -> Carried:
                              "runs.csv, samples.csv.gz and msrd.csv.gz)")
     meta = d / "collected.json"
     if meta.is_file():
-        name = json.loads(meta.read_text()).get("study")
+        try:
+            text = read_bounded(meta, 1 << 20, "--with-data", regular=True)
+        except ValueError as e:  # over 1 MiB, or not a file
+            raise StudyError(str(e)) from None
+        try:
+            doc = json.loads(text)
+        except ValueError as e:  # not JSON, not UTF-8
+            raise StudyError(f"--with-data: {meta}: not JSON ({e})") from None
+        name = doc.get("study") if isinstance(doc, dict) else None
         if name and name != study.name:
             raise StudyError(f"--with-data: {d} holds study {name!r}'s runs, not {study.name!r}'s")
     table = pd.read_csv(d / "runs.csv")

@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
@@ -29,6 +28,7 @@ import numpy as np
 from activefoam import trends
 from activefoam.study.data import load_data
 from activefoam.study.matching import _py
+from activefoam.study.outputs import write_text
 from activefoam.study.studyfile import FITNESS_METRICS, _same, load
 
 IQR_OF_NORMAL = 1.3489795  # the IQR of a standard normal
@@ -266,7 +266,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                  f"cell; `python3 -m activefoam.study power --fitness-rule --trials {args.trials} "
                  "--out FILE`)", ""] + fitness_rule_table(
                      trials=args.trials)
-        Path(args.out).write_text("\n".join(lines) + "\n")
+        write_text(args.out, "\n".join(lines) + "\n")
         print(args.out)
         return 0
     if not args.study or not args.data:
@@ -293,7 +293,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         for r in rows:
             lines.append(f"| {r['t_s'] / 3600:.2g} | {r['seeds']} | {r['corr']:.2f} | "
                          f"{r['median_abs_diff']:.2f} | {r['sd_seeds']:.2f} |")
-        Path(args.out).write_text("\n".join(lines) + "\n")
+        write_text(args.out, "\n".join(lines) + "\n")
         print(args.out)
         return 0
     runs = data.runs[data.runs["state"] == "succeeded"]
@@ -315,7 +315,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                      f"{r['effect_3']:.3g} ({100 * r['effect_3_rel']:.1f} %) | "
                      f"{r['effect_5']:.3g} ({100 * r['effect_5_rel']:.1f} %) | "
                      f"{r['none_agrees_3']:.2f} | {r['none_agrees_5']:.2f} |")
-    Path(args.out).write_text("\n".join(lines) + "\n")
+    write_text(args.out, "\n".join(lines) + "\n")
     print(args.out)
     return 0
 

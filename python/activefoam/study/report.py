@@ -11,6 +11,7 @@ from typing import Any, List
 
 from activefoam.study.data import Data, _msrd_series, _series, study_radius
 from activefoam.study.fitness import render_fitness
+from activefoam.study.outputs import folder, savefig, to_csv, write_text
 from activefoam.study.studyfile import METRICS, Study, _same
 from activefoam.study.tables import (failed_runs_markdown, summary_markdown, summary_table,
                                      unsaturated_fits_markdown)
@@ -39,16 +40,15 @@ def render(study: Study, data: Data, out_dir: os.PathLike) -> List[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = folder(out_dir)
     written: List[Path] = []
     runs = data.runs
     table = summary_table(study, runs)
-    table.to_csv(out / "summary.csv", index=False)
+    to_csv(table, out / "summary.csv", index=False)
     extra = [m for m in (failed_runs_markdown(study, runs),
                          unsaturated_fits_markdown(study, runs)) if m]
-    (out / "summary.md").write_text(summary_markdown(study, table)
-                                    + "".join("\n" + m for m in extra))
+    write_text(out / "summary.md", summary_markdown(study, table)
+               + "".join("\n" + m for m in extra))
     written += [out / "summary.csv", out / "summary.md"]
 
     x = study.x or study.swept_keys()[0]
@@ -94,7 +94,7 @@ def render(study: Study, data: Data, out_dir: os.PathLike) -> List[Path]:
     fig.suptitle(textwrap.fill(f"{study.title}: θ(t) (median, IQR; dashed: Eq. 1 with the median "
                                "fit) and MSRD", 120), fontsize=9)
     fig.tight_layout()
-    fig.savefig(out / f"{study.name}-curves.png", dpi=110)
+    savefig(fig, out / f"{study.name}-curves.png", dpi=110)
     plt.close(fig)
     written.append(out / f"{study.name}-curves.png")
 
@@ -132,7 +132,7 @@ def render(study: Study, data: Data, out_dir: os.PathLike) -> List[Path]:
         axes.flat[0].legend(fontsize=7)
     fig.suptitle(f"{study.title}: median and IQR over seeds", fontsize=9)
     fig.tight_layout()
-    fig.savefig(out / f"{study.name}-trends.png", dpi=110)
+    savefig(fig, out / f"{study.name}-trends.png", dpi=110)
     plt.close(fig)
     written.append(out / f"{study.name}-trends.png")
 

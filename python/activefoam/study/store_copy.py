@@ -31,7 +31,9 @@ import tarfile
 import tempfile
 import time
 from pathlib import Path
-from typing import Any, Dict, Optional
+from typing import Any, Dict, List, Optional
+
+from activefoam.inputs import read_bounded
 
 DB_FILE = "store.db.xz"
 CACHE_FILE = "spheroids.tar.xz"
@@ -91,14 +93,27 @@ def save(db: os.PathLike, out_dir: os.PathLike, engine: Optional[str] = None,
     if not db.is_file():
         raise StoreCopyError(f"save-store: no store at {db} (--db names foamd's database)")
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        return _save(db, out, engine, cache, snapshots, engine_commit)
+    except OSError as e:  # a full disk, a read-only folder: the earlier copy stays whole
+        raise StoreCopyError(f"save-store: cannot write into {out}: "
+                             f"{e.strerror or e}") from None
+
+
+def _save(db: Path, out: Path, engine: Optional[str], cache: Optional[os.PathLike],
+          snapshots: bool, engine_commit: str) -> Dict[str, Any]:
     with tempfile.TemporaryDirectory(dir=out) as tmp:
         copy = Path(tmp) / "store.db"
         src = sqlite3.connect(str(db), timeout=2)
         dst = sqlite3.connect(str(copy))
         try:
             src.backup(dst)
-        except sqlite3.OperationalError as e:
+        except sqlite3.DatabaseError as e:
+            # foamd's hold shows as locked, busy or a locking protocol error; a full disk or
+            # a file that is no database is no foamd.
+            if not any(w in str(e) for w in ("lock", "busy", "protocol")):
+                raise StoreCopyError(f"save-store: cannot copy {db} into {out}: {e}") from None
             raise StoreCopyError(
                 f"save-store: {db} is in use ({e}): stop foamd first (SIGTERM checkpoints its "
                 "running jobs and re-queues them; nothing is lost), save, then start it "
@@ -140,18 +155,163 @@ def save(db: os.PathLike, out_dir: os.PathLike, engine: Optional[str] = None,
     return manifest
 
 
+def _manifest(path: Path) -> Dict[str, Any]:
+    try:
+        manifest = json.loads(read_bounded(path, 1 << 20, MANIFEST, regular=True))
+    except ValueError as e:  # a bounded read's refusal, or not JSON
+        raise StoreCopyError(f"restore-store: {path}: {e}") from None
+    if not isinstance(manifest, dict):
+        raise StoreCopyError(f"restore-store: {path}: not a manifest (a JSON object)")
+    return manifest
+
+
+def _damaged(path: Path, e: BaseException) -> StoreCopyError:
+    return StoreCopyError(f"restore-store: {path} is damaged ({type(e).__name__}: {e}); nothing "
+                          "was restored")
+
+
+def _no_room(path: Path, where: Path, e: OSError) -> StoreCopyError:
+    return StoreCopyError(f"restore-store: cannot unpack {path} into {where}: "
+                          f"{e.strerror or e}; nothing was restored")
+
+
+class _Budget:
+    """The bytes the archives may still unpack to: an xz bomb stops at the bound, not at a full
+    disk."""
+
+    def __init__(self, limit: int) -> None:
+        self.limit, self.left = limit, limit
+
+    def take(self, n: int, path: Path) -> None:
+        self.left -= n
+        if self.left < 0:
+            size = (f"{self.limit / 2**30:g} GiB" if self.limit >= 2**30
+                    else f"{self.limit / 2**20:g} MiB")
+            raise StoreCopyError(
+                f"restore-store: {path} unpacks to more than the {size} a restore may unpack "
+                "(--max-unpacked-gib); nothing was restored")
+
+
+def _unpack_db(src: Path, dst: Path, budget: _Budget) -> None:
+    try:
+        with lzma.open(src, "rb") as z, open(dst, "xb") as f:
+            while True:
+                try:
+                    chunk = z.read(1 << 20)
+                except (lzma.LZMAError, EOFError, OSError) as e:
+                    raise _damaged(src, e) from None
+                if not chunk:
+                    break
+                budget.take(len(chunk), src)
+                f.write(chunk)
+    except OSError as e:  # writing: a full disk, a read-only folder
+        raise _no_room(src, dst.parent.parent, e) from None
+
+
+def _check_store(src: Path, path: Path) -> Dict[str, Any]:
+    """The store's counts, after SQLite's integrity_check (read-only: the copy is not touched)."""
+    try:
+        con = sqlite3.connect(path.resolve().as_uri() + "?mode=ro", uri=True)
+        try:
+            rows = con.execute("PRAGMA integrity_check(10)").fetchall()
+            problems = [ln for r in rows for ln in str(r[0]).splitlines()
+                        if not ln.startswith("***")]
+            if problems != ["ok"]:
+                raise StoreCopyError(f"restore-store: {src} holds a damaged store "
+                                     f"(integrity_check: {problems[0][:200]}"
+                                     + (", and more" if len(problems) > 1 else "")
+                                     + "); nothing was restored")
+        finally:
+            con.close()
+        return _counts(path)
+    except sqlite3.DatabaseError as e:
+        raise StoreCopyError(f"restore-store: {src} holds no foamd store ({e}); nothing was "
+                             "restored") from None
+
+
+MAX_SPHEROIDS = 100000
+
+
+def _unpack_spheroids(src: Path, stage: Path, budget: _Budget) -> List[str]:
+    """The archive's files, unpacked into `stage`: plain files named without a folder only (a
+    copy is data, not a path to trust)."""
+    names: List[str] = []
+    try:
+        with tarfile.open(src, "r:xz") as t:
+            for m in t:
+                if (not m.isfile() or not m.name or "/" in m.name or m.name.startswith(".")
+                        or len(m.name.encode()) > 255 or m.name in names):
+                    raise StoreCopyError(f"restore-store: {src} holds {m.name!r}, not a "
+                                         "prepared spheroid; nothing was restored")
+                if len(names) >= MAX_SPHEROIDS:
+                    raise StoreCopyError(f"restore-store: {src} holds more than "
+                                         f"{MAX_SPHEROIDS} files; nothing was restored")
+                budget.take(m.size, src)
+                data = t.extractfile(m)
+                assert data is not None  # a regular file
+                try:
+                    with open(stage / m.name, "xb") as f:
+                        shutil.copyfileobj(data, f, 1 << 20)
+                except OSError as e:
+                    raise _no_room(src, stage.parent, e) from None
+                names.append(m.name)
+            # To the xz stream's end: a cut archive whose members are whole fails its check
+            # here (tar itself takes a missing end block for the end).
+            while True:
+                rest = t.fileobj.read(1 << 20)  # type: ignore[union-attr]
+                if not rest:
+                    break
+                budget.take(len(rest), src)
+    except (tarfile.TarError, lzma.LZMAError, EOFError) as e:
+        raise _damaged(src, e) from None
+    except OSError as e:  # reading the archive
+        raise _damaged(src, e) from None
+    return names
+
+
+def _make_dirs(path: Path) -> List[Path]:
+    """mkdir -p, returning the folders it made (outermost first), to remove on a failure."""
+    made: List[Path] = []
+    for d in reversed([path, *path.parents]):
+        if not d.exists():
+            d.mkdir()
+            made.append(d)
+    return made
+
+
+def _place(tmp: Path, db: Path) -> None:
+    try:
+        os.link(tmp, db)  # never over a store that appeared meanwhile
+    except FileExistsError:
+        raise StoreCopyError(f"restore-store: {db} exists; a restore overwrites nothing") from None
+    except OSError:  # a file system without hard links
+        if db.exists():
+            raise StoreCopyError(f"restore-store: {db} exists; a restore overwrites "
+                                 "nothing") from None
+        os.replace(tmp, db)
+
+
+MAX_UNPACKED_BYTES = 20 << 30
+
+
 def restore(src_dir: os.PathLike, db: os.PathLike, engine: Optional[str] = None,
-            engine_changed_ok: bool = False, cache: Optional[os.PathLike] = None
-            ) -> Dict[str, Any]:
+            engine_changed_ok: bool = False, cache: Optional[os.PathLike] = None,
+            max_unpacked: int = MAX_UNPACKED_BYTES) -> Dict[str, Any]:
     """Puts a saved copy back as the store `db` (which must not exist: nothing is overwritten)
     and its spheroids into the cache folder; returns the manifest. Refuses a copy saved under
-    another engine unless engine_changed_ok."""
+    another engine unless engine_changed_ok.
+
+    All or nothing: both archives are unpacked next to their destinations first (at most
+    `max_unpacked` bytes together), the store checked by SQLite's integrity_check and against
+    the manifest's counts, the spheroid archive's members checked to be plain files without a
+    folder; only then is anything put in place, the store last. On any failure StoreCopyError
+    names the file and nothing is left behind."""
     src = Path(src_dir)
     db = Path(db)
     if not (src / MANIFEST).is_file() or not (src / DB_FILE).is_file():
         raise StoreCopyError(f"restore-store: {src} holds no saved store ({MANIFEST} and "
                              f"{DB_FILE}; write one with save-store)")
-    manifest = json.loads((src / MANIFEST).read_text())
+    manifest = _manifest(src / MANIFEST)
     for p in (db, Path(str(db) + "-wal")):
         if p.exists():
             raise StoreCopyError(f"restore-store: {p} exists; a restore overwrites nothing "
@@ -164,21 +324,55 @@ def restore(src_dir: os.PathLike, db: os.PathLike, engine: Optional[str] = None,
             "its running jobs would resume from checkpoints the other engine wrote. If the "
             "step's results did not change (bit-identical), pass --engine-changed; otherwise "
             "restore with it and cancel the jobs that were running, or run them anew")
-    db.parent.mkdir(parents=True, exist_ok=True)
-    tmp = db.with_name(db.name + ".restoring")
-    with lzma.open(src / DB_FILE, "rb") as z, tmp.open("wb") as f:
-        shutil.copyfileobj(z, f)
-    _counts(tmp)  # a readable store, or an error before anything is in place
-    os.replace(tmp, db)
-    if (src / CACHE_FILE).is_file():
-        cache_dir = _cache_dir(db, cache)
-        cache_dir.mkdir(parents=True, exist_ok=True)
-        with tarfile.open(src / CACHE_FILE, "r:xz") as t:
-            for m in t.getmembers():
-                # Plain files named without a folder only: a copy is data, not a path to trust.
-                if not m.isfile() or "/" in m.name or m.name.startswith("."):
-                    raise StoreCopyError(f"restore-store: {CACHE_FILE} holds {m.name!r}, not "
-                                         "a prepared spheroid")
-                if not (cache_dir / m.name).exists():
-                    t.extract(m, cache_dir)
+    cache_dir = _cache_dir(db, cache)
+    made: List[Path] = []
+    stages: List[Path] = []
+    added: List[Path] = []
+    done = False
+    try:
+        made += _make_dirs(db.parent)
+        budget = _Budget(max_unpacked)
+        stages.append(Path(tempfile.mkdtemp(prefix=f".{db.name}.restoring-", dir=db.parent)))
+        tmp_db = stages[0] / "store.db"
+        _unpack_db(src / DB_FILE, tmp_db, budget)
+        counts = _check_store(src / DB_FILE, tmp_db)
+        for key in ("jobs", "checkpoints"):
+            if isinstance(manifest.get(key), int) and manifest[key] != counts[key]:
+                raise StoreCopyError(f"restore-store: {src / DB_FILE} holds {counts[key]} "
+                                     f"{key}, {src / MANIFEST} says {manifest[key]}: not the "
+                                     "copy the manifest describes; nothing was restored")
+        names: List[str] = []
+        if (src / CACHE_FILE).is_file():
+            made += _make_dirs(cache_dir.parent)
+            stages.append(Path(tempfile.mkdtemp(prefix=".spheroids.restoring-",
+                                                dir=cache_dir.parent)))
+            names = _unpack_spheroids(src / CACHE_FILE, stages[-1], budget)
+            if isinstance(manifest.get("spheroids"), int) and manifest["spheroids"] != len(names):
+                raise StoreCopyError(f"restore-store: {src / CACHE_FILE} holds {len(names)} "
+                                     f"files, {src / MANIFEST} says {manifest['spheroids']} "
+                                     "prepared spheroids; nothing was restored")
+        # Everything is checked: into place, the store last (foamd started on a store finds
+        # its spheroids).
+        if names:
+            made += _make_dirs(cache_dir)
+            for n in names:
+                if not (cache_dir / n).exists():
+                    os.replace(stages[-1] / n, cache_dir / n)
+                    added.append(cache_dir / n)
+        _place(tmp_db, db)
+        done = True
+    except OSError as e:
+        raise StoreCopyError(f"restore-store: {e.filename or db.parent}: {e.strerror or e}; "
+                             "nothing was restored") from None
+    finally:
+        for d in stages:
+            shutil.rmtree(d, ignore_errors=True)
+        if not done:
+            for f in added:
+                f.unlink(missing_ok=True)
+            for d in reversed(made):
+                try:
+                    d.rmdir()
+                except OSError:
+                    pass
     return manifest

@@ -24,6 +24,7 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.9/3.10: the tomli pac
     import tomli as tomllib  # type: ignore
 
 from activefoam.client import flatten
+from activefoam.inputs import SPEC_MAX_BYTES, read_text
 
 
 # Failure kinds of the simulation itself (engine/include/activefoam/run.h): deterministic for a
@@ -257,16 +258,44 @@ class Study:
         return keys
 
 
-def load(path: os.PathLike, _shares: bool = True) -> Study:
-    """Reads and checks a study file; StudyError names the key."""
-    p = Path(path)
+def run_count(grids: Sequence[Dict[str, List[Any]]], n_seeds: int, cap: int = 10**18) -> int:
+    """The runs the grids ask for, from their axes' lengths, before any product is built: per
+    [[grid]] the product of its axes' lengths, summed, times the seeds (a point two grids share
+    counts twice). Stops at `cap` + 1: four axes of 10^5 values cost nothing to count."""
+    total = 0
+    for g in grids:
+        points = 1
+        for values in g.values():
+            points *= len(values)
+            if points * n_seeds > cap:
+                return cap + 1
+        total += points * n_seeds
+        if total > cap:
+            return cap + 1
+    return total
+
+
+def _read_text(p: Path, what: str) -> str:
+    if not p.exists():
+        raise StudyError(f"{what}: no such file {str(p)!r}")
     if not p.is_file():
-        raise StudyError(f"study: no such file {str(p)!r}")
-    if p.stat().st_size > 1 << 20:
-        raise StudyError(f"study: {str(p)!r} is larger than 1 MiB")
+        raise StudyError(f"{what}: {str(p)!r} is not a regular file")
     try:
-        doc = tomllib.loads(p.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        return read_text(p, SPEC_MAX_BYTES, what, regular=True)
+    except ValueError as e:
+        raise StudyError(str(e)) from None
+
+
+def load(path: os.PathLike, _shares: bool = True,
+         base_root: Optional[os.PathLike] = None) -> Study:
+    """Reads and checks a study file; StudyError names the key. Its `base` is read from under
+    the study file's folder only, symlinks resolved (a study file from elsewhere cannot send
+    /etc/shadow to foamd as a spec), or from under `base_root` where given."""
+    p = Path(path)
+    text = _read_text(p, "study")
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
         raise StudyError(f"study: {p}: not TOML: {e}") from None
     _unknown(doc, TOP_KEYS, "")
     st = doc.get("study")
@@ -305,10 +334,16 @@ def load(path: os.PathLike, _shares: bool = True) -> Study:
         if not isinstance(st["base"], str):
             raise StudyError(f"study.base: the path of a spec file, got {st['base']!r}")
         base = (p.parent / st["base"]).resolve()
+        root = Path(base_root).resolve() if base_root is not None else p.parent.resolve()
+        if not base.is_relative_to(root):
+            raise StudyError(f"study.base: {str(base)!r} is outside {str(root)!r}"
+                             + (" (the study file's folder)" if base_root is None else "")
+                             + "; a base is read from under that folder only (--base-root, or "
+                             "load(..., base_root=), names another)")
         if not base.is_file():
             raise StudyError(f"study.base: no such spec file {str(base)!r} (relative to the "
                              "study file)")
-        study.base, study.base_text = base, base.read_text()
+        study.base, study.base_text = base, _read_text(base, "study.base")
     spec = doc.get("spec", {})
     if not isinstance(spec, dict):
         raise StudyError("spec: a table of spec keys")
@@ -333,16 +368,17 @@ def load(path: os.PathLike, _shares: bool = True) -> Study:
                 raise StudyError(f"grid[{i}].{k}: a non-empty list of values, got {vs!r}")
             flat[k] = [_scalar(f"grid[{i}].{k}", v) for v in vs]
         study.grids.append(flat)
+    n = run_count(study.grids, len(study.seeds), cap=10**18)
+    if n > MAX_RUNS:
+        count = "more than 10^18" if n > 10**18 else str(n)
+        raise StudyError(f"{p}: grid: {count} runs ([[grid]] products × {len(study.seeds)} "
+                         f"seeds), more than the {MAX_RUNS} a study may hold: split it")
     swept = study.swept_keys()
     for key in ("x", "by"):
         v = getattr(study, key)
         if v and v not in swept:
             raise StudyError(f"study.{key}: {v!r} is not a grid key{_closest(v, swept)}; grid "
                              f"keys: {', '.join(swept)}")
-    n = len(study.runs())
-    if n > MAX_RUNS:
-        raise StudyError(f"grid: {n} runs (points × seeds), more than the {MAX_RUNS} a study may "
-                         "hold: split it")
     if "fitness" in doc:
         f = doc["fitness"]
         if not isinstance(f, dict):
@@ -372,7 +408,7 @@ def load(path: os.PathLike, _shares: bool = True) -> Study:
         raise StudyError("share: [[share]] tables (file, this, that)")
     if _shares:
         for i, sh in enumerate(shares):
-            study.shares.append(_load_share(study, i, sh))
+            study.shares.append(_load_share(study, i, sh, base_root))
     return study
 
 
@@ -410,7 +446,8 @@ def _load_diagnosis(study: Study, i: int, d: Any) -> Diagnosis:
     return Diagnosis(name=name, spec=flat, kinds=list(kinds), title=title)
 
 
-def _load_share(study: Study, i: int, sh: Any) -> Share:
+def _load_share(study: Study, i: int, sh: Any,
+                base_root: Optional[os.PathLike] = None) -> Share:
     """[[share]]: file = another study file (relative to this one), this = one of this study's
     points, that = the same run's point in the other study, seeds (optional) = the seeds of this
     study at which the two are one run (default: all). Both studies must submit the same
@@ -430,7 +467,7 @@ def _load_share(study: Study, i: int, sh: Any) -> Share:
     if other_path == study.path.resolve():
         raise StudyError(f"{where}.file: the study itself")
     try:
-        other = load(other_path, _shares=False)
+        other = load(other_path, _shares=False, base_root=base_root)
     except StudyError as e:
         raise StudyError(f"{where}.file: {e}") from None
     for k in ("this", "that"):

@@ -44,8 +44,10 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.9/3.10: the tomli pac
     import tomli as tomllib  # type: ignore
 
 from activefoam import trends
+from activefoam.inputs import SPEC_MAX_BYTES, read_text
 from activefoam.study import studyfile as sf
 from activefoam.study.data import _ran_past, load_data
+from activefoam.study.outputs import folder, to_csv, write_text
 
 TREND_KEYS = {"figure", "statement", "source", "study", "metric", "expect", "low", "high", "per",
               "band", "band_rel", "value"}
@@ -76,8 +78,12 @@ def load(path: os.PathLike) -> List[TrendSpec]:
     if not p.is_file():
         raise sf.StudyError(f"verdicts: no such file {str(p)!r}")
     try:
-        doc = tomllib.loads(p.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        text = read_text(p, SPEC_MAX_BYTES, "verdicts", regular=True)
+    except ValueError as e:  # over 1 MiB, or not UTF-8
+        raise sf.StudyError(str(e)) from None
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
         raise sf.StudyError(f"verdicts: {p}: not TOML: {e}") from None
     sf._unknown(doc, {"trend"}, "")
     items = doc.get("trend")
@@ -450,12 +456,12 @@ def write(items: List[TrendSpec], data_root: os.PathLike, out: os.PathLike,
           command: str = "") -> List[Path]:
     runs_by_study = _runs_by_study(items, data_root)
     table = evaluate(items, data_root, runs_by_study)
-    o = Path(out)
-    o.mkdir(parents=True, exist_ok=True)
-    table.to_csv(o / "verdicts.csv", index=False)
+    o = folder(out)
+    to_csv(table, o / "verdicts.csv", index=False)
     counts = table["verdict"].value_counts()
     summary = ", ".join(f"{n} {v}" for v, n in counts.items())
-    (o / "verdicts.md").write_text(
+    write_text(
+        o / "verdicts.md",
         "# The supplement's trend statements, judged\n\n"
         f"{len(table)} rows: {summary}.\n\n"
         "Effect: median(high) − median(low) over seeds with its percentile-bootstrap 95 % "
