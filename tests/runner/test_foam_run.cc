@@ -302,7 +302,7 @@ TEST_F(FoamRun, OverridesStdinAndSnapshots) {
   const Result r = run("- --out " + quote(out.string()) +
                            " --quiet --set duration_s=2 --set sample_every_s=0.5"
                            " --set snapshot_every_s=1 --set numerics.triangles_per_cell=80"
-                           " --set seed=7",
+                           " --set seed=7 --set numerics.dt_s=0.1",
                        &text);
   ASSERT_EQ(r.code, 0) << r.err;
   expectCompleteOutput(out, SceneKind::Cell, 5);

@@ -42,11 +42,11 @@ TEST(SpecConvert, EveryProtoFieldIsAKeyAndEveryKeyHasAField) {
     if (keys.count(k)) continue;
     // A field without a key is a retired key's, still read from earlier clients and records.
     SceneSpec s;
-    const bool numeric = k == "numerics.contact_max_facing_deg" ||
-                         k == "numerics.contact_max_overlap_um";
-    const SpecValue neutral =
-        k == "numerics.contact_max_facing_deg" ? SpecValue(90.0) : numeric ? SpecValue(0.0)
-                                                                           : SpecValue(false);
+    const bool numeric =
+        k == "numerics.contact_max_facing_deg" || k == "numerics.contact_max_overlap_um";
+    const SpecValue neutral = k == "numerics.contact_max_facing_deg" ? SpecValue(90.0)
+                              : numeric                              ? SpecValue(0.0)
+                                                                     : SpecValue(false);
     const auto retired = setRetiredField(s, k, neutral);
     EXPECT_TRUE(retired.has_value() && !*retired) << "proto field without key: " << k;
   }
@@ -107,7 +107,7 @@ TEST(SpecConvert, RoundTripThroughProto) {
   s.snapshot_every_s = 5;
   s.cells.alpha = 0.5;
   s.numerics.triangles_per_cell = 80;
-  s.numerics.dt_s = 0.2;  // 80 motile triangles: below the measured 0.25 s limit
+  s.numerics.dt_s = 0.2;         // 80 motile triangles: below the measured 0.25 s limit
   s.scene_params.gap_um = 0.03;  // inside h0 = 59 nm at α = 0.5
   const SceneSpec resolved = resolve(s);
   const ConvertResult r = convertSpec(toProto(resolved));
@@ -207,10 +207,11 @@ TEST(SpecConvert, TheContactLawTravelsAndSoDoItsEarlierSwitches) {
   v1::SceneSpec old;
   old.mutable_numerics()->set_contact_within_prisms(false);
   old.mutable_numerics()->set_contact_prisms_overlap_only(false);
-  r = convertSpec(old, "", {"scene=doublet"});
+  r = convertSpec(old, "", {"scene=doublet", "numerics.dt_s=0.5"});
   ASSERT_TRUE(r.ok()) << errorText(r.errors);
   EXPECT_EQ(r.spec->numerics.contact_law, ContactLawKind::Supplement);
-  r = convertSpec(v1::SceneSpec{}, "", {"scene=doublet", "numerics.contact_law=supplement"});
+  r = convertSpec(v1::SceneSpec{}, "",
+                  {"scene=doublet", "numerics.contact_law=supplement", "numerics.dt_s=0.5"});
   ASSERT_TRUE(r.ok()) << errorText(r.errors);
   EXPECT_EQ(r.spec->numerics.contact_law, ContactLawKind::Supplement);
   EXPECT_EQ(toProto(*r.spec).numerics().contact_law(), v1::CONTACT_LAW_SUPPLEMENT);
@@ -280,9 +281,9 @@ TEST(SpecConvert, MissingSceneNamesTheSceneKey) {
 // foamd refuses a step the stability study saw fail, naming the limit; --allow-unstable
 // (ConvertOptions) lets an operator run it to measure exactly that, and changes nothing else.
 TEST(SpecConvert, AStepBeyondTheMeasuredStableRangeIsRefusedUnlessAllowed) {
-  const std::vector<std::string> settings = {
-      "scene=fusion", "numerics.integrator=contact-implicit-consistent", "numerics.dt_s=1",
-      "numerics.contact_law=supplement"};
+  const std::vector<std::string> settings = {"scene=fusion",
+                                             "numerics.integrator=contact-implicit-consistent",
+                                             "numerics.dt_s=1", "numerics.contact_law=supplement"};
   ConvertResult r = convertSpec(v1::SceneSpec{}, {}, settings);  // motile by default
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.errors[0].field, "numerics.dt_s");
