@@ -31,7 +31,9 @@ int main(int argc, char** argv) {
   CLI::App app{"foam: activefoam client (submit, watch, list, show, cancel, results, plot, sweep)"};
   app.footer(
       "exit status: 0 ok (job succeeded for --wait/watch), 1 job failed or cancelled, 2 usage or "
-      "invalid spec, 3 server unreachable / RPC error, 4 unauthenticated, 5 not found");
+      "invalid spec, 3 server unreachable / RPC error, 4 unauthenticated, 5 not found\n"
+      "studies (files of grids and seeds, their reports and verdicts): python3 -m activefoam.study "
+      "(docs/usage.md, Studies)");
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("foam ") + ACTIVEFOAM_VERSION);
   Conn conn;

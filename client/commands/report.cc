@@ -10,6 +10,8 @@ CLI::App* setupReport(CLI::App& app, ReportArgs& o) {
       "report",
       "run foam-run for a job placed outside foamd's pool (a Slurm task) and report its "
       "outputs to foamd; exits with foam-run's status (deploy/slurm/README.md)");
+  // Slurm plumbing, not a user's command: left out of `foam --help` (it still has its own).
+  report->group("");
   report->add_option("JOB", o.job_id, "job id")->required();
   report->add_option("RUN", o.run_dir, "foam-run's --out folder")->required();
   report->add_option("COMMAND", o.command, "-- foam-run SPEC --out RUN ...")->required();

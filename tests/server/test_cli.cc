@@ -41,6 +41,18 @@ nlohmann::json results(const Foamd& d, const std::string& id) {
 
 }  // namespace
 
+// The help lists the user's commands and says where studies live; `report` (a Slurm task's
+// plumbing) is not among them but keeps its own help.
+TEST(Cli, HelpNamesTheStudyToolAndLeavesOutTheSlurmPlumbing) {
+  const std::string foam = FOAM_EXE;
+  const Proc help = sh(foam + " --help 2>&1");
+  EXPECT_NE(help.out.find("python3 -m activefoam.study"), std::string::npos) << help.out;
+  EXPECT_NE(help.out.find("\n  submit "), std::string::npos) << help.out;
+  EXPECT_EQ(help.out.find("\n  report "), std::string::npos) << help.out;
+  const Proc report = sh(foam + " report --help 2>&1");
+  EXPECT_NE(report.out.find("foam-run"), std::string::npos) << report.out;
+}
+
 TEST(Cli, SubmitWaitThenResultsJson) {
   const fs::path dir = tempDir();
   Foamd d(dir / "foamd.db", freePort());
