@@ -11,6 +11,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "activefoam/checksum.h"
 #include "activefoam/spec_io.h"
 #include "activefoam/vtk.h"
 
@@ -241,11 +242,14 @@ std::string utcNow() {
 }
 
 // ---- checkpoint.bin ----------------------------------------------------------------------------
-// One JSON line (what the folder holds at the checkpoint), then the engine's state, raw.
+// One JSON line (what the folder holds at the checkpoint), then the engine's state, raw, the
+// whole sealed by a checksum: a damaged file (a flipped bit in the header's sample count as much
+// as in the state) is refused before anything of it is used.
 
 namespace {
-constexpr std::string_view kCheckpointMagic = "activefoam-run-checkpoint 1\n";
-}
+constexpr std::string_view kCheckpointMagic = "activefoam-run-checkpoint 2\n";
+constexpr std::string_view kCheckpointMagicV1 = "activefoam-run-checkpoint 1\n";
+}  // namespace
 
 std::string encodeRunCheckpoint(const RunCheckpoint& c) {
   nlohmann::json h;
@@ -258,28 +262,33 @@ std::string encodeRunCheckpoint(const RunCheckpoint& c) {
   std::string out(kCheckpointMagic);
   out += h.dump() + "\n";
   out += c.state;
-  return out;
+  return sealed(std::move(out));
 }
 
 RunCheckpoint decodeRunCheckpoint(const std::string& bytes, const std::string& what) {
   auto damaged = [&](const std::string& why) {
     return std::runtime_error(what + " is damaged (" + why + "); remove it to start over");
   };
+  if (bytes.compare(0, kCheckpointMagicV1.size(), kCheckpointMagicV1) == 0)
+    throw damaged("written by an earlier foam-run, without a checksum");
   if (bytes.compare(0, kCheckpointMagic.size(), kCheckpointMagic) != 0)
     throw damaged("not a foam-run checkpoint");
-  const std::size_t eol = bytes.find('\n', kCheckpointMagic.size());
+  const auto body = unsealed(bytes);
+  if (!body) throw damaged("its checksum does not match its content");
+  const std::string_view content = *body;
+  const std::size_t eol = content.find('\n', kCheckpointMagic.size());
   if (eol == std::string::npos) throw damaged("no header");
   RunCheckpoint c;
   try {
-    const auto h =
-        nlohmann::json::parse(bytes.substr(kCheckpointMagic.size(), eol - kCheckpointMagic.size()));
+    const auto h = nlohmann::json::parse(
+        content.substr(kCheckpointMagic.size(), eol - kCheckpointMagic.size()));
     c.t_s = h.at("t_s").get<double>();
     c.samples = h.at("samples").get<std::int64_t>();
     for (const auto& s : h.at("snapshots"))
       c.snapshots.emplace_back(s.at(0).get<double>(), s.at(1).get<std::string>());
     const auto n = h.at("state_bytes").get<std::size_t>();
-    if (bytes.size() - eol - 1 != n) throw damaged("truncated");
-    c.state = bytes.substr(eol + 1);
+    if (content.size() - eol - 1 != n) throw damaged("truncated");
+    c.state = std::string(content.substr(eol + 1));
   } catch (const nlohmann::json::exception& e) {
     throw damaged(e.what());
   }

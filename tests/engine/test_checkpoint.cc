@@ -226,3 +226,42 @@ TEST(Checkpoint, EveryPresetResumesBitForBit) {
     EXPECT_EQ(physicsColumns(first), physicsColumns(straight));
   }
 }
+
+// A checkpoint is sealed by a checksum: any flipped bit — in its header (magic, format, spec
+// fingerprint, counters) or anywhere in its cells — is refused as damaged before anything of it
+// is read, so no damaged state ever reaches the engine; a cut one likewise.
+TEST(Checkpoint, EveryFlippedBitIsRefused) {
+  const SceneSpec s = doublet();
+  Simulation a(s);
+  for (int k = 0; k < 20; ++k) ASSERT_TRUE(a.step().ok());
+  const std::string state = a.saveState("extra");
+  Simulation b(s);
+  ASSERT_NO_THROW(b.loadState(state));
+  const std::size_t header_bits = 8 * 256;  // magic, format, the fingerprint's start
+  const std::size_t bits = 8 * state.size();
+  std::size_t tried = 0;
+  for (std::size_t bit = 0; bit < bits; bit += bit < header_bits ? 1 : 97) {
+    std::string damaged = state;
+    damaged[bit / 8] = static_cast<char>(damaged[bit / 8] ^ (1 << (bit % 8)));
+    Simulation c(s);
+    EXPECT_THROW(c.loadState(damaged), std::invalid_argument) << "bit " << bit;
+    ++tried;
+  }
+  for (std::size_t bit = bits - 64; bit < bits; ++bit) {  // the seal itself
+    std::string damaged = state;
+    damaged[bit / 8] = static_cast<char>(damaged[bit / 8] ^ (1 << (bit % 8)));
+    Simulation c(s);
+    EXPECT_THROW(c.loadState(damaged), std::invalid_argument) << "bit " << bit;
+  }
+  EXPECT_GT(tried, header_bits);
+  Simulation c(s);
+  EXPECT_THROW(c.loadState(state.substr(0, state.size() - 1)), std::invalid_argument);
+  try {
+    std::string damaged = state;
+    damaged[state.size() / 2] ^= 4;
+    Simulation d(s);
+    d.loadState(damaged);
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("damaged"), std::string::npos) << e.what();
+  }
+}

@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "activefoam/run.h"
+#include "activefoam/run_output.h"
 #include "activefoam/spec.h"
 #include "activefoam/spec_io.h"
 #include "test_files.h"
@@ -463,6 +464,39 @@ TEST_F(FoamRun, InterruptedRunResumesToTheUninterruptedResult) {
   EXPECT_NE(r.err.find("finished run"), std::string::npos) << r.err;
   EXPECT_EQ(run(quote(s.string()) + " --out " + quote(parts.string()) + " --resume --force").code,
             2);
+}
+
+// foam-run's checkpoint.bin is sealed as a whole: every flipped bit of its header (the sample
+// count among them: "samples":13 → 12 once dropped a sample in silence) and a sample of its
+// state's bits is refused as damaged, and --resume on a damaged file exits 2 naming it, the
+// folder untouched.
+TEST_F(FoamRun, EveryFlippedBitOfACheckpointIsRefused) {
+  const fs::path s = spec(
+      "scene = \"doublet\"\nduration_s = 200\nsample_every_s = 5\nsnapshot_every_s = 0\n"
+      "[cells]\nradius_gamma_k = 0\n[numerics]\ntriangles_per_cell = 80\ndt_s = 0.1\n");
+  const fs::path out = dir_ / "cut";
+  ASSERT_EQ(resume::runAndInterrupt({s.string(), "--out", out.string(), "-q"}, out, 6), 130);
+  const std::string good = readFile(out / "checkpoint.bin");
+  ASSERT_NO_THROW(decodeRunCheckpoint(good, "checkpoint.bin"));
+  const std::size_t header_bits = 8 * (good.find('\n', good.find('\n') + 1) + 1);
+  std::size_t tried = 0;
+  for (std::size_t bit = 0; bit < 8 * good.size(); bit += bit < header_bits ? 1 : 101) {
+    std::string damaged = good;
+    damaged[bit / 8] = static_cast<char>(damaged[bit / 8] ^ (1 << (bit % 8)));
+    EXPECT_THROW(decodeRunCheckpoint(damaged, "checkpoint.bin"), std::runtime_error)
+        << "bit " << bit;
+    ++tried;
+  }
+  EXPECT_GT(tried, header_bits);
+  std::string damaged = good;
+  damaged[good.size() / 2] = static_cast<char>(damaged[good.size() / 2] ^ 1);
+  writeFile(out / "checkpoint.bin", damaged);
+  const std::string before = readFile(out / "samples.csv");
+  const Result r = run(quote(s.string()) + " --out " + quote(out.string()) + " --resume");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("checkpoint.bin is damaged (its checksum does not match"), std::string::npos)
+      << r.err;
+  EXPECT_EQ(readFile(out / "samples.csv"), before);
 }
 
 TEST_F(FoamRun, ResumeWithoutCheckpointStartsOverAndADamagedOneIsRefused) {

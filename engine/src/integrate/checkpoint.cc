@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <type_traits>
 
+#include "activefoam/checksum.h"
 #include "activefoam/simulation.h"
 #include "activefoam/spheroid.h"
 #include "bytes.h"
@@ -16,8 +17,9 @@ using bytes::Reader;
 using bytes::Writer;
 
 constexpr char kMagic[8] = {'A', 'F', 'C', 'K', 'P', 'T', '0', '1'};
-constexpr std::uint32_t kFormat =
-    3;  // 2: the adaptive step schedule; 3: polarity noise keyed by time
+// 2: the adaptive step schedule; 3: polarity noise keyed by time; 4: sealed by a checksum, so
+// that a damaged checkpoint is refused before anything of it is read.
+constexpr std::uint32_t kFormat = 4;
 
 // The cells, in the checkpoint's order (velocities right after positions when kept).
 void writeCells(Writer& w, const CellSet& c, bool velocities) {
@@ -86,13 +88,24 @@ std::string Simulation::saveState(const std::string& extra) const {
   w.vec(counts);
   writeCells(w, cells_, true);
   w.str(extra);
-  return w.take();
+  return sealed(w.take());
 }
 
-std::string Simulation::loadState(const std::string& bytes) {
+std::string Simulation::loadState(const std::string& sealed_bytes) {
+  if (sealed_bytes.compare(0, sizeof kMagic, kMagic, sizeof kMagic) != 0)
+    throw std::invalid_argument("checkpoint: not an activefoam checkpoint");
+  const auto body = unsealed(sealed_bytes);
+  if (!body) {
+    // An earlier format has no seal; anything else is damaged.
+    Reader head(sealed_bytes);
+    for (std::size_t i = 0; i < sizeof kMagic; ++i) head.pod<char>();
+    if (sealed_bytes.size() >= sizeof kMagic + 4 && head.pod<std::uint32_t>() < kFormat)
+      throw std::invalid_argument("checkpoint: format version not supported by this engine");
+    throw std::invalid_argument("checkpoint: damaged (its checksum does not match its content)");
+  }
+  const std::string bytes(*body);
   Reader r(bytes);
-  for (char c : kMagic)
-    if (r.pod<char>() != c) throw std::invalid_argument("checkpoint: not an activefoam checkpoint");
+  for (std::size_t i = 0; i < sizeof kMagic; ++i) r.pod<char>();
   if (r.pod<std::uint32_t>() != kFormat)
     throw std::invalid_argument("checkpoint: format version not supported by this engine");
   if (r.str() != specFingerprint(spec_))
