@@ -28,7 +28,7 @@ std::string submitCell(const Foamd& d, double duration_s, double sample_every_s 
                           " submit --scene cell --set duration_s=" + std::to_string(duration_s) +
                           " --set sample_every_s=" + std::to_string(sample_every_s) +
                           " --set numerics.triangles_per_cell=320 --set snapshot_every_s=0"
-                          " 2>/dev/null";
+                          " --set numerics.dt_s=0.1 2>/dev/null";
   for (int i = 0; i < 100; ++i) {
     const Proc r = sh(cmd);
     if (r.rc == 0) return firstLine(r.out);
@@ -72,7 +72,8 @@ TEST(Faults, KillDashNineAtRandomMomentsOfAThreeJobQueue) {
   auto submit = [](const Foamd& d, int job_seed, const std::string& tag) {
     const std::string cmd = d.foam() +
                             " submit --scene cell --set duration_s=12000 --set sample_every_s=800"
-                            " --set numerics.triangles_per_cell=80 --set snapshot_every_s=0"
+                            " --set numerics.dt_s=0.1 --set numerics.triangles_per_cell=80"
+                            " --set snapshot_every_s=0"
                             " --set seed=" +
                             std::to_string(job_seed) + " --tag " + tag + " 2>/dev/null";
     for (int i = 0; i < 100; ++i) {
