@@ -661,7 +661,23 @@ TEST_F(ServiceTest, EveryStoredStringAndSweepSizeIsCapped) {
     auto c = ctx();
     expectRefused(stub_->SubmitSweep(c.get(), r, &resp), "more than the 100000 jobs");
   }
-  EXPECT_EQ(store_->countRows("jobs"), jobs0 + 1);  // the one cell job only
+  // Three 300-value axes: 27 million sets, counted from the axes before any is built — refused
+  // at once, and the server goes on serving.
+  {
+    v1::SubmitSweepRequest huge = base;
+    for (const char* key : {"cells.alpha", "cells.gamma", "cells.eta"}) {
+      auto* axis = huge.add_grid();
+      axis->set_key(key);
+      for (int k = 0; k < 300; ++k) axis->add_values(std::to_string(0.3 + k * 1e-4));
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    auto c = ctx();
+    expectRefused(stub_->SubmitSweep(c.get(), huge, &resp),
+                  "grid × seeds: 27000000 parameter sets × 1 seeds, more than the 100000 jobs");
+    EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(1));
+    EXPECT_FALSE(get(submit(tinyCell())).id().empty());
+  }
+  EXPECT_EQ(store_->countRows("jobs"), jobs0 + 2);  // the two cell jobs only
   EXPECT_EQ(store_->countRows("sweeps"), 0);
 }
 
