@@ -544,14 +544,36 @@ SpecParseResult parseSpecText(std::string_view text, SpecFormat format, const Sc
   return finish(std::move(spec), std::move(result), options);
 }
 
+namespace {
+
+// A spec is at most this long (foam's and foamd's limit too): reading stops one byte past it, so
+// that /dev/zero or an endless pipe is refused at once instead of filling the memory.
+constexpr std::size_t kMaxSpecFileBytes = 1 << 20;
+
+bool readCapped(std::istream& in, std::string& text) {
+  text.resize(kMaxSpecFileBytes + 1);
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<std::size_t>(in.gcount()));
+  return text.size() <= kMaxSpecFileBytes;
+}
+
+}  // namespace
+
 SpecParseResult parseSpecFile(const std::filesystem::path& path, const SceneSpec& base,
                               const SpecParseOptions& options) {
   SpecParseOptions opts = options;
   const bool from_stdin = path == "-";
   if (opts.source.empty()) opts.source = from_stdin ? "<stdin>" : path.string();
   std::string text;
+  auto tooLong = [&] {
+    SpecParseResult r;
+    r.errors.push_back(
+        {opts.source, (from_stdin ? std::string("standard input") : "'" + path.string() + "'") +
+                          " holds more than 1 MiB: a spec is at most 1 MiB"});
+    return r;
+  };
   if (from_stdin) {
-    text.assign(std::istreambuf_iterator<char>(std::cin), std::istreambuf_iterator<char>());
+    if (!readCapped(std::cin, text)) return tooLong();
   } else {
     std::error_code ec;
     if (std::filesystem::is_directory(path, ec)) {
@@ -565,7 +587,7 @@ SpecParseResult parseSpecFile(const std::filesystem::path& path, const SceneSpec
       r.errors.push_back({opts.source, std::string("cannot read: ") + std::strerror(errno)});
       return r;
     }
-    text.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    if (!readCapped(in, text)) return tooLong();
   }
   std::string ext = from_stdin ? "" : path.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),

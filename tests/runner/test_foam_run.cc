@@ -499,6 +499,21 @@ TEST_F(FoamRun, EveryFlippedBitOfACheckpointIsRefused) {
   EXPECT_EQ(readFile(out / "samples.csv"), before);
 }
 
+// A spec is read to at most 1 MiB: /dev/zero and an endless pipe are refused at once, naming the
+// input and the cap (they once aborted with bad_alloc).
+TEST_F(FoamRun, UnboundedSpecInputIsRefusedAtItsCap) {
+  Result r = run("/dev/zero --out " + quote((dir_ / "z").string()));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("'/dev/zero' holds more than 1 MiB"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "z" / "spec.json"));
+  const std::string cmd = "yes | timeout 30 " + quote(FOAM_RUN_EXE) + " - --out " +
+                          quote((dir_ / "y").string()) + " 2> " + quote((dir_ / "y.err").string());
+  const int status = std::system(cmd.c_str());
+  EXPECT_EQ(WIFEXITED(status) ? WEXITSTATUS(status) : -1, 2);
+  const std::string err = readFile(dir_ / "y.err");
+  EXPECT_NE(err.find("standard input holds more than 1 MiB"), std::string::npos) << err;
+}
+
 TEST_F(FoamRun, ResumeWithoutCheckpointStartsOverAndADamagedOneIsRefused) {
   const fs::path s = spec(kCell);
   const fs::path out = dir_ / "out";
