@@ -120,6 +120,54 @@ class Ffmpeg {
   int fd_ = -1;
 };
 
+// The video frames ffprobe counts in `file`; -1 when it cannot read the file as a movie (a
+// missing trailer, a cut file: what ffmpeg leaves on a full disk though it exits 0).
+long countFrames(const std::string& ffprobe, const std::string& file) {
+  int fds[2];
+  if (::pipe2(fds, O_CLOEXEC) != 0) return -1;
+  std::vector<std::string> args = {ffprobe,
+                                   "-v",
+                                   "error",
+                                   "-count_frames",
+                                   "-select_streams",
+                                   "v:0",
+                                   "-show_entries",
+                                   "stream=nb_read_frames",
+                                   "-of",
+                                   "csv=p=0",
+                                   file};
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_adddup2(&fa, fds[1], 1);
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, ffprobe.c_str(), &fa, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  ::close(fds[1]);
+  std::string out;
+  char buf[256];
+  for (ssize_t n; rc == 0 && (n = ::read(fds[0], buf, sizeof buf)) != 0;) {
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) break;
+    out.append(buf, static_cast<std::size_t>(n));
+  }
+  ::close(fds[0]);
+  if (rc != 0) return -1;
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) return -1;
+  try {
+    std::size_t used = 0;
+    const long n = std::stol(out, &used);
+    return n;
+  } catch (const std::exception&) {
+    return -1;
+  }
+}
+
 bool parseSize(const std::string& s, int& w, int& h) {
   const auto x = s.find('x');
   if (x == std::string::npos) return false;
@@ -203,9 +251,10 @@ int runMovie(Conn& conn, const ExportOptions& o) {
     return fail(kUsage,
                 "the job has no snapshots to make a movie of (its spec's "
                 "snapshot_every_s = 0, or none recorded yet)");
-  const std::string ffmpeg = findOnPath("ffmpeg");
-  if (ffmpeg.empty())
-    return fail(kUsage, "ffmpeg is not on PATH: apt-get install ffmpeg (Debian's package)");
+  const std::string ffmpeg = findOnPath("ffmpeg"), ffprobe = findOnPath("ffprobe");
+  if (ffmpeg.empty() || ffprobe.empty())
+    return fail(kUsage,
+                "ffmpeg and ffprobe are not on PATH: apt-get install ffmpeg (Debian's package)");
 
   auto newCtx = [&] { return conn.ctx(); };
   // Pass 1: the box every frame fits in, and the colour ramp's range, over all snapshots:
@@ -239,9 +288,24 @@ int runMovie(Conn& conn, const ExportOptions& o) {
   const int scale = std::max(1, height / 200);
   const Rgb background{0xf4, 0xf6, 0xf9}, ink{0x1f, 0x23, 0x28};
   int frames = 0;
-  // ffmpeg writes next to FILE and the result is renamed onto it once complete: a failure half
-  // way leaves no truncated movie, and an older FILE stays until a new one replaces it.
-  const fs::path part = fs::path(o.movie_file).concat(".part");
+  // ffmpeg writes next to FILE and the result is renamed onto it once ffprobe has counted every
+  // frame in it: a failure half way, or a movie without its trailer on a full disk (ffmpeg exits
+  // 0 there), leaves no broken movie, and an older FILE stays until a new one replaces it. The
+  // temporary's name is this process's own, created here: no file of the user's is touched.
+  fs::path part;
+  for (int attempt = 0; part.empty() && attempt < 100; ++attempt) {
+    fs::path candidate = fs::path(o.movie_file)
+                             .concat("." + std::to_string(::getpid()) + "-" +
+                                     std::to_string(attempt) + ".part" + ext);
+    const int fd = ::open(candidate.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+    if (fd >= 0) {
+      ::close(fd);
+      part = candidate;
+    } else if (errno != EEXIST) {
+      return fail(kJobNotOk, "cannot write next to " + o.movie_file + ": " + std::strerror(errno));
+    }
+  }
+  if (part.empty()) return fail(kJobNotOk, "cannot name a temporary file next to " + o.movie_file);
   struct RemovePart {
     fs::path path;
     ~RemovePart() {
@@ -270,6 +334,12 @@ int runMovie(Conn& conn, const ExportOptions& o) {
   } catch (const std::exception& e) {
     return fail(kJobNotOk, e.what());
   }
+  if (const long counted = countFrames(ffprobe, part.string()); counted != frames)
+    return fail(kJobNotOk, "the movie ffmpeg wrote is incomplete (" +
+                               (counted < 0 ? std::string("ffprobe cannot read it")
+                                            : std::to_string(counted) + " of " +
+                                                  std::to_string(frames) + " frames") +
+                               "; a full disk?): " + o.movie_file + " is left as it was");
   std::error_code ec;
   fs::rename(part, o.movie_file, ec);
   if (ec) return fail(kJobNotOk, "cannot write " + o.movie_file + ": " + ec.message());

@@ -3,7 +3,8 @@
 fusion job with five snapshots and a cell job without any; foam (env FOAM) renders the first to
 an MP4 and a GIF with Debian's ffmpeg, and ffprobe counts their frames. Also: the first frame
 shows both spheroids' colours; no snapshots, no ffmpeg, a bad file name: exit 2 with a message
-saying why; an unknown job: exit 5. With SCREENSHOT_DIR set it saves the movie's last frame there
+saying why; an unknown job: exit 5; a movie ffmpeg leaves incomplete (exit 0, no trailer) never
+replaces the older one. With SCREENSHOT_DIR set it saves the movie's last frame there
 as movie-frame.png.
 
 Exit status: 0 passed, 1 failed, 2 misconfigured, 77 skipped (no ffmpeg/ffprobe on PATH).
@@ -104,6 +105,25 @@ def run(foamd: Foamd, tmp: Path) -> None:
     r = foam(foamd, "export", "--movie", fusion, str(tmp / "x.mp4"), env=dict(os.environ, PATH="/nonexistent"))
     check(r.returncode == 2 and "apt-get install ffmpeg" in r.stderr and not (tmp / "x.mp4").exists(),
           f"no ffmpeg on PATH: exit {r.returncode}, {r.stderr.strip()!r}")
+    say("an incomplete movie never replaces a good one")
+    # ffmpeg on a full disk prints "Error writing trailer" yet exits 0: a stand-in that does the
+    # same (writes a file that is no movie, exits 0) must not replace the movie made above, nor
+    # touch a file of the user's named like a temporary.
+    fake = tmp / "fakebin"
+    fake.mkdir()
+    (fake / "ffmpeg").write_text('#!/bin/sh\nfor last; do :; done\ncat > /dev/null\n'
+                                 'printf "no moov atom" > "$last"\nexit 0\n')
+    (fake / "ffmpeg").chmod(0o755)
+    good = mp4.read_bytes()
+    users = tmp / "fusion.mp4.part"
+    users.write_text("mine")
+    r = foam(foamd, "export", "--movie", fusion, str(mp4),
+             env=dict(os.environ, PATH=f"{fake}:{os.environ.get('PATH', '/usr/bin')}"))
+    left = sorted(p.name for p in tmp.iterdir() if p.name.startswith("fusion.mp4."))
+    check(r.returncode != 0 and "incomplete" in r.stderr and mp4.read_bytes() == good
+          and users.read_text() == "mine" and left == ["fusion.mp4.part"],
+          f"a movie ffmpeg left without its trailer: exit {r.returncode}, {r.stderr.strip()!r}, "
+          f"the older movie kept, the user's file untouched, nothing else left ({left})")
     r = foam(foamd, "export", "--movie", fusion, str(tmp / "x.avi"))
     check(r.returncode == 2 and ".mp4 or .gif" in r.stderr, f"fusion.avi: exit {r.returncode}, {r.stderr.strip()!r}")
     r = foam(foamd, "export", "--movie", "j-000000000000", str(tmp / "x.mp4"))
