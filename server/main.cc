@@ -123,7 +123,8 @@ int main(int argc, char** argv) {
                  "engine threads of each pool job (0 = max(1, cores / workers)); results are "
                  "bit-identical for any count")
       ->check(CLI::Range(0, 1024));
-  app.add_option("--token-file", token_file, "file holding the bearer token every call needs");
+  CLI::Option* const token_opt =
+      app.add_option("--token-file", token_file, "file holding the bearer token every call needs");
   app.add_option("--http", http,
                  "HTTP endpoint HOST:PORT: the dashboard at /, read-only JSON, /metrics, "
                  "/healthz");
@@ -206,6 +207,13 @@ int main(int argc, char** argv) {
     return 2;
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
+  }
+  // Given but empty (`--token-file ''`, `token-file = ""` in the config) once started foamd
+  // without auth and without a word.
+  if (token_opt->count() > 0 && token_file.empty()) {
+    std::cerr << "foamd: --token-file: empty: name the file holding the token, or leave the "
+                 "option out to run without one\n";
+    return 2;
   }
   for (const auto& [flag, value] : {std::pair<const char*, const std::string*>{"--listen", &listen},
                                     {"--http", &http},

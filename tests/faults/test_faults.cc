@@ -269,6 +269,24 @@ TEST(Faults, ASecondFoamdOnTheSamePortIsRefused) {
 // A foamd on [::1]:P started beside one on 127.0.0.1:P (`localhost:P` then
 // reached either), and a second --http on a taken port bound too (cpp-httplib's SO_REUSEPORT:
 // requests alternated between the two servers). Each is refused, naming the other listener.
+// An empty --token-file (on the command line or in the config) is refused, not taken as "no
+// token": foamd once started without auth in silence.
+TEST(Faults, AnEmptyTokenFileIsRefused) {
+  const fs::path dir = tempDir();
+  const std::string base = "timeout 10 " + std::string(FOAMD_EXE) +
+                           " --listen 127.0.0.1:" + std::to_string(freePort()) + " --db " +
+                           (dir / "f.db").string();
+  Proc r = sh(base + " --token-file '' 2>&1");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("--token-file: empty"), std::string::npos) << r.out;
+  { std::ofstream(dir / "foamd.toml") << "token-file = \"\"\n"; }
+  r = sh(base + " --config " + (dir / "foamd.toml").string() + " 2>&1");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("--token-file: empty"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir / "f.db"));
+  fs::remove_all(dir);
+}
+
 TEST(Faults, ListenersBesideAnotherFoamdAreRefused) {
   const fs::path dir = tempDir();
   const int port = freePort(), http = freePort();
