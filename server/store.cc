@@ -445,11 +445,24 @@ std::tuple<std::string, std::vector<std::string>, bool> Store::submitSweep(
       Stmt q(tx.db, "SELECT id FROM sweeps WHERE idem_key = ?");
       q.bind(1, idem);
       if (q.step()) {
+        // The same request again gets the sweep it made; another request under the key is
+        // refused, as SubmitJob refuses one (it was answered with the old sweep in silence).
         const std::string sid = q.text(0);
-        Stmt js(tx.db, "SELECT id FROM jobs WHERE sweep_id = ? ORDER BY seqno");
+        Stmt js(tx.db,
+                "SELECT id, spec_json, priority, tag FROM jobs WHERE sweep_id = ? ORDER BY seqno");
         js.bind(1, sid);
         std::vector<std::string> ids;
-        while (js.step()) ids.push_back(js.text(0));
+        bool same = true;
+        while (js.step()) {
+          const std::size_t k = ids.size();
+          same = same && k < jobs.size() && js.text(1) == jobs[k].spec_json &&
+                 js.i64(2) == jobs[k].priority && js.text(3) == jobs[k].tag;
+          ids.push_back(js.text(0));
+        }
+        if (!same || ids.size() != jobs.size())
+          throw StoreError(StoreError::Kind::FailedPrecondition, "idempotency_key '" + idem +
+                                                                     "' was used for sweep " + sid +
+                                                                     " with a different request");
         return {sid, ids, false};
       }
     }

@@ -285,6 +285,33 @@ TEST_F(ServiceTest, IdempotentResubmitReturnsTheSameId) {
   EXPECT_EQ(store_->countRows("jobs"), 1);
 }
 
+// SubmitSweep likewise: the same request again gets its sweep, another grid under the same key
+// is refused (it was answered with the old sweep in silence).
+TEST_F(ServiceTest, IdempotentSweepResubmitAndAReusedKeyRefused) {
+  startServer(false);
+  v1::SubmitSweepRequest r;
+  *r.mutable_spec() = tinyCell().spec();
+  r.set_idempotency_key("sweep-7");
+  auto* g = r.add_grid();
+  g->set_key("cells.gamma");
+  g->add_values("0.4");
+  g->add_values("0.6");
+  v1::SubmitSweepResponse a, b;
+  auto c1 = ctx();
+  ASSERT_TRUE(stub_->SubmitSweep(c1.get(), r, &a).ok());
+  auto c2 = ctx();
+  ASSERT_TRUE(stub_->SubmitSweep(c2.get(), r, &b).ok());
+  EXPECT_EQ(a.sweep_id(), b.sweep_id());
+  EXPECT_EQ(store_->countRows("jobs"), 2);
+  r.mutable_grid(0)->set_values(1, "0.7");
+  auto c3 = ctx();
+  const grpc::Status st = stub_->SubmitSweep(c3.get(), r, &b);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << st.error_message();
+  EXPECT_NE(st.error_message().find("with a different request"), std::string::npos)
+      << st.error_message();
+  EXPECT_EQ(store_->countRows("jobs"), 2);
+}
+
 TEST_F(ServiceTest, PaginationAndFilters) {
   startServer(false);  // jobs stay queued
   std::set<std::string> all;
