@@ -294,9 +294,10 @@ int runMovie(Conn& conn, const ExportOptions& o) {
   // temporary's name is this process's own, created here: no file of the user's is touched.
   fs::path part;
   for (int attempt = 0; part.empty() && attempt < 100; ++attempt) {
-    fs::path candidate = fs::path(o.movie_file)
-                             .concat("." + std::to_string(::getpid()) + "-" +
-                                     std::to_string(attempt) + ".part" + ext);
+    std::string suffix = ".";
+    suffix.append(std::to_string(::getpid())).append("-").append(std::to_string(attempt));
+    suffix.append(".part").append(ext);
+    fs::path candidate = fs::path(o.movie_file).concat(suffix);
     const int fd = ::open(candidate.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
     if (fd >= 0) {
       ::close(fd);

@@ -566,10 +566,11 @@ SpecParseResult parseSpecFile(const std::filesystem::path& path, const SceneSpec
   if (opts.source.empty()) opts.source = from_stdin ? "<stdin>" : path.string();
   std::string text;
   auto tooLong = [&] {
+    std::string what = "standard input";
+    if (!from_stdin) what = std::string(1, '\'').append(path.string()).append(1, '\'');
     SpecParseResult r;
     r.errors.push_back(
-        {opts.source, (from_stdin ? std::string("standard input") : "'" + path.string() + "'") +
-                          " holds more than 1 MiB: a spec is at most 1 MiB"});
+        {opts.source, what.append(" holds more than 1 MiB: a spec is at most 1 MiB")});
     return r;
   };
   if (from_stdin) {
