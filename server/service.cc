@@ -431,11 +431,14 @@ class FoamService final : public v1::Foam::CallbackService {
     }
     if (req.grid_size() == 0 && req.sets_size() > 0) n_sets = req.sets_size();
     const double n_seeds = std::max(req.seeds_size(), 1);
+    auto count = [](double n) {  // whole numbers as such while a double holds them exactly
+      return n < 9e15 ? std::to_string(static_cast<long long>(n)) : formatNumber(n);
+    };
     if (n_sets * n_seeds > static_cast<double>(kMaxSweepJobs))
       return Status(StatusCode::INVALID_ARGUMENT,
-                    "grid × seeds: " + formatNumber(n_sets) + " parameter sets × " +
-                        formatNumber(n_seeds) + " seeds, more than the " +
-                        std::to_string(kMaxSweepJobs) + " jobs a sweep may have");
+                    "grid × seeds: " + count(n_sets) + " parameter sets × " + count(n_seeds) +
+                        " seeds, more than the " + std::to_string(kMaxSweepJobs) +
+                        " jobs a sweep may have");
     // Parameter sets: the cartesian product of the grid, or the explicit list, or one empty set.
     std::vector<std::vector<std::string>> sets{{}};
     if (req.grid_size() > 0) {
