@@ -13,8 +13,8 @@
 namespace {
 
 using activefoam::ContactLaw;
-using activefoam::ContactQuadrature;
 using activefoam::ContactLawKind;
+using activefoam::ContactQuadrature;
 using activefoam::Tri;
 using activefoam::Vec3;
 using Tri3 = std::array<Vec3, 3>;
