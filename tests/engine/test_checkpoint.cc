@@ -261,6 +261,7 @@ TEST(Checkpoint, EveryFlippedBitIsRefused) {
     damaged[state.size() / 2] ^= 4;
     Simulation d(s);
     d.loadState(damaged);
+    ADD_FAILURE() << "a damaged checkpoint was read";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("damaged"), std::string::npos) << e.what();
   }

@@ -58,7 +58,7 @@ std::optional<std::optional<SpecError>> setRetiredField(SceneSpec& spec, std::st
   };
   NumericsParams& n = spec.numerics;
   // The contact law's two switches of earlier versions: contact_within_prisms, and with it
-  // contact_prisms_overlap_only. Either order of arrival gives the law both name.
+  // contact_prisms_overlap_only. The two read as the law they named together, in either order.
   if (key == "numerics.contact_within_prisms") {
     if (!b) return needBool();
     ContactLawKind law = ContactLawKind::Supplement;
@@ -74,8 +74,8 @@ std::optional<std::optional<SpecError>> setRetiredField(SceneSpec& spec, std::st
     return std::optional<SpecError>{};
   }
   // The remesher's two switches of earlier versions: rescue, and rebuild after it (a rebuild
-  // without the rescue, which no study ran, reads as both). Either order of arrival gives the
-  // policy both name.
+  // without the rescue, which no study ran, reads as both). The two read as the policy they
+  // named together, in either order.
   if (key == "numerics.remesh_rescue") {
     if (!b) return needBool();
     RemeshRepair r = RemeshRepair::None;
