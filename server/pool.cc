@@ -18,6 +18,7 @@
 #include "activefoam/run.h"
 #include "activefoam/spec_io.h"
 #include "activefoam/threads.h"
+#include "spec_convert.h"
 
 namespace activefoam::server {
 namespace {
@@ -138,10 +139,7 @@ void Pool::workerLoop() {
 
 void Pool::runJob(const Claimed& claimed, Running& flag) {
   const std::string id = claimed.job.id();
-  SpecParseOptions as_record;
-  as_record.record = true;
-  SpecParseResult parsed =
-      parseSpecText(claimed.job.spec_json(), SpecFormat::Json, recordBase(), as_record);
+  SpecParseResult parsed = readRecord(claimed.job.spec_json());
   if (!parsed.ok()) {
     store_.finish(id, v1::JOB_STATE_FAILED, "exception",
                   "stored spec does not parse: " + parsed.errors.front().str(), {}, 0, 0);

@@ -184,6 +184,7 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::JobEvent> {
       }
       current_ = std::move(pending_.front());
       pending_.pop_front();
+      if (current_.has_state()) addResolvedRecord(*current_.mutable_state());
       after_ = current_.seq();
       writing_ = true;
     } catch (const std::exception& e) {
@@ -286,7 +287,10 @@ class FoamService final : public v1::Foam::CallbackService {
           auto [id, created] = store_.submit(job);
           resp->set_job_id(id);
           resp->set_created(created);
-          if (auto j = store_.getJob(id)) *resp->mutable_job() = *j;
+          if (auto j = store_.getJob(id)) {
+            *resp->mutable_job() = *j;
+            addResolvedRecord(*resp->mutable_job());
+          }
           if (created) {
             spdlog::info("job {}: submitted ({}, seed {}, priority {}, preset {}{})", id,
                          toString(job.spec.scene), job.spec.seed, job.priority,
@@ -305,6 +309,7 @@ class FoamService final : public v1::Foam::CallbackService {
                   if (!j)
                     return Status(StatusCode::NOT_FOUND, "no job " + cappedQuote(req->job_id()));
                   *resp = *j;
+                  addResolvedRecord(*resp);
                   return Status::OK;
                 }));
   }
@@ -313,6 +318,7 @@ class FoamService final : public v1::Foam::CallbackService {
                                v1::ListJobsResponse* resp) override {
     return done(ctx, guarded(*req, [&] {
                   *resp = store_.listJobs(*req);
+                  for (v1::Job& j : *resp->mutable_jobs()) addResolvedRecord(j);
                   return Status::OK;
                 }));
   }
@@ -336,6 +342,7 @@ class FoamService final : public v1::Foam::CallbackService {
                     j = *store_.getJob(j.id());
                   }
                   *resp = j;
+                  addResolvedRecord(*resp);
                   return Status::OK;
                 }));
   }
@@ -350,6 +357,7 @@ class FoamService final : public v1::Foam::CallbackService {
                                  v1::JobResults* resp) override {
     return done(ctx, guarded(*req, [&] {
                   *resp = store_.results(req->job_id(), req->with_samples());
+                  addResolvedRecord(*resp->mutable_job());
                   return Status::OK;
                 }));
   }
@@ -368,6 +376,21 @@ class FoamService final : public v1::Foam::CallbackService {
                   if (Status st = writable(); !st.ok()) return st;
                   return sweep(*req, resp);
                 }));
+  }
+
+  // A read: it writes nothing, so it answers while the store cannot write.
+  ServerUnaryReactor* ResolveSpec(CallbackServerContext* ctx, const v1::ResolveSpecRequest* req,
+                                  v1::ResolveSpecResponse* resp) override {
+    return done(
+        ctx, guarded(*req, [&] {
+          const std::vector<std::string> settings(req->settings().begin(), req->settings().end());
+          ConvertResult conv = convertSpec(req->spec(), req->spec_text(), settings, convert_);
+          if (!conv.ok()) return Status(StatusCode::INVALID_ARGUMENT, errorText(conv.errors));
+          resp->set_spec_json(specToJson(*conv.spec).dump());
+          for (const SpecField& f : specFields())
+            if (f.label) resp->add_labels(f.key);
+          return Status::OK;
+        }));
   }
 
   grpc::ServerWriteReactor<v1::SnapshotChunk>* GetSnapshot(

@@ -248,6 +248,65 @@ v1::SceneSpec toProto(const SceneSpec& spec) {
   return out;
 }
 
+SpecParseResult readRecord(std::string_view spec_json) {
+  SpecParseOptions as_record;
+  as_record.record = true;
+  return parseSpecText(spec_json, SpecFormat::Json, recordBase(), as_record);
+}
+
+namespace {
+
+// The value at a dotted key of a nested document; nullptr where there is none.
+template <class Json>
+Json* at(Json& doc, const std::string& key) {
+  Json* node = &doc;
+  std::size_t begin = 0;
+  for (;;) {
+    const std::size_t dot = key.find('.', begin);
+    const std::string part = key.substr(begin, dot == std::string::npos ? dot : dot - begin);
+    if (!node->is_object() || !node->contains(part)) return nullptr;
+    node = &(*node)[part];
+    if (dot == std::string::npos) return node;
+    begin = dot + 1;
+  }
+}
+
+}  // namespace
+
+std::string resolvedRecordJson(std::string_view spec_json) {
+  const SpecParseResult parsed = readRecord(spec_json);
+  if (!parsed.ok()) return {};
+  nlohmann::json out = specToJson(resolve(*parsed.spec));
+  // The record was read without its labels (it holds every value they chose, and a preset of an
+  // earlier version may be retired): each is written as the record named it where this engine
+  // reads that name, else null — never as the default the reading left in place.
+  const nlohmann::json doc = nlohmann::json::parse(spec_json, nullptr, false);
+  for (const SpecField& f : specFields()) {
+    if (!f.label) continue;
+    nlohmann::json* slot = at(out, f.key);
+    if (!slot) continue;
+    *slot = nullptr;
+    const nlohmann::json* given = doc.is_discarded() ? nullptr : at(doc, f.key);
+    if (!given || given->is_null()) continue;
+    // The label alone, nested as in the record, read on its own.
+    nlohmann::json alone = *given;
+    for (std::size_t end = f.key.size(); end != std::string::npos;) {
+      const std::size_t dot = end == 0 ? std::string::npos : f.key.rfind('.', end - 1);
+      const std::size_t begin = dot == std::string::npos ? 0 : dot + 1;
+      alone = nlohmann::json{{f.key.substr(begin, end - begin), std::move(alone)}};
+      end = dot;
+    }
+    SpecParseOptions opts;
+    opts.require_scene = false;
+    if (parseSpecJson(alone, SceneSpec{}, opts).ok()) *slot = *given;
+  }
+  return out.dump();
+}
+
+void addResolvedRecord(v1::Job& job) {
+  job.set_resolved_spec_json(resolvedRecordJson(job.spec_json()));
+}
+
 std::string errorText(const std::vector<SpecError>& errors) {
   std::string s = "invalid spec: ";
   for (std::size_t i = 0; i < errors.size(); ++i) s += (i ? "; " : "") + errors[i].str();

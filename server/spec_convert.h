@@ -12,6 +12,8 @@
 #include <vector>
 
 #include "activefoam/spec.h"
+#include "activefoam/spec_io.h"
+#include "activefoam/v1/job.pb.h"
 #include "activefoam/v1/scene.pb.h"
 
 namespace activefoam::server {
@@ -47,6 +49,18 @@ std::vector<SpecError> applyTyped(const v1::SceneSpec& typed, SceneSpec& spec, b
 // The typed message of an engine spec: every key that is set (the per-scene message of its
 // scene only). convertSpec(toProto(s)) == resolve(s) for a valid s.
 v1::SceneSpec toProto(const SceneSpec& spec);
+
+// A job's record (Job.spec_json: the resolved spec as stored at submission, maybe by an earlier
+// version) as this engine reads it: on recordBase(), so that keys added since read as the run had
+// them, retired switches as the keys that replaced them, the labels skipped. What the pool runs.
+SpecParseResult readRecord(std::string_view spec_json);
+
+// The record read so, resolved and written back in today's keys (Job.resolved_spec_json); its
+// labels are the record's own where they still read, else null. Empty when it cannot be read.
+std::string resolvedRecordJson(std::string_view spec_json);
+
+// Sets job.resolved_spec_json from job.spec_json (every Job the service answers with).
+void addResolvedRecord(v1::Job& job);
 
 // "invalid spec: key: message; key: message" — the INVALID_ARGUMENT text.
 std::string errorText(const std::vector<SpecError>& errors);

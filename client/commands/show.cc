@@ -12,23 +12,21 @@ namespace activefoam::client {
 namespace {
 
 // "preset standard (contact-implicit-consistent, Δt 1 s, 320 triangles, ε_CG 0.01, contact law
-// prisms-overlap), chosen for the accuracy target contact angle ≤ 2°" from a job's resolved spec.
-std::string fidelityText(const std::string& spec_json) {
+// prisms-overlap), chosen for the accuracy target contact angle ≤ 2°" from a job's record as the
+// server's engine reads it (Job.resolved_spec_json: today's keys, whatever version stored it); "?"
+// where the server serves none (a record it cannot read, or a server before it served them).
+std::string fidelityText(const std::string& resolved_spec_json) {
   try {
-    const nlohmann::json spec = nlohmann::json::parse(spec_json);
+    const nlohmann::json spec = nlohmann::json::parse(resolved_spec_json);
     const nlohmann::json& n = spec.at("numerics");
+    // A label: null where the record named no preset this engine reads.
+    const nlohmann::json& preset = n.at("preset");
     std::ostringstream os;
-    os << "preset " << n.value("preset", std::string("?")) << " (" << n.value("integrator", "")
-       << ", Δt " << n.value("dt_s", 0.0) << " s, " << n.value("triangles_per_cell", 0)
-       << " triangles, ε_CG " << n.value("cg_tol", 0.0);
-    // Records of earlier versions have no contact_law: theirs was the supplement's unless their
-    // two switches said otherwise.
-    std::string law = n.value("contact_law", std::string());
-    if (law.empty())
-      law = !n.value("contact_within_prisms", false)        ? "supplement"
-            : n.value("contact_prisms_overlap_only", false) ? "prisms-overlap"
-                                                            : "prisms";
-    os << ", contact law " << law << ")";
+    os << "preset " << (preset.is_string() ? preset.get<std::string>() : "?") << " ("
+       << n.at("integrator").get<std::string>() << ", Δt " << n.at("dt_s").get<double>() << " s, "
+       << n.at("triangles_per_cell").get<long long>() << " triangles, ε_CG "
+       << n.at("cg_tol").get<double>() << ", contact law " << n.at("contact_law").get<std::string>()
+       << ")";
     // Unset targets are null in a resolved spec.
     const nlohmann::json a = spec.value("accuracy", nlohmann::json::object());
     const bool angle = a.contains("contact_angle_deg") && a["contact_angle_deg"].is_number();
@@ -72,7 +70,7 @@ int runShow(Conn& conn, const ShowOptions& o) {
             << "finished:  " << j.finished_utc() << "\n"
             << "attempts:  " << j.attempts() << "\n"
             << "engine:    " << j.engine_version() << "\n";
-  std::cout << "fidelity:  " << fidelityText(j.spec_json()) << "\n";
+  std::cout << "fidelity:  " << fidelityText(j.resolved_spec_json()) << "\n";
   if (!j.executor_ref().empty()) std::cout << "executor:  " << j.executor_ref() << "\n";
   if (!j.outcome().empty()) std::cout << "outcome:   " << j.outcome() << "\n";
   if (!j.reason().empty()) std::cout << "reason:    " << j.reason() << "\n";

@@ -236,6 +236,18 @@ class Client:
         resp = self._call("SubmitJob", req, "submit")
         return Job(self, resp.job_id, created=resp.created)
 
+    def resolve(self, spec: Spec, preset: Optional[str] = None,
+                overrides: Optional[Mapping[str, Any]] = None) -> Any:
+        """The spec a submit of the same arguments would run, resolved by foamd's engine, without
+        submitting anything: the ResolveSpecResponse, whose spec_json holds every key (as a
+        job's resolved_spec_json does) and whose labels name the keys that only choose other
+        keys' values (the preset, the accuracy targets). A spec foamd would refuse raises the
+        submit's ValueError, naming the key."""
+        fields = _spec_fields(spec, overrides)
+        if preset:
+            fields.setdefault("settings", []).insert(0, f"numerics.preset={preset}")
+        return self._call("ResolveSpec", service_pb2.ResolveSpecRequest(**fields), "resolve")
+
     def job(self, job_id: str) -> "Job":
         return Job(self, job_id)
 
@@ -247,9 +259,9 @@ class Client:
         return state_name(j.state)
 
     def job_infos(self, **filters: Any) -> List[Any]:
-        """The job messages (as Job.info() returns them: state, seed, spec_json, failure_kind,
-        ...) of every job matching ListJobsRequest's filters (tag, sweep_id, states, scene,
-        outcome), newest first, over all pages."""
+        """The job messages (as Job.info() returns them: state, seed, spec_json,
+        resolved_spec_json, failure_kind, ...) of every job matching ListJobsRequest's filters
+        (tag, sweep_id, states, scene, outcome), newest first, over all pages."""
         req = service_pb2.ListJobsRequest(page_size=1000, **filters)
         jobs: List[Any] = []
         while True:
@@ -326,7 +338,7 @@ class Job:
         return f"Job({self.id!r})"
 
     def info(self) -> Any:
-        """The job message (state, progress, spec_json, outcome, ...)."""
+        """The job message (state, progress, spec_json and resolved_spec_json, outcome, ...)."""
         return self._c._call("GetJob", service_pb2.GetJobRequest(job_id=self.id),
                              f"job {self.id}")
 

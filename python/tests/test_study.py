@@ -431,109 +431,165 @@ def test_an_eq1_fit_longer_than_its_run_is_not_counted_and_is_listed(tmp_path):
     assert st.unsaturated_fits_markdown(study, got.reset_index().iloc[1:]) == ""
 
 
-def test_runs_match_jobs_by_their_resolved_spec_reduced_keys_included(tmp_path):
+# ---- jobs to runs: foamd's engine reads both -------------------------------------------------
+
+def _cancel_all(client, tag):
+    """Cancels a tag's jobs and waits (up to a minute) until none runs: they are matched, not
+    run."""
+    for j in client.job_infos(tag=tag):
+        client.cancel(j.id, "test: matched, not run")
+    deadline = time.monotonic() + 60
+    while any(not j.terminal for j in client.job_infos(tag=tag)) and time.monotonic() < deadline:
+        time.sleep(0.2)
+
+
+def test_runs_on_reduced_keys_find_their_jobs_and_a_refused_run_names_its_key(foamd, client,
+                                                                               tmp_path):
     # foamd resolves the reduced keys (p_a r/2γ, τ_γ, L_η/r) into p_a, η, ξ and stores them as
     # null: a run on a reduced key must still find its job, or a rerun would submit it again.
+    (tmp_path / "base.toml").write_text(BASE)
     f = tmp_path / "reduced.toml"
     f.write_text(textwrap.dedent("""\
         [study]
         name = "reduced"
+        base = "base.toml"
         seeds = [7]
         [spec]
-        scene = "fusion"
+        duration_s = 240
+        "cells.tau_gamma_s" = 10
+        "cells.l_eta_reduced" = 0.5
         [[grid]]
-        "cells.pa_reduced" = [0.33, 1]
-        "cells.tau_gamma_s" = [10]
-        "cells.l_eta_reduced" = [0.5]
+        "cells.pa_reduced" = [0.2, 0.33]
         """))
-    s = st.load(f)
-    r, g = 8.88, 0.5
-    eta = 10 * g
-    resolved = {"scene": {"kind": "fusion", "polarity_from_preparation": True}, "seed": 7,
-                "numerics": {"remesh_on_surface": True},
-                "cells": {"p_a": 0.33 * 2 * g / r, "radius_mean_um": r, "gamma": g, "eta": eta,
-                          "xi": eta / (0.5 * r) ** 2, "pa_reduced": None, "tau_gamma_s": None,
-                          "l_eta_reduced": None}}
-    runs = s.runs()
-    assert matching._matches(s, runs[0], resolved)
-    assert not matching._matches(s, runs[1], resolved)     # p_a r/2γ = 1 is another run
-    resolved["seed"] = 8
-    assert not matching._matches(s, runs[0], resolved)
+    study = st.load(f)
+    assert st.submit_missing(study, client) == (2, 0)
+    _cancel_all(client, study.tag)
+    found, _, stale = matching._run_jobs(study, client)
+    assert sorted(found) == [0, 1] and not stale
+    for i, js in found.items():
+        cells = json.loads(js[0].resolved_spec_json)["cells"]
+        assert cells["pa_reduced"] is None
+        assert cells["p_a"] * cells["radius_mean_um"] / (2 * cells["gamma"]) == pytest.approx(
+            study.runs()[i].point["cells.pa_reduced"])
+    # A run foamd refuses is no run any job can be: its spec's error names the run and the key.
+    bad = tmp_path / "bad.toml"
+    bad.write_text(f.read_text().replace("[0.2, 0.33]", "[0.2, 60]"))
+    refused = st.load(bad)
+    run = refused.runs()[1]
+    with pytest.raises(st.StudyError, match=r"cells\.pa_reduced=60, seed 7: .*cells\.pa_reduced"):
+        matching._run_spec(refused, client, refused.settings(run), run.label())
+    with pytest.raises(ValueError, match=r"cells\.alpha"):
+        client.resolve({"scene": "fusion", "cells.alpha": 1.5})
 
 
-def test_a_job_from_before_a_key_existed_matches_the_keys_default_only(tmp_path):
-    # Jobs stored before numerics.contact_max_facing_deg existed ran at 90° and do not name it:
-    # they are the 90° runs of a study that sweeps it, never its 60° runs.
-    f = tmp_path / "facing.toml"
-    f.write_text(textwrap.dedent("""\
+def _as_an_earlier_version_wrote_it(spec):
+    """A record of the version before numerics.contact_law, numerics.remesh_on_surface,
+    numerics.remesh_keep_out_um and scene.polarity_from_preparation: the law named by its two
+    switches, the others absent (the runs of then ran as the study pins them)."""
+    n = spec["numerics"]
+    law = n.pop("contact_law")
+    n["contact_within_prisms"] = law != "supplement"
+    n["contact_prisms_overlap_only"] = law == "prisms-overlap"
+    assert n.pop("remesh_on_surface") is False and n.pop("remesh_keep_out_um") == 0
+    assert spec["scene"].pop("polarity_from_preparation") is False
+    return spec
+
+
+def test_an_earlier_versions_records_are_their_runs_and_no_key_may_differ(tmp_path):
+    import sqlite3
+    import types
+    from activefoam import Client
+    from activefoam.client import flatten
+    from conftest import Foamd
+    (tmp_path / "base.toml").write_text(BASE)
+    f = tmp_path / "old.toml"
+    pins = ('"numerics.remesh_on_surface" = false\n'
+            '"scene.polarity_from_preparation" = false\n')
+    text = textwrap.dedent("""\
         [study]
-        name = "facing"
+        name = "old"
+        base = "base.toml"
         seeds = [1]
         [spec]
-        scene = "fusion"
-        "numerics.dt_s" = 0.5
-        "numerics.remesh_on_surface" = false  # the remeshing of the jobs before both keys
-        "scene.polarity_from_preparation" = false  # and their polarities
-        [[grid]]
-        "numerics.contact_max_facing_deg" = [90, 60]
-        """))
-    s = st.load(f)
-    old = {"scene": {"kind": "fusion"}, "seed": 1, "numerics": {"dt_s": 0.5}}
-    runs = s.runs()
-    assert matching._matches(s, runs[0], old)
-    assert not matching._matches(s, runs[1], old)
-    new = {"scene": {"kind": "fusion"}, "seed": 1,
-           "numerics": {"contact_max_facing_deg": 60.0, "remesh_on_surface": False, "dt_s": 0.5}}
-    assert matching._matches(s, runs[1], new) and not matching._matches(s, runs[0], new)
+        duration_s = 240
+        PINS[[grid]]
+        "cells.alpha" = [0.4375, 0.6]
+        [[diagnose]]
+        name = "same-step"
+        spec = { "numerics.dt_s" = 0.5 }
+        [[diagnose]]
+        name = "reference-step"
+        spec = { "numerics.dt_s" = 0.25 }
+        """)
+    f.write_text(text.replace("PINS", pins))
+    study = st.load(f)
+    d = Foamd(tmp_path)
+    try:
+        with Client(d.address) as c:
+            assert st.submit_missing(study, c) == (2, 0)
+            _cancel_all(c, study.tag)
+    finally:
+        d.stop()
+    # The store as an earlier version left it: each job's record in that version's keys.
+    con = sqlite3.connect(str(tmp_path / "foamd.db"))
+    with con:
+        for jid, record in con.execute("SELECT id, spec_json FROM jobs").fetchall():
+            old = json.dumps(_as_an_earlier_version_wrote_it(json.loads(record)))
+            con.execute("UPDATE jobs SET spec_json = ? WHERE id = ?", (old, jid))
+    con.close()
 
+    d = Foamd(tmp_path)
+    try:
+        with Client(d.address) as c:
+            jobs = c.job_infos(tag=study.tag)
+            assert len(jobs) == 2
+            for j in jobs:
+                assert "contact_within_prisms" in j.spec_json   # kept as stored
+                now = json.loads(j.resolved_spec_json)
+                assert now["numerics"]["contact_law"] == "prisms-overlap"
+                assert "contact_within_prisms" not in now["numerics"]
+            found, _, stale = matching._run_jobs(study, c)
+            assert sorted(found) == [0, 1] and not stale
+            for i, js in found.items():
+                assert json.loads(js[0].resolved_spec_json)["cells"]["alpha"] == \
+                    study.runs()[i].point["cells.alpha"]
+            # The same study at today's defaults of the keys added since (remeshing on the
+            # surface, polarities from the preparation), or at another contact law: other runs.
+            for name, variant in (("defaults", text.replace("PINS", "")),
+                                  ("law", text.replace("PINS", pins + '"numerics.contact_law"'
+                                                       ' = "prisms"\n'))):
+                (tmp_path / f"{name}.toml").write_text(variant)
+                other = st.load(tmp_path / f"{name}.toml")
+                found, _, stale = matching._run_jobs(other, c)
+                assert not found and len(stale) == 2, name
+            # A diagnosis that changes nothing the run had is no rerun; one that does is.
+            run, found_job = study.runs()[0], matching._run_jobs(study, c)[0][0][0]
+            same, reference = study.diagnoses
+            assert matching._diag_is_noop(study, c, run, same, found_job)
+            assert not matching._diag_is_noop(study, c, run, reference, found_job)
 
-def test_a_study_leaving_a_changed_default_unset_takes_no_job_at_the_earlier_value(tmp_path):
-    # numerics.remesh_on_surface came in defaulting to true, and the jobs before it ran as false:
-    # they are not the runs of a study that leaves it unset (its runs remesh on the surface), but
-    # they are the runs of a study that says false, as the studies that ran before it do.
-    f = tmp_path / "remesh.toml"
-    f.write_text(textwrap.dedent("""\
-        [study]
-        name = "remesh"
-        seeds = [1]
-        [spec]
-        scene = "fusion"
-        "numerics.dt_s" = 0.5
-        [[grid]]
-        "cells.alpha" = [0.5]
-        """))
-    s = st.load(f)
-    run = s.runs()[0]
-    old = {"scene": {"kind": "fusion"}, "seed": 1, "numerics": {"dt_s": 0.5}, "cells": {"alpha": 0.5}}
-    new = {"scene": {"kind": "fusion", "polarity_from_preparation": True}, "seed": 1,
-           "numerics": {"remesh_on_surface": True, "dt_s": 0.5},
-           "cells": {"alpha": 0.5}}
-    assert not matching._matches(s, run, old)
-    assert matching._matches(s, run, new)
-    pinned = tmp_path / "pinned.toml"
-    pinned.write_text(f.read_text().replace('scene = "fusion"',
-                                            'scene = "fusion"\n"numerics.remesh_on_surface" = false'
-                                            '\n"scene.polarity_from_preparation" = false'))
-    s = st.load(pinned)
-    assert matching._matches(s, s.runs()[0], old)
-    assert not matching._matches(s, s.runs()[0], new)
-    # Set in the base spec instead: the job's value is the base's, whatever it is; named in a
-    # comment only, it is not set.
-    (tmp_path / "base.toml").write_text('[numerics]\nremesh_on_surface = false\ndt_s = 0.5\n'
-                                        '[scene]\nkind = "fusion"\npolarity_from_preparation = false\n')
-    (tmp_path / "comment.toml").write_text('scene = "fusion"  # not remesh_on_surface\n')
-    for base, takes_old in (("base.toml", True), ("comment.toml", False)):
-        f = tmp_path / f"with-{base}"
-        f.write_text(textwrap.dedent(f"""\
-            [study]
-            name = "remesh"
-            base = "{base}"
-            seeds = [1]
-            [[grid]]
-            "cells.alpha" = [0.5]
-            """))
-        s = st.load(f)
-        assert matching._matches(s, s.runs()[0], old) == takes_old, base
+            # Any one key of the record other than a label, changed: not the run.
+            resolved = matching._run_spec(study, c, study.settings(run), run.label())
+            assert "numerics.preset" in resolved.labels
+            record = json.loads(found_job.resolved_spec_json)
+            keys = list(flatten(record))
+            assert len(keys) > 50
+            for key in keys:
+                changed = json.loads(found_job.resolved_spec_json)
+                node = changed
+                *path, leaf = key.split(".")
+                for p in path:
+                    node = node[p]
+                v = node[leaf]
+                node[leaf] = (not v if isinstance(v, bool) else v * 2 + 1
+                              if isinstance(v, (int, float)) else v + "-other"
+                              if isinstance(v, str) else 1.0)
+                fake = types.SimpleNamespace(id="x", seed=found_job.seed, created_utc="",
+                                             resolved_spec_json=json.dumps(changed))
+                hit, stale = matching._jobs_by_run(study, c, [fake])
+                assert bool(hit) == (key in resolved.labels), key
+    finally:
+        d.stop()
 
 
 def test_fitness_judges_a_candidate_of_a_second_grid_against_the_first_grids_reference(tmp_path):
@@ -696,17 +752,21 @@ class _FakeJob:
     def __init__(self, jid, seed, spec, state="SUCCEEDED", failure_kind=""):
         from activefoam.v1 import job_pb2
         self.id, self.seed, self.spec_json = jid, seed, json.dumps(spec)
+        self.resolved_spec_json = self.spec_json   # as an engine of today's keys stored it
         self.created_utc = jid
         self.state = job_pb2.JobState.Value("JOB_STATE_" + state)
         self.failure_kind, self.progress = failure_kind, 1.0
 
 
 class _FakeFoamd:
-    """What the study code asks of foamd: jobs by tag, and SubmitJob, which resolves a spec the
-    way foamd does for these keys (defaults α = 0.4375, τ_p = 600 s unless the base sets them)."""
+    """What the study code asks of foamd: jobs by tag; SubmitJob; and ResolveSpec, which resolves
+    a spec the way foamd does for these keys: the defaults (α = 0.4375, τ_p = 600 s unless the
+    base sets them; `derived`, keys computed from the others as the engine derives τ_r from the
+    cells), the settings on top, numerics.preset a label."""
 
-    def __init__(self, defaults):
+    def __init__(self, defaults, derived=None):
         self.jobs, self.submitted, self.defaults = {}, [], defaults
+        self.derived = derived or {}
 
     def add(self, tag, job):
         self.jobs.setdefault(tag, []).append(job)
@@ -714,13 +774,11 @@ class _FakeFoamd:
     def job_infos(self, tag):
         return list(self.jobs.get(tag, []))
 
-    def submit(self, base, tags, priority, idempotency_key, overrides):
+    def spec(self, overrides):
         from activefoam.client import setting
-        settings = [setting(k, v) for k, v in overrides.items()]
-        (tag,) = tags
         spec = {"cells": dict(self.defaults), "numerics": {"remesh_on_surface": True},
                 "scene": {"polarity_from_preparation": True}}
-        for s in settings:
+        for s in (setting(k, v) for k, v in overrides.items()):
             k, v = s.split("=", 1)
             node = spec
             *path, leaf = k.split(".")
@@ -728,9 +786,29 @@ class _FakeFoamd:
                 node = node.setdefault(p, {})
             node[leaf] = (json.loads(v) if v[0].isdigit() or v[0] == "-" or v in ("true", "false")
                           else v)
+        for k, f in self.derived.items():
+            table, leaf = k.split(".")
+            spec[table].setdefault(leaf, f(spec))
+        return spec
+
+    def cancel(self, jid, reason=""):
+        from activefoam.v1 import job_pb2
+        for j in (j for js in self.jobs.values() for j in js if j.id == jid):
+            j.state = job_pb2.JobState.Value("JOB_STATE_CANCELLED")
+        return "cancelled"
+
+    def resolve(self, base, overrides):
+        class R:
+            spec_json, labels = json.dumps(self.spec(overrides)), ["numerics.preset"]
+        return R()
+
+    def submit(self, base, tags, priority, idempotency_key, overrides):
+        from activefoam.client import setting
+        spec = self.spec(overrides)
+        (tag,) = tags
         jid = f"j-{len(self.submitted):04d}"
         self.add(tag, _FakeJob(jid, spec["seed"], spec, state="QUEUED"))
-        self.submitted.append(dict(s.split("=", 1) for s in settings))
+        self.submitted.append(dict(setting(k, v).split("=", 1) for k, v in overrides.items()))
         self.submitted[-1]["tag"] = tag
         self.submitted[-1]["key"] = idempotency_key
 
@@ -868,17 +946,35 @@ def test_a_shared_run_whose_own_job_was_cancelled_takes_the_other_studys_job(tmp
 
 
 def test_a_share_whose_runs_differ_is_an_error_naming_the_key(tmp_path):
-    # The other study's job ran another τ_p (its base is not ours): not this run.
+    # This study's base gives another α than the shared point's: foamd resolves the two runs
+    # differently, whether the other study has run it or not; nothing is left submitted.
+    taup = _shared_studies(tmp_path)
+    message = (r"share\[0\]: cells\.alpha is 0\.5 in this study's run cells\.tau_p_s=600, "
+               r"seed 1 but 0\.4375 in alpha's run cells\.alpha=0\.4375, seed 1: not one run")
+    for has_run in (True, False):
+        foamd = _FakeFoamd({"alpha": 0.5, "tau_p_s": 600})
+        if has_run:
+            _alpha_jobs(foamd)
+        with pytest.raises(st.StudyError, match=message):
+            st.submit_missing(taup, foamd)
+        from activefoam.client import state_name
+        assert all(state_name(j.state) == "cancelled" for js in foamd.jobs.values() for j in js
+                   if j.id.startswith("j-0")), "a job this call submitted was left queued"
+
+
+def test_another_studys_jobs_of_other_values_are_not_the_shared_run(tmp_path):
+    # The α study's jobs ran τ_p 300 s (say, an earlier version of its spec): they are no run of
+    # α as it is now, so the shared point has no job yet and goes in as α's run.
     taup = _shared_studies(tmp_path)
     foamd = _FakeFoamd({"alpha": 0.4375, "tau_p_s": 600})
     _alpha_jobs(foamd, tau_p=300)
-    with pytest.raises(st.StudyError, match=r"share\[0\].*cells\.tau_p_s = 300"):
-        st.submit_missing(taup, foamd)
-    # This study's base gives another α than the shared point's: its own jobs show it.
-    foamd = _FakeFoamd({"alpha": 0.5, "tau_p_s": 600})
-    _alpha_jobs(foamd)
-    with pytest.raises(st.StudyError, match=r"share\[0\]: cells\.alpha is 0\.5"):
-        st.submit_missing(taup, foamd)
+    assert st.submit_missing(taup, foamd) == (4, 0)
+    assert sorted((s["tag"], s.get("cells.tau_p_s"), s["seed"]) for s in foamd.submitted) == [
+        ("study:alpha", None, "1"), ("study:alpha", None, "2"),
+        ("study:taup", "150", "1"), ("study:taup", "150", "2")]
+    _, stale = matching._jobs_by_run(st.load(tmp_path / "alpha.toml"), foamd,
+                                     foamd.job_infos("study:alpha"))
+    assert sorted(j.id for j in stale) == ["j-a0.4375-1", "j-a0.4375-2", "j-a0.6-1", "j-a0.6-2"]
 
 
 def _split_share_studies(tmp: Path):
@@ -1171,9 +1267,8 @@ def _diagnosed_jobs(foamd):
     succeeded."""
     for seed in (1, 2):
         for a in (0.4375, 0.6):
-            spec = {"seed": seed, "duration_s": 240, "cells": {"alpha": a},
-                    "numerics": {"remesh_on_surface": True, "dt_s": 1.0},
-                    "scene": {"polarity_from_preparation": True}}
+            spec = foamd.spec({"duration_s": 240, "numerics.dt_s": 1.0, "cells.alpha": a,
+                               "seed": seed})
             kind = ("" if seed == 2 else "interpenetration" if a == 0.4375 else "volume-drift")
             j = _FakeJob(f"j-{a}-{seed}", seed, spec, state="FAILED" if kind else "SUCCEEDED",
                          failure_kind=kind)
@@ -1219,26 +1314,24 @@ def test_a_run_that_failed_in_the_simulation_is_rerun_once_per_diagnosis_naming_
 
 
 def test_a_diagnosis_whose_numerics_the_run_already_had_is_not_rerun(tmp_path):
-    # The failed run's resolved spec already has the diagnosis's values (here a CG limit the
-    # study file does not show): the rerun would be the same run, failing bit for bit.
+    # The failed run's resolved spec already has the diagnosis's values (here a remeshing
+    # interval the engine derives from the cells, which the study file does not show): the
+    # rerun would be the same run, failing bit for bit.
     from activefoam.v1 import job_pb2
     study = _diagnosed_study(tmp_path)
     f = study.path
     f.write_text(f.read_text().replace('spec = { "numerics.dt_s" = 0.25 }',
-                                       'spec = { "numerics.cg_max_iter" = 2000 }'))
+                                       'spec = { "numerics.remesh_every_s" = 300 }'))
     study = st.load(f)
-    foamd = _FakeFoamd({"alpha": 0.4375})
+    # The volume drift's run (α 0.6) remeshed every 300 s already; the interpenetration's 150 s.
+    foamd = _FakeFoamd({"alpha": 0.4375}, derived={
+        "numerics.remesh_every_s": lambda spec: 300 if spec["cells"]["alpha"] == 0.6 else 150})
     _diagnosed_jobs(foamd)
-    for j in foamd.jobs["study:alpha"]:
-        spec = json.loads(j.spec_json)
-        # The volume drift's run had 2000 CG iterations already; the interpenetration's 1000.
-        spec["numerics"]["cg_max_iter"] = 2000 if spec["cells"]["alpha"] == 0.6 else 1000
-        j.spec_json = json.dumps(spec)
     out = io.StringIO()
     assert st.submit_diagnoses(study, foamd, out=out) == 2  # α 0.4375's two, not α 0.6's
     assert all(s["cells.alpha"] == "0.4375" for s in foamd.submitted)
     assert "cells.alpha=0.6, seed 1 failed (volume-drift): diagnosis 'reference-step' " + \
-        st.NOOP_TEXT + " (numerics.cg_max_iter)" in out.getvalue()
+        st.NOOP_TEXT + " (numerics.remesh_every_s)" in out.getvalue()
     foamd.job = lambda jid: type("J", (), {"results_message": lambda self, _: _NoResults()})()
     for j in foamd.jobs["diag:alpha"]:
         j.reason, j.outcome, j.progress, j.t_s = "", "", 0.0, 0.0

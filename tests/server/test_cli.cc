@@ -23,8 +23,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include "activefoam/spec_io.h"
 #include "activefoam/utf8.h"
 #include "process.h"
+#include "spec_convert.h"
+#include "store.h"
 
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
@@ -90,6 +93,37 @@ TEST(Cli, SubmitWaitThenResultsJson) {
   EXPECT_NE(huge.out.find("has 2097152 bytes; a spec or certificate file has at most 1 MiB"),
             std::string::npos)
       << huge.out;
+  d.stop(SIGTERM);
+  fs::remove_all(dir);
+}
+
+// A job stored by an earlier version, whose record names the contact law by the two switches
+// that preceded numerics.contact_law: `foam show` gives the law as foamd's engine reads it.
+TEST(Cli, ShowGivesTheContactLawOfAnEarlierRecordAsTheEngineReadsIt) {
+  const fs::path dir = tempDir();
+  std::string id;
+  {
+    const activefoam::server::ConvertResult conv =
+        activefoam::server::convertSpec({}, "", {"scene=doublet", "numerics.dt_s=0.5"});
+    ASSERT_TRUE(conv.ok()) << activefoam::server::errorText(conv.errors);
+    nlohmann::json record = activefoam::specToJson(*conv.spec);
+    record["numerics"].erase("contact_law");
+    record["numerics"]["contact_within_prisms"] = true;
+    record["numerics"]["contact_prisms_overlap_only"] = false;
+    activefoam::server::NewJob job;
+    job.spec = *conv.spec;
+    job.spec_json = record.dump();
+    activefoam::server::Store store((dir / "foamd.db").string());
+    id = store.submit(job).first;
+    store.cancel(id, "test: shown, not run");
+  }
+  Foamd d(dir / "foamd.db", freePort());
+  ASSERT_EQ(state(d, id), "cancelled");
+  const Proc show = sh(d.foam() + " show " + id);
+  EXPECT_NE(show.out.find("fidelity:  preset standard (contact-implicit-consistent, Δt 0.5 s, 320 "
+                          "triangles, ε_CG 0.01, contact law prisms)"),
+            std::string::npos)
+      << show.out;
   d.stop(SIGTERM);
   fs::remove_all(dir);
 }

@@ -21,6 +21,7 @@
 #include <set>
 #include <sstream>
 #include <thread>
+#include <variant>
 
 #include "activefoam/v1/service.grpc.pb.h"
 #include "activefoam/vtk.h"
@@ -28,6 +29,7 @@
 #include "http.h"
 #include "pool.h"
 #include "service.h"
+#include "spec_convert.h"
 #include "store.h"
 
 using namespace activefoam;
@@ -187,6 +189,52 @@ class ServiceTest : public ::testing::Test {
   std::shared_ptr<grpc::Channel> channel_;
   std::string addr_;
 };
+
+// A key's value in a nested spec document, as JSON (null where it has none).
+nlohmann::json jsonAt(const nlohmann::json& doc, std::string key) {
+  if (key == "scene") key = "scene.kind";  // the table holds the kind (specToJson)
+  const nlohmann::json* node = &doc;
+  for (std::size_t begin = 0;;) {
+    const std::size_t dot = key.find('.', begin);
+    const std::string part = key.substr(begin, dot == std::string::npos ? dot : dot - begin);
+    if (!node->is_object() || !node->contains(part)) return nullptr;
+    node = &(*node)[part];
+    if (dot == std::string::npos) return *node;
+    begin = dot + 1;
+  }
+}
+
+void eraseAt(nlohmann::json& doc, const std::string& key) {
+  const std::size_t dot = key.rfind('.');
+  nlohmann::json& table = dot == std::string::npos ? doc : doc[key.substr(0, dot)];
+  table.erase(key.substr(dot == std::string::npos ? 0 : dot + 1));
+}
+
+nlohmann::json asJson(const SpecValue& v) {
+  return std::visit([](const auto& x) { return nlohmann::json(x); }, v);
+}
+
+// A doublet's record as an earlier version stored it: the contact law named by the two switches
+// that preceded numerics.contact_law (here the standard preset's prisms-overlap), and none of the
+// keys added since (those with a `before` value in the key table). `rest` is what it ran with
+// otherwise: today's resolved spec of the same settings.
+struct EarlierRecord {
+  SceneSpec spec;
+  nlohmann::json rest;  // today's record of the same settings
+  nlohmann::json record;
+};
+EarlierRecord earlierDoublet() {
+  const ConvertResult conv = convertSpec(
+      v1::SceneSpec{}, "", {"scene=doublet", "cells.alpha=0.6", "numerics.dt_s=0.5", "seed=3"});
+  EXPECT_TRUE(conv.ok()) << errorText(conv.errors);
+  EarlierRecord e{*conv.spec, specToJson(*conv.spec), {}};
+  e.record = e.rest;
+  for (const SpecField& f : specFields())
+    if (f.before) eraseAt(e.record, f.key);
+  e.record["numerics"]["contact_within_prisms"] = true;
+  e.record["numerics"]["contact_prisms_overlap_only"] = true;
+  return e;
+}
 
 bool terminal(const v1::Job& j) {
   return isTerminal(j.state());
@@ -456,9 +504,160 @@ TEST_F(ServiceTest, InvalidSpecsAreInvalidArgumentNamingTheFieldAndStoreUnchange
     EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << cs.field;
     EXPECT_NE(st.error_message().find(cs.field), std::string::npos)
         << "expected '" << cs.field << "' in: " << st.error_message();
+    // ResolveSpec checks a spec as a submit does, with the same message.
+    if (std::string(cs.field) == "idempotency_key") continue;  // a submit's field only
+    v1::ResolveSpecRequest q;
+    *q.mutable_spec() = r.spec();
+    q.set_spec_text(r.spec_text());
+    *q.mutable_settings() = r.settings();
+    v1::ResolveSpecResponse qr;
+    auto c2 = ctx();
+    const grpc::Status rs = stub_->ResolveSpec(c2.get(), q, &qr);
+    EXPECT_EQ(rs.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << cs.field;
+    EXPECT_EQ(rs.error_message(), st.error_message());
+    EXPECT_TRUE(qr.spec_json().empty());
   }
   EXPECT_EQ(store_->countRows("jobs"), jobs0);
   EXPECT_EQ(store_->countRows("events"), events0);
+}
+
+// A job stored by an earlier version is served read by today's engine: its record (spec_json)
+// as stored, and beside it resolved_spec_json in today's keys — the contact law the two switches
+// named, every key added since at the value its run had (the key table's `before`, not today's
+// default), the rest as stored — by every call that answers with the job.
+TEST_F(ServiceTest, AnEarlierVersionsRecordIsServedInTodaysKeys) {
+  startServer(false);
+  const EarlierRecord old = earlierDoublet();
+  ASSERT_TRUE(jsonAt(old.record, "numerics.contact_law").is_null());
+  NewJob job;
+  job.spec = old.spec;
+  job.spec_json = old.record.dump();
+  job.tag = "earlier";
+  const std::string id = store_->submit(job).first;
+
+  const v1::Job j = get(id);
+  EXPECT_EQ(j.spec_json(), old.record.dump());
+  ASSERT_FALSE(j.resolved_spec_json().empty());
+  const nlohmann::json now = nlohmann::json::parse(j.resolved_spec_json());
+  EXPECT_EQ(now["numerics"]["contact_law"], "prisms-overlap");
+  EXPECT_FALSE(now["numerics"].contains("contact_within_prisms"));
+  EXPECT_FALSE(now["numerics"].contains("contact_prisms_overlap_only"));
+  int added_since = 0;
+  for (const SpecField& f : specFields()) {
+    if (f.before && f.key != "numerics.contact_law") {
+      ++added_since;
+      EXPECT_EQ(jsonAt(now, f.key), asJson(*f.before)) << f.key;
+    } else if (!f.before) {
+      EXPECT_EQ(jsonAt(now, f.key), jsonAt(old.rest, f.key)) << f.key;
+    }
+  }
+  EXPECT_GE(added_since, 5);
+  // Today's defaults of some of those keys are not the values the run had: read at `before`,
+  // the record is another run than today's spec of the same settings.
+  EXPECT_NE(now, old.rest);
+
+  v1::ListJobsRequest lr;
+  lr.set_tag("earlier");
+  v1::ListJobsResponse list;
+  auto c1 = ctx();
+  ASSERT_TRUE(stub_->ListJobs(c1.get(), lr, &list).ok());
+  ASSERT_EQ(list.jobs_size(), 1);
+  EXPECT_EQ(list.jobs(0).resolved_spec_json(), j.resolved_spec_json());
+  v1::GetResultsRequest rr;
+  rr.set_job_id(id);
+  v1::JobResults res;
+  auto c2 = ctx();
+  ASSERT_TRUE(stub_->GetResults(c2.get(), rr, &res).ok());
+  EXPECT_EQ(res.job().resolved_spec_json(), j.resolved_spec_json());
+  const std::vector<v1::JobEvent> events = watch(id, 0, 1);
+  ASSERT_FALSE(events.empty());
+  ASSERT_TRUE(events[0].has_state());
+  EXPECT_EQ(events[0].state().resolved_spec_json(), j.resolved_spec_json());
+  v1::CancelJobRequest cr;
+  cr.set_job_id(id);
+  v1::Job cancelled;
+  auto c3 = ctx();
+  ASSERT_TRUE(stub_->CancelJob(c3.get(), cr, &cancelled).ok());
+  EXPECT_EQ(cancelled.resolved_spec_json(), j.resolved_spec_json());
+}
+
+// The labels of a record only name what its other keys hold: served as the record named them
+// where this engine reads the name, else null (never the default the reading left in place). A
+// record this engine cannot read is served without a resolved spec.
+TEST_F(ServiceTest, ARecordsLabelsAreItsOwnAndAnUnreadableRecordHasNoResolvedSpec) {
+  startServer(false);
+  EarlierRecord old = earlierDoublet();
+  auto serve = [&](const nlohmann::json& record) {
+    NewJob job;
+    job.spec = old.spec;
+    job.spec_json = record.dump();
+    return get(store_->submit(job).first);
+  };
+  nlohmann::json record = old.record;
+  record["numerics"]["preset"] = "reference";
+  record["accuracy"]["contact_angle_deg"] = 2.0;
+  nlohmann::json now = nlohmann::json::parse(serve(record).resolved_spec_json());
+  EXPECT_EQ(now["numerics"]["preset"], "reference");
+  EXPECT_EQ(now["numerics"]["dt_s"], 0.5);  // the record's, not the preset's 0.25 s
+  EXPECT_EQ(now["accuracy"]["contact_angle_deg"], 2.0);
+  EXPECT_TRUE(now["accuracy"]["trajectory_deg"].is_null());
+  record["numerics"]["preset"] = "draft";  // retired: no step cheaper than standard was fit
+  now = nlohmann::json::parse(serve(record).resolved_spec_json());
+  EXPECT_TRUE(now["numerics"]["preset"].is_null());
+  EXPECT_EQ(now["numerics"]["dt_s"], 0.5);
+  eraseAt(record, "numerics.preset");
+  now = nlohmann::json::parse(serve(record).resolved_spec_json());
+  EXPECT_TRUE(now["numerics"]["preset"].is_null());
+
+  // The facing bound was retired at its neutral 90°: a record at 60° is no run this engine makes.
+  record["numerics"]["contact_max_facing_deg"] = 60.0;
+  const v1::Job unreadable = serve(record);
+  EXPECT_EQ(unreadable.spec_json(), record.dump());
+  EXPECT_TRUE(unreadable.resolved_spec_json().empty());
+  record["numerics"]["contact_max_facing_deg"] = 90.0;
+  EXPECT_FALSE(serve(record).resolved_spec_json().empty());
+}
+
+// ResolveSpec answers with the spec a submit of the same fields stores, and creates nothing; a
+// job submitted today is served its own record as resolved spec.
+TEST_F(ServiceTest, ResolveSpecAnswersWhatASubmitStoresAndCreatesNoJob) {
+  startServer(false);
+  v1::SubmitJobRequest sub = tinyCell();
+  sub.add_settings("numerics.preset=reference");
+  sub.add_settings("numerics.triangles_per_cell=80");
+  sub.set_spec_text("[cells]\neta = 6\n");
+  v1::ResolveSpecRequest req;
+  *req.mutable_spec() = sub.spec();
+  req.set_spec_text(sub.spec_text());
+  *req.mutable_settings() = sub.settings();
+  v1::ResolveSpecResponse resp;
+  auto c = ctx();
+  const grpc::Status st = stub_->ResolveSpec(c.get(), req, &resp);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(store_->countRows("jobs"), 0);
+  const nlohmann::json resolved = nlohmann::json::parse(resp.spec_json());
+  EXPECT_EQ(resolved["numerics"]["dt_s"], 0.1);     // given, so the preset leaves it
+  EXPECT_EQ(resolved["numerics"]["cg_tol"], 1e-3);  // the reference preset's
+  EXPECT_EQ(resolved["cells"]["eta"], 6.0);
+  std::set<std::string> labels;
+  for (const SpecField& f : specFields())
+    if (f.label) labels.insert(f.key);
+  EXPECT_EQ(std::set<std::string>(resp.labels().begin(), resp.labels().end()), labels);
+  EXPECT_TRUE(labels.count("numerics.preset"));
+
+  const v1::Job j = get(submit(sub));
+  EXPECT_EQ(nlohmann::json::parse(j.spec_json()), resolved);
+  EXPECT_EQ(nlohmann::json::parse(j.resolved_spec_json()), resolved);
+
+  // The earlier switches, given as settings, resolve to the law they name.
+  v1::ResolveSpecRequest old;
+  old.add_settings("scene=doublet");
+  old.add_settings("numerics.dt_s=0.5");
+  old.add_settings("numerics.contact_within_prisms=false");
+  auto c2 = ctx();
+  const grpc::Status st2 = stub_->ResolveSpec(c2.get(), old, &resp);
+  ASSERT_TRUE(st2.ok()) << st2.error_message();
+  EXPECT_EQ(nlohmann::json::parse(resp.spec_json())["numerics"]["contact_law"], "supplement");
 }
 
 TEST_F(ServiceTest, TokenAuth) {

@@ -11,21 +11,24 @@ and reported from the store alone (docs/usage.md has the format and the commands
 
 (`foam-study` is the same command, installed with the package.)
 
-A run of a study is one (grid point, seed). Its jobs carry the tag `study:NAME`; a job belongs to
-a run when every key the study sets (its [spec] table, the point's keys, the seed, the preset)
-has that value in the job's resolved spec, so rerunning `run` submits only the runs that have no
-job yet, or whose job was cancelled or failed for a reason other than the simulation itself (an
-engine error, a lost worker). A run that failed in the simulation (non-finite, volume drift,
-interpenetration, ...) is a result — the supplement's hatched cells — and is not run again unless
-`--retry-failed` (`--retry-kinds preparation-failed`: only the runs that failed so). A job of
-the study that is no run of the file as it is now (an earlier version's [spec], grid or seeds)
-is named when it is queued or running, and cancelled with `--cancel-stale`. A run that failed
-in the simulation is rerun once per [[diagnose]] table of the file that names its failure kind,
-with that table's keys changed (tag `diag:NAME`): the report says whether the rerun ran past the
-failure (then the failure is those numerics', not the point's, and the verdict table's `failed`
-leaves it out). Exit codes: 0 done, 1 some runs failed, 2 bad study file or spec, or a file
-that cannot be read or written (named), 3 foamd unreachable, 4 token refused, 130 interrupted
-(the jobs go on in foamd; rerun to follow them).
+A run of a study is one (grid point, seed). Its jobs carry the tag `study:NAME`; a job belongs
+to a run when foamd's engine reads both the same: the run's spec as foamd resolves it (the base,
+the study's keys, every default and preset value filled in) and the job's record as the engine
+reads it today (keys renamed, retired or added since it was stored read as the engine's key
+table says) agree on every key but the labels (the preset's name, the accuracy targets). So
+rerunning `run` submits only the runs that have no job yet, or whose job was cancelled or failed
+for a reason other than the simulation itself (an engine error, a lost worker). A run that
+failed in the simulation (non-finite, volume drift, interpenetration, ...) is a result — the
+supplement's hatched cells — and is not run again unless `--retry-failed` (`--retry-kinds
+preparation-failed`: only the runs that failed so). A job of the study that is no run of the
+file as it is now (an earlier version's [spec], grid or seeds) is named when it is queued or
+running, and cancelled with `--cancel-stale`. A run that failed in the simulation is rerun once
+per [[diagnose]] table of the file that names its failure kind, with that table's keys changed
+(tag `diag:NAME`): the report says whether the rerun ran past the failure (then the failure is
+those numerics', not the point's, and the verdict table's `failed` leaves it out). Exit codes: 0
+done, 1 some runs failed, 2 bad study file or spec, or a file that cannot be read or written
+(named), 3 foamd unreachable, 4 token refused, 130 interrupted (the jobs go on in foamd; rerun
+to follow them).
 
 The modules, each importing only those before it: outputs (files written whole or not at all),
 studyfile (the format), matching (jobs to runs), submission (submit, wait), data (collect,

@@ -76,7 +76,7 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
         # A diagnosis that applies to the run's failure but would rerun the same numerics.
         noop = ([d.name for d in study.diagnoses
                  if j.failure_kind in d.kinds and d.name not in diag.get(i, {})
-                 and _diag_is_noop(d, j)]
+                 and _diag_is_noop(study, client, run, d, j)]
                 if row["state"] == "failed" and i not in source else [])
         if row["state"] == "failed" and (diag.get(i) or noop):
             # Each diagnosis's last rerun: "NAME: outcome (job)"; the failure is the point's

@@ -452,7 +452,8 @@ def _load_share(study: Study, i: int, sh: Any,
     points, that = the same run's point in the other study, seeds (optional) = the seeds of this
     study at which the two are one run (default: all). Both studies must submit the same
     base, [spec] and preset, so that a job of one is a run of the other; the keys each point
-    leaves to the base are checked against the jobs' resolved specs when the jobs are matched."""
+    leaves to the base are checked when the runs are matched (foamd resolves the two points to
+    one spec, or the share is an error naming the key)."""
     where = f"share[{i}]"
     if not isinstance(sh, dict):
         raise StudyError(f"{where}: a table of file, this, that")

@@ -10,15 +10,10 @@ import time
 from typing import Any, Collection, Dict, List, Optional, Tuple, Union
 
 from activefoam.client import state_name
-from activefoam.study.matching import (NOOP_TEXT, Carried, _diag_is_noop, _diag_jobs,
-                                       _jobs_by_run, _owner_of_shared_run, _run_jobs, _share_of,
+from activefoam.study.matching import (NOOP_TEXT, Carried, _base, _diag_is_noop, _diag_jobs,
+                                       _jobs_by_run, _owner_of_shared_run, _run_jobs,
                                        _takes_carried)
 from activefoam.study.studyfile import MAX_ATTEMPTS, SIMULATION_FAILURES, Study, StudyError
-
-
-def _base(study: Study) -> Any:
-    """What a run is submitted on: the base spec file, or no spec (the study's keys say all)."""
-    return study.base if study.base_text else {}
 
 
 def _retries(retry_failed: Union[bool, Collection[str]], kind: str) -> bool:
@@ -87,7 +82,7 @@ def submit_diagnoses(study: Study, client: Any, out=sys.stderr) -> int:
             jobs = diag.get(i, {}).get(d.name, [])
             if not _diag_needed(jobs):
                 continue
-            if _diag_is_noop(d, last):
+            if _diag_is_noop(study, client, run, d, last):
                 print(f"study {study.name}: {run.label()} failed ({last.failure_kind}): "
                       f"diagnosis {d.name!r} {NOOP_TEXT} ({', '.join(d.spec)}): the study "
                       "file's [[diagnose]] needs other values", file=out)
@@ -110,7 +105,7 @@ def submit_diagnoses(study: Study, client: Any, out=sys.stderr) -> int:
 def live_stale_jobs(study: Study, client: Any) -> List[Any]:
     """The study's queued or running jobs that are no run of the file as it is now (an earlier
     version's: a changed [spec], grid or seed list). They would go on and take the machine."""
-    _, stale = _jobs_by_run(study, client.job_infos(tag=study.tag))
+    _, stale = _jobs_by_run(study, client, client.job_infos(tag=study.tag))
     return [j for j in stale if state_name(j.state) in ("queued", "running")]
 
 
@@ -148,22 +143,13 @@ def submit_missing(study: Study, client: Any,
     Nothing is submitted twice: each job carries an idempotency key made of the run and its
     attempt number. A run that `carried` (an earlier store's data) holds as ended counts as held
     (a failed one is submitted again with retry_failed: True, or a set of failure kinds). A
-    spec foamd refuses stops the
-    submission and cancels what this call submitted (a study is submitted whole or not at all),
-    then raises StudyError."""
-    runs = study.runs()
+    spec foamd refuses, or a shared run that is not the other study's run, stops the submission
+    and cancels what this call submitted (a study is submitted whole or not at all), then raises
+    StudyError."""
     submitted: List[str] = []
     held = 0
-    # The runs of their own first: a shared run is matched against the other study's jobs with
-    # the base's values that this study's own jobs show.
-    order = ([i for i, r in enumerate(runs) if _share_of(study, r) is None] +
-             [i for i, r in enumerate(runs) if _share_of(study, r) is not None])
-    found: Dict[int, List[Any]] = {}
-    for n, i in enumerate(order):
-        if n == 0 or (_share_of(study, runs[i]) is not None and
-                      _share_of(study, runs[order[n - 1]]) is None):
-            found, _, _ = _run_jobs(study, client)
-        run = runs[i]
+    found, _, _ = _run_jobs(study, client)
+    for i, run in enumerate(study.runs()):
         have = found.get(i, [])
         if not _needs_job(have, retry_failed):
             held += 1
@@ -179,27 +165,29 @@ def submit_missing(study: Study, client: Any,
                   "submitted again", file=out)
             held += 1
             continue
-        # A shared run is submitted as its owner's run (the same base, [spec] and preset, by
-        # the share's rules), whichever study is submitted first: then the owner finds it as
-        # its own, and the idempotency key is the one the owner would use.
-        owner, owner_run, attempts = study, run, len(have)
-        owned = _owner_of_shared_run(study, client, run)
-        if owned is not None:
-            owner, owner_run, attempts = owned
-            print(f"study {study.name}: {run.label()} is {owner.name}'s run "
-                  f"{owner_run.label()} (shared): submitted as {owner.name}'s", file=out)
         try:
+            # A shared run is submitted as its owner's run (the same base, [spec] and preset, by
+            # the share's rules), whichever study is submitted first: then the owner finds it as
+            # its own, and the idempotency key is the one the owner would use.
+            owner, owner_run, attempts = study, run, len(have)
+            owned = _owner_of_shared_run(study, client, run)
+            if owned is not None:
+                owner, owner_run, attempts = owned
+                print(f"study {study.name}: {run.label()} is {owner.name}'s run "
+                      f"{owner_run.label()} (shared): submitted as {owner.name}'s", file=out)
             job = client.submit(
                 _base(owner), overrides=owner.settings(owner_run), tags=[owner.tag],
                 priority=owner.priority,
                 idempotency_key=f"{owner.tag}:{owner.run_id(owner_run)}:{attempts}")
-        except ValueError as e:
+        except ValueError as e:  # refused by foamd, or a share that is not one run
             for jid in submitted:
                 try:
                     client.cancel(jid, f"study {study.name}: submission aborted ({run.label()} "
                                        "was refused)")
                 except Exception:  # noqa: BLE001 - best effort; the error below matters
                     pass
+            if isinstance(e, StudyError):
+                raise
             raise StudyError(f"{study.path}: {run.label()}: {e}") from None
         if job.created:
             submitted.append(job.id)

@@ -15,7 +15,7 @@ from activefoam.v1 import job_pb2 as activefoam_dot_v1_dot_job__pb2
 from activefoam.v1 import scene_pb2 as activefoam_dot_v1_dot_scene__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x1b\x61\x63tivefoam/v1/service.proto\x12\ractivefoam.v1\x1a\x17\x61\x63tivefoam/v1/job.proto\x1a\x19\x61\x63tivefoam/v1/scene.proto\"\xda\x02\n\x11ReportTaskRequest\x12\x0e\n\x06job_id\x18\x01 \x01(\t\x12\x0f\n\x07\x61ttempt\x18\x02 \x01(\t\x12\x0f\n\x07\x63olumns\x18\x03 \x03(\t\x12\x14\n\x0c\x66irst_sample\x18\x04 \x01(\x03\x12&\n\x07samples\x18\x05 \x03(\x0b\x32\x15.activefoam.v1.Sample\x12)\n\x08progress\x18\x06 \x01(\x0b\x32\x17.activefoam.v1.Progress\x12\x16\n\x0e\x66irst_snapshot\x18\x07 \x01(\x05\x12\x11\n\tsnapshots\x18\x08 \x03(\x0c\x12\x10\n\x08\x66inished\x18\t \x01(\x08\x12\x11\n\texit_code\x18\n \x01(\x05\x12\x14\n\x0csummary_json\x18\x0b \x01(\t\x12\x0f\n\x07message\x18\x0c \x01(\t\x12\x33\n\x0esnapshot_infos\x18\r \x03(\x0b\x32\x1b.activefoam.v1.SnapshotInfo\"P\n\x12ReportTaskResponse\x12\x14\n\x0csamples_held\x18\x01 \x01(\x03\x12\x16\n\x0esnapshots_held\x18\x02 \x01(\x05\x12\x0c\n\x04stop\x18\x03 \x01(\x08\"\x97\x01\n\x10SubmitJobRequest\x12&\n\x04spec\x18\x01 \x01(\x0b\x32\x18.activefoam.v1.SceneSpec\x12\x11\n\tspec_text\x18\x02 \x01(\t\x12\x10\n\x08settings\x18\x03 \x03(\t\x12\x17\n\x0fidempotency_key\x18\x04 \x01(\t\x12\x10\n\x08priority\x18\x05 \x01(\x05\x12\x0b\n\x03tag\x18\x06 \x01(\t\"U\n\x11SubmitJobResponse\x12\x0e\n\x06job_id\x18\x01 \x01(\t\x12\x0f\n\x07\x63reated\x18\x02 \x01(\x08\x12\x1f\n\x03job\x18\x03 \x01(\x0b\x32\x12.activefoam.v1.Job\"\x1f\n\rGetJobRequest\x12\x0e\n\x06job_id\x18\x01 \x01(\t\"M\n\nParamRange\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\x10\n\x03min\x18\x02 \x01(\x01H\x00\x88\x01\x01\x12\x10\n\x03max\x18\x03 \x01(\x01H\x01\x88\x01\x01\x42\x06\n\x04_minB\x06\n\x04_max\"\xcb\x01\n\x0fListJobsRequest\x12\'\n\x06states\x18\x01 \x03(\x0e\x32\x17.activefoam.v1.JobState\x12\x0b\n\x03tag\x18\x02 \x01(\t\x12\x10\n\x08sweep_id\x18\x03 \x01(\t\x12\r\n\x05scene\x18\x04 \x01(\t\x12)\n\x06params\x18\x05 \x03(\x0b\x32\x19.activefoam.v1.ParamRange\x12\x11\n\tpage_size\x18\x06 \x01(\x05\x12\x12\n\npage_token\x18\x07 \x01(\t\x12\x0f\n\x07outcome\x18\x08 \x01(\t\"\\\n\x10ListJobsResponse\x12 \n\x04jobs\x18\x01 \x03(\x0b\x32\x12.activefoam.v1.Job\x12\x17\n\x0fnext_page_token\x18\x02 \x01(\t\x12\r\n\x05total\x18\x03 \x01(\x03\"2\n\x10\x43\x61ncelJobRequest\x12\x0e\n\x06job_id\x18\x01 \x01(\t\x12\x0e\n\x06reason\x18\x02 \x01(\t\"C\n\x0fWatchJobRequest\x12\x0e\n\x06job_id\x18\x01 \x01(\t\x12\x10\n\x08\x66rom_seq\x18\x02 \x01(\x03\x12\x0e\n\x06\x66ollow\x18\x03 \x01(\x08\"9\n\x11GetResultsRequest\x12\x0e\n\x06job_id\x18\x01 \x01(\t\x12\x14\n\x0cwith_samples\x18\x02 \x01(\x08\"\xe4\x01\n\nJobResults\x12\x1f\n\x03job\x18\x01 \x01(\x0b\x32\x12.activefoam.v1.Job\x12&\n\x07results\x18\x02 \x03(\x0b\x32\x15.activefoam.v1.Result\x12\x0f\n\x07\x63olumns\x18\x03 \x03(\t\x12&\n\x07samples\x18\x04 \x03(\x0b\x32\x15.activefoam.v1.Sample\x12.\n\tsnapshots\x18\x05 \x03(\x0b\x32\x1b.activefoam.v1.SnapshotInfo\x12$\n\x06\x63urves\x18\x06 \x03(\x0b\x32\x14.activefoam.v1.Curve\"\x9d\x01\n\x13QueryResultsRequest\x12\r\n\x05scene\x18\x01 \x01(\t\x12\x0b\n\x03tag\x18\x02 \x01(\t\x12\x10\n\x08sweep_id\x18\x03 \x01(\t\x12)\n\x06params\x18\x04 \x03(\x0b\x32\x19.activefoam.v1.ParamRange\x12\r\n\x05names\x18\x05 \x03(\t\x12\r\n\x05limit\x18\x06 \x01(\x05\x12\x0f\n\x07outcome\x18\x07 \x01(\t\"\xc5\x01\n\x0fQueryResultsRow\x12\x0e\n\x06job_id\x18\x01 \x01(\t\x12:\n\x06params\x18\x02 \x03(\x0b\x32*.activefoam.v1.QueryResultsRow.ParamsEntry\x12&\n\x07results\x18\x03 \x03(\x0b\x32\x15.activefoam.v1.Result\x12\x0f\n\x07outcome\x18\x04 \x01(\t\x1a-\n\x0bParamsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x01:\x02\x38\x01\"X\n\x14QueryResultsResponse\x12,\n\x04rows\x18\x01 \x03(\x0b\x32\x1e.activefoam.v1.QueryResultsRow\x12\x12\n\nswept_keys\x18\x02 \x03(\t\"\'\n\x08GridAxis\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\x0e\n\x06values\x18\x02 \x03(\t\" \n\x0cParameterSet\x12\x10\n\x08settings\x18\x01 \x03(\t\"\x88\x02\n\x12SubmitSweepRequest\x12&\n\x04spec\x18\x01 \x01(\x0b\x32\x18.activefoam.v1.SceneSpec\x12\x11\n\tspec_text\x18\x02 \x01(\t\x12\x10\n\x08settings\x18\x03 \x03(\t\x12%\n\x04grid\x18\x04 \x03(\x0b\x32\x17.activefoam.v1.GridAxis\x12)\n\x04sets\x18\x05 \x03(\x0b\x32\x1b.activefoam.v1.ParameterSet\x12\r\n\x05seeds\x18\x06 \x03(\x04\x12\x17\n\x0fidempotency_key\x18\x07 \x01(\t\x12\x10\n\x08priority\x18\x08 \x01(\x05\x12\x0b\n\x03tag\x18\t \x01(\t\x12\x0c\n\x04name\x18\n \x01(\t\"I\n\x13SubmitSweepResponse\x12\x10\n\x08sweep_id\x18\x01 \x01(\t\x12\x0f\n\x07job_ids\x18\x02 \x03(\t\x12\x0f\n\x07\x63reated\x18\x03 \x01(\x08\"3\n\x12GetSnapshotRequest\x12\x0e\n\x06job_id\x18\x01 \x01(\t\x12\r\n\x05index\x18\x02 \x01(\x05\"r\n\rSnapshotChunk\x12)\n\x04info\x18\x01 \x01(\x0b\x32\x1b.activefoam.v1.SnapshotInfo\x12\x13\n\x0b\x63ompression\x18\x02 \x01(\t\x12\x13\n\x0btotal_bytes\x18\x03 \x01(\x03\x12\x0c\n\x04\x64\x61ta\x18\x04 \x01(\x0c\x32\x87\x06\n\x04\x46oam\x12N\n\tSubmitJob\x12\x1f.activefoam.v1.SubmitJobRequest\x1a .activefoam.v1.SubmitJobResponse\x12:\n\x06GetJob\x12\x1c.activefoam.v1.GetJobRequest\x1a\x12.activefoam.v1.Job\x12K\n\x08ListJobs\x12\x1e.activefoam.v1.ListJobsRequest\x1a\x1f.activefoam.v1.ListJobsResponse\x12@\n\tCancelJob\x12\x1f.activefoam.v1.CancelJobRequest\x1a\x12.activefoam.v1.Job\x12\x45\n\x08WatchJob\x12\x1e.activefoam.v1.WatchJobRequest\x1a\x17.activefoam.v1.JobEvent0\x01\x12I\n\nGetResults\x12 .activefoam.v1.GetResultsRequest\x1a\x19.activefoam.v1.JobResults\x12W\n\x0cQueryResults\x12\".activefoam.v1.QueryResultsRequest\x1a#.activefoam.v1.QueryResultsResponse\x12T\n\x0bSubmitSweep\x12!.activefoam.v1.SubmitSweepRequest\x1a\".activefoam.v1.SubmitSweepResponse\x12P\n\x0bGetSnapshot\x12!.activefoam.v1.GetSnapshotRequest\x1a\x1c.activefoam.v1.SnapshotChunk0\x01\x12Q\n\nReportTask\x12 .activefoam.v1.ReportTaskRequest\x1a!.activefoam.v1.ReportTaskResponseb\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x1b\x61\x63tivefoam/v1/service.proto\x12\ractivefoam.v1\x1a\x17\x61\x63tivefoam/v1/job.proto\x1a\x19\x61\x63tivefoam/v1/scene.proto\"\xda\x02\n\x11ReportTaskRequest\x12\x0e\n\x06job_id\x18\x01 \x01(\t\x12\x0f\n\x07\x61ttempt\x18\x02 \x01(\t\x12\x0f\n\x07\x63olumns\x18\x03 \x03(\t\x12\x14\n\x0c\x66irst_sample\x18\x04 \x01(\x03\x12&\n\x07samples\x18\x05 \x03(\x0b\x32\x15.activefoam.v1.Sample\x12)\n\x08progress\x18\x06 \x01(\x0b\x32\x17.activefoam.v1.Progress\x12\x16\n\x0e\x66irst_snapshot\x18\x07 \x01(\x05\x12\x11\n\tsnapshots\x18\x08 \x03(\x0c\x12\x10\n\x08\x66inished\x18\t \x01(\x08\x12\x11\n\texit_code\x18\n \x01(\x05\x12\x14\n\x0csummary_json\x18\x0b \x01(\t\x12\x0f\n\x07message\x18\x0c \x01(\t\x12\x33\n\x0esnapshot_infos\x18\r \x03(\x0b\x32\x1b.activefoam.v1.SnapshotInfo\"P\n\x12ReportTaskResponse\x12\x14\n\x0csamples_held\x18\x01 \x01(\x03\x12\x16\n\x0esnapshots_held\x18\x02 \x01(\x05\x12\x0c\n\x04stop\x18\x03 \x01(\x08\"\x97\x01\n\x10SubmitJobRequest\x12&\n\x04spec\x18\x01 \x01(\x0b\x32\x18.activefoam.v1.SceneSpec\x12\x11\n\tspec_text\x18\x02 \x01(\t\x12\x10\n\x08settings\x18\x03 \x03(\t\x12\x17\n\x0fidempotency_key\x18\x04 \x01(\t\x12\x10\n\x08priority\x18\x05 \x01(\x05\x12\x0b\n\x03tag\x18\x06 \x01(\t\"U\n\x11SubmitJobResponse\x12\x0e\n\x06job_id\x18\x01 \x01(\t\x12\x0f\n\x07\x63reated\x18\x02 \x01(\x08\x12\x1f\n\x03job\x18\x03 \x01(\x0b\x32\x12.activefoam.v1.Job\"a\n\x12ResolveSpecRequest\x12&\n\x04spec\x18\x01 \x01(\x0b\x32\x18.activefoam.v1.SceneSpec\x12\x11\n\tspec_text\x18\x02 \x01(\t\x12\x10\n\x08settings\x18\x03 \x03(\t\"8\n\x13ResolveSpecResponse\x12\x11\n\tspec_json\x18\x01 \x01(\t\x12\x0e\n\x06labels\x18\x02 \x03(\t\"\x1f\n\rGetJobRequest\x12\x0e\n\x06job_id\x18\x01 \x01(\t\"M\n\nParamRange\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\x10\n\x03min\x18\x02 \x01(\x01H\x00\x88\x01\x01\x12\x10\n\x03max\x18\x03 \x01(\x01H\x01\x88\x01\x01\x42\x06\n\x04_minB\x06\n\x04_max\"\xcb\x01\n\x0fListJobsRequest\x12\'\n\x06states\x18\x01 \x03(\x0e\x32\x17.activefoam.v1.JobState\x12\x0b\n\x03tag\x18\x02 \x01(\t\x12\x10\n\x08sweep_id\x18\x03 \x01(\t\x12\r\n\x05scene\x18\x04 \x01(\t\x12)\n\x06params\x18\x05 \x03(\x0b\x32\x19.activefoam.v1.ParamRange\x12\x11\n\tpage_size\x18\x06 \x01(\x05\x12\x12\n\npage_token\x18\x07 \x01(\t\x12\x0f\n\x07outcome\x18\x08 \x01(\t\"\\\n\x10ListJobsResponse\x12 \n\x04jobs\x18\x01 \x03(\x0b\x32\x12.activefoam.v1.Job\x12\x17\n\x0fnext_page_token\x18\x02 \x01(\t\x12\r\n\x05total\x18\x03 \x01(\x03\"2\n\x10\x43\x61ncelJobRequest\x12\x0e\n\x06job_id\x18\x01 \x01(\t\x12\x0e\n\x06reason\x18\x02 \x01(\t\"C\n\x0fWatchJobRequest\x12\x0e\n\x06job_id\x18\x01 \x01(\t\x12\x10\n\x08\x66rom_seq\x18\x02 \x01(\x03\x12\x0e\n\x06\x66ollow\x18\x03 \x01(\x08\"9\n\x11GetResultsRequest\x12\x0e\n\x06job_id\x18\x01 \x01(\t\x12\x14\n\x0cwith_samples\x18\x02 \x01(\x08\"\xe4\x01\n\nJobResults\x12\x1f\n\x03job\x18\x01 \x01(\x0b\x32\x12.activefoam.v1.Job\x12&\n\x07results\x18\x02 \x03(\x0b\x32\x15.activefoam.v1.Result\x12\x0f\n\x07\x63olumns\x18\x03 \x03(\t\x12&\n\x07samples\x18\x04 \x03(\x0b\x32\x15.activefoam.v1.Sample\x12.\n\tsnapshots\x18\x05 \x03(\x0b\x32\x1b.activefoam.v1.SnapshotInfo\x12$\n\x06\x63urves\x18\x06 \x03(\x0b\x32\x14.activefoam.v1.Curve\"\x9d\x01\n\x13QueryResultsRequest\x12\r\n\x05scene\x18\x01 \x01(\t\x12\x0b\n\x03tag\x18\x02 \x01(\t\x12\x10\n\x08sweep_id\x18\x03 \x01(\t\x12)\n\x06params\x18\x04 \x03(\x0b\x32\x19.activefoam.v1.ParamRange\x12\r\n\x05names\x18\x05 \x03(\t\x12\r\n\x05limit\x18\x06 \x01(\x05\x12\x0f\n\x07outcome\x18\x07 \x01(\t\"\xc5\x01\n\x0fQueryResultsRow\x12\x0e\n\x06job_id\x18\x01 \x01(\t\x12:\n\x06params\x18\x02 \x03(\x0b\x32*.activefoam.v1.QueryResultsRow.ParamsEntry\x12&\n\x07results\x18\x03 \x03(\x0b\x32\x15.activefoam.v1.Result\x12\x0f\n\x07outcome\x18\x04 \x01(\t\x1a-\n\x0bParamsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x01:\x02\x38\x01\"X\n\x14QueryResultsResponse\x12,\n\x04rows\x18\x01 \x03(\x0b\x32\x1e.activefoam.v1.QueryResultsRow\x12\x12\n\nswept_keys\x18\x02 \x03(\t\"\'\n\x08GridAxis\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\x0e\n\x06values\x18\x02 \x03(\t\" \n\x0cParameterSet\x12\x10\n\x08settings\x18\x01 \x03(\t\"\x88\x02\n\x12SubmitSweepRequest\x12&\n\x04spec\x18\x01 \x01(\x0b\x32\x18.activefoam.v1.SceneSpec\x12\x11\n\tspec_text\x18\x02 \x01(\t\x12\x10\n\x08settings\x18\x03 \x03(\t\x12%\n\x04grid\x18\x04 \x03(\x0b\x32\x17.activefoam.v1.GridAxis\x12)\n\x04sets\x18\x05 \x03(\x0b\x32\x1b.activefoam.v1.ParameterSet\x12\r\n\x05seeds\x18\x06 \x03(\x04\x12\x17\n\x0fidempotency_key\x18\x07 \x01(\t\x12\x10\n\x08priority\x18\x08 \x01(\x05\x12\x0b\n\x03tag\x18\t \x01(\t\x12\x0c\n\x04name\x18\n \x01(\t\"I\n\x13SubmitSweepResponse\x12\x10\n\x08sweep_id\x18\x01 \x01(\t\x12\x0f\n\x07job_ids\x18\x02 \x03(\t\x12\x0f\n\x07\x63reated\x18\x03 \x01(\x08\"3\n\x12GetSnapshotRequest\x12\x0e\n\x06job_id\x18\x01 \x01(\t\x12\r\n\x05index\x18\x02 \x01(\x05\"r\n\rSnapshotChunk\x12)\n\x04info\x18\x01 \x01(\x0b\x32\x1b.activefoam.v1.SnapshotInfo\x12\x13\n\x0b\x63ompression\x18\x02 \x01(\t\x12\x13\n\x0btotal_bytes\x18\x03 \x01(\x03\x12\x0c\n\x04\x64\x61ta\x18\x04 \x01(\x0c\x32\xdd\x06\n\x04\x46oam\x12N\n\tSubmitJob\x12\x1f.activefoam.v1.SubmitJobRequest\x1a .activefoam.v1.SubmitJobResponse\x12:\n\x06GetJob\x12\x1c.activefoam.v1.GetJobRequest\x1a\x12.activefoam.v1.Job\x12K\n\x08ListJobs\x12\x1e.activefoam.v1.ListJobsRequest\x1a\x1f.activefoam.v1.ListJobsResponse\x12@\n\tCancelJob\x12\x1f.activefoam.v1.CancelJobRequest\x1a\x12.activefoam.v1.Job\x12\x45\n\x08WatchJob\x12\x1e.activefoam.v1.WatchJobRequest\x1a\x17.activefoam.v1.JobEvent0\x01\x12I\n\nGetResults\x12 .activefoam.v1.GetResultsRequest\x1a\x19.activefoam.v1.JobResults\x12W\n\x0cQueryResults\x12\".activefoam.v1.QueryResultsRequest\x1a#.activefoam.v1.QueryResultsResponse\x12T\n\x0bSubmitSweep\x12!.activefoam.v1.SubmitSweepRequest\x1a\".activefoam.v1.SubmitSweepResponse\x12P\n\x0bGetSnapshot\x12!.activefoam.v1.GetSnapshotRequest\x1a\x1c.activefoam.v1.SnapshotChunk0\x01\x12Q\n\nReportTask\x12 .activefoam.v1.ReportTaskRequest\x1a!.activefoam.v1.ReportTaskResponse\x12T\n\x0bResolveSpec\x12!.activefoam.v1.ResolveSpecRequest\x1a\".activefoam.v1.ResolveSpecResponseb\x06proto3')
 
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, globals())
 _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'activefoam.v1.service_pb2', globals())
@@ -32,42 +32,46 @@ if _descriptor._USE_C_DESCRIPTORS == False:
   _SUBMITJOBREQUEST._serialized_end=681
   _SUBMITJOBRESPONSE._serialized_start=683
   _SUBMITJOBRESPONSE._serialized_end=768
-  _GETJOBREQUEST._serialized_start=770
-  _GETJOBREQUEST._serialized_end=801
-  _PARAMRANGE._serialized_start=803
-  _PARAMRANGE._serialized_end=880
-  _LISTJOBSREQUEST._serialized_start=883
-  _LISTJOBSREQUEST._serialized_end=1086
-  _LISTJOBSRESPONSE._serialized_start=1088
-  _LISTJOBSRESPONSE._serialized_end=1180
-  _CANCELJOBREQUEST._serialized_start=1182
-  _CANCELJOBREQUEST._serialized_end=1232
-  _WATCHJOBREQUEST._serialized_start=1234
-  _WATCHJOBREQUEST._serialized_end=1301
-  _GETRESULTSREQUEST._serialized_start=1303
-  _GETRESULTSREQUEST._serialized_end=1360
-  _JOBRESULTS._serialized_start=1363
-  _JOBRESULTS._serialized_end=1591
-  _QUERYRESULTSREQUEST._serialized_start=1594
-  _QUERYRESULTSREQUEST._serialized_end=1751
-  _QUERYRESULTSROW._serialized_start=1754
-  _QUERYRESULTSROW._serialized_end=1951
-  _QUERYRESULTSROW_PARAMSENTRY._serialized_start=1906
-  _QUERYRESULTSROW_PARAMSENTRY._serialized_end=1951
-  _QUERYRESULTSRESPONSE._serialized_start=1953
-  _QUERYRESULTSRESPONSE._serialized_end=2041
-  _GRIDAXIS._serialized_start=2043
-  _GRIDAXIS._serialized_end=2082
-  _PARAMETERSET._serialized_start=2084
-  _PARAMETERSET._serialized_end=2116
-  _SUBMITSWEEPREQUEST._serialized_start=2119
-  _SUBMITSWEEPREQUEST._serialized_end=2383
-  _SUBMITSWEEPRESPONSE._serialized_start=2385
-  _SUBMITSWEEPRESPONSE._serialized_end=2458
-  _GETSNAPSHOTREQUEST._serialized_start=2460
-  _GETSNAPSHOTREQUEST._serialized_end=2511
-  _SNAPSHOTCHUNK._serialized_start=2513
-  _SNAPSHOTCHUNK._serialized_end=2627
-  _FOAM._serialized_start=2630
-  _FOAM._serialized_end=3405
+  _RESOLVESPECREQUEST._serialized_start=770
+  _RESOLVESPECREQUEST._serialized_end=867
+  _RESOLVESPECRESPONSE._serialized_start=869
+  _RESOLVESPECRESPONSE._serialized_end=925
+  _GETJOBREQUEST._serialized_start=927
+  _GETJOBREQUEST._serialized_end=958
+  _PARAMRANGE._serialized_start=960
+  _PARAMRANGE._serialized_end=1037
+  _LISTJOBSREQUEST._serialized_start=1040
+  _LISTJOBSREQUEST._serialized_end=1243
+  _LISTJOBSRESPONSE._serialized_start=1245
+  _LISTJOBSRESPONSE._serialized_end=1337
+  _CANCELJOBREQUEST._serialized_start=1339
+  _CANCELJOBREQUEST._serialized_end=1389
+  _WATCHJOBREQUEST._serialized_start=1391
+  _WATCHJOBREQUEST._serialized_end=1458
+  _GETRESULTSREQUEST._serialized_start=1460
+  _GETRESULTSREQUEST._serialized_end=1517
+  _JOBRESULTS._serialized_start=1520
+  _JOBRESULTS._serialized_end=1748
+  _QUERYRESULTSREQUEST._serialized_start=1751
+  _QUERYRESULTSREQUEST._serialized_end=1908
+  _QUERYRESULTSROW._serialized_start=1911
+  _QUERYRESULTSROW._serialized_end=2108
+  _QUERYRESULTSROW_PARAMSENTRY._serialized_start=2063
+  _QUERYRESULTSROW_PARAMSENTRY._serialized_end=2108
+  _QUERYRESULTSRESPONSE._serialized_start=2110
+  _QUERYRESULTSRESPONSE._serialized_end=2198
+  _GRIDAXIS._serialized_start=2200
+  _GRIDAXIS._serialized_end=2239
+  _PARAMETERSET._serialized_start=2241
+  _PARAMETERSET._serialized_end=2273
+  _SUBMITSWEEPREQUEST._serialized_start=2276
+  _SUBMITSWEEPREQUEST._serialized_end=2540
+  _SUBMITSWEEPRESPONSE._serialized_start=2542
+  _SUBMITSWEEPRESPONSE._serialized_end=2615
+  _GETSNAPSHOTREQUEST._serialized_start=2617
+  _GETSNAPSHOTREQUEST._serialized_end=2668
+  _SNAPSHOTCHUNK._serialized_start=2670
+  _SNAPSHOTCHUNK._serialized_end=2784
+  _FOAM._serialized_start=2787
+  _FOAM._serialized_end=3648
 # @@protoc_insertion_point(module_scope)

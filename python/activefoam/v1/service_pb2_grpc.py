@@ -65,6 +65,11 @@ class FoamStub(object):
                 request_serializer=activefoam_dot_v1_dot_service__pb2.ReportTaskRequest.SerializeToString,
                 response_deserializer=activefoam_dot_v1_dot_service__pb2.ReportTaskResponse.FromString,
                 )
+        self.ResolveSpec = channel.unary_unary(
+                '/activefoam.v1.Foam/ResolveSpec',
+                request_serializer=activefoam_dot_v1_dot_service__pb2.ResolveSpecRequest.SerializeToString,
+                response_deserializer=activefoam_dot_v1_dot_service__pb2.ResolveSpecResponse.FromString,
+                )
 
 
 class FoamServicer(object):
@@ -134,6 +139,16 @@ class FoamServicer(object):
         context.set_details('Method not implemented!')
         raise NotImplementedError('Method not implemented!')
 
+    def ResolveSpec(self, request, context):
+        """The spec a SubmitJob of the same spec fields would run, resolved, without creating a job:
+        the same checks and the same INVALID_ARGUMENT messages (each naming its key). For a client
+        that compares a spec with jobs' records (Job.resolved_spec_json) without knowing the keys'
+        defaults, presets or history itself.
+        """
+        context.set_code(grpc.StatusCode.UNIMPLEMENTED)
+        context.set_details('Method not implemented!')
+        raise NotImplementedError('Method not implemented!')
+
 
 def add_FoamServicer_to_server(servicer, server):
     rpc_method_handlers = {
@@ -186,6 +201,11 @@ def add_FoamServicer_to_server(servicer, server):
                     servicer.ReportTask,
                     request_deserializer=activefoam_dot_v1_dot_service__pb2.ReportTaskRequest.FromString,
                     response_serializer=activefoam_dot_v1_dot_service__pb2.ReportTaskResponse.SerializeToString,
+            ),
+            'ResolveSpec': grpc.unary_unary_rpc_method_handler(
+                    servicer.ResolveSpec,
+                    request_deserializer=activefoam_dot_v1_dot_service__pb2.ResolveSpecRequest.FromString,
+                    response_serializer=activefoam_dot_v1_dot_service__pb2.ResolveSpecResponse.SerializeToString,
             ),
     }
     generic_handler = grpc.method_handlers_generic_handler(
@@ -364,5 +384,22 @@ class Foam(object):
         return grpc.experimental.unary_unary(request, target, '/activefoam.v1.Foam/ReportTask',
             activefoam_dot_v1_dot_service__pb2.ReportTaskRequest.SerializeToString,
             activefoam_dot_v1_dot_service__pb2.ReportTaskResponse.FromString,
+            options, channel_credentials,
+            insecure, call_credentials, compression, wait_for_ready, timeout, metadata)
+
+    @staticmethod
+    def ResolveSpec(request,
+            target,
+            options=(),
+            channel_credentials=None,
+            call_credentials=None,
+            insecure=False,
+            compression=None,
+            wait_for_ready=None,
+            timeout=None,
+            metadata=None):
+        return grpc.experimental.unary_unary(request, target, '/activefoam.v1.Foam/ResolveSpec',
+            activefoam_dot_v1_dot_service__pb2.ResolveSpecRequest.SerializeToString,
+            activefoam_dot_v1_dot_service__pb2.ResolveSpecResponse.FromString,
             options, channel_credentials,
             insecure, call_credentials, compression, wait_for_ready, timeout, metadata)
