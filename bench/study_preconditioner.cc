@@ -28,7 +28,6 @@
 #include <string>
 #include <vector>
 
-#include "activefoam/coarse_space.h"
 #include "activefoam/simulation.h"
 #include "activefoam/spheroid.h"
 
@@ -338,72 +337,6 @@ int main(int argc, char** argv) {
     for (Eigen::Index i = 0; i < r.size(); ++i) z[i] += zc[3 * vcell[i / 3] + i % 3];
   };
 
-  if (std::getenv("RIGID")) {
-    // RIGID=1: block-Jacobi against block-Jacobi plus the cells' rigid motions as a coarse level
-    // (additive two-level, RigidCoarseSpace built from the engine's blocks), 6 and 7 modes a
-    // cell, 30 steps; the coarse level's build timed apart from the solve.
-    long it_bj = 0, it6 = 0, it7 = 0;
-    double ms_bj = 0, ms6 = 0, ms7 = 0, b6 = 0, b7 = 0;
-    int steps = 0;
-    Eigen::VectorXd xprev;
-    for (int k = 1; k <= 30; ++k) {
-      if (!sim.step().ok()) return 1;
-      SpMat a;
-      Eigen::VectorXd b;
-      system(a, b);
-      if (xprev.size() != a.rows()) xprev = Eigen::VectorXd::Zero(a.rows());
-      const std::vector<Eigen::Matrix3d> bj = blockJacobi(a);
-      Eigen::VectorXd x = xprev;
-      const Res r0 = pcg(a, b, x, applyBlocks(bj), tol);
-      const Eigen::VectorXd xs = x;
-      it_bj += r0.it;
-      ms_bj += r0.ms;
-      std::printf("step %d: block-jacobi %d", k, r0.it);
-      sim.prepareFriction();  // the engine's Γ of the cells as they are now (after the remesh)
-      for (const bool dil : {false, true}) {
-        RigidCoarseSpace rc;
-        t1 = Clock::now();
-        rc.build(cs.x, cs.cell_vertex_begin, dil,
-                 [&](const BlockSink& sink) { sim.forEachFrictionBlock(sink); });
-        const double build_ms = 1e3 * secs(t1);
-        if (k == 1) {
-          // Check: for v = P w (every cell moving rigidly), the correction of A v is v.
-          Eigen::VectorXd v(a.rows()), z = Eigen::VectorXd::Zero(a.rows());
-          for (int c = 0; c < cs.numCells(); ++c) {
-            const Eigen::Vector3d u = Eigen::Vector3d::Random(), w = Eigen::Vector3d::Random();
-            for (int i = cs.cell_vertex_begin[c]; i < cs.cell_vertex_begin[c + 1]; ++i)
-              v.segment<3>(3 * i) = u + w.cross(cs.x.col(i));
-          }
-          const Eigen::VectorXd av = a * v;
-          rc.addCorrection(av.data(), z.data());
-          std::printf(" [check |z - v|/|v| = %.2e]", (z - v).norm() / v.norm());
-        }
-        x = xprev;
-        const Res r1 = pcg(
-            a, b, x,
-            [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) {
-              applyBlocks(bj)(r, z);
-              rc.addCorrection(r.data(), z.data());
-            },
-            tol);
-        (dil ? it7 : it6) += r1.it;
-        (dil ? ms7 : ms6) += r1.ms;
-        (dil ? b7 : b6) += build_ms;
-        std::printf(" | rigid%s %d (build %.1f ms, %s)", dil ? "+dilation" : "", r1.it, build_ms,
-                    rc.ready() ? "ok" : "NOT SPD");
-      }
-      std::printf("\n");
-      std::fflush(stdout);
-      xprev = xs;
-      ++steps;
-    }
-    std::printf(
-        "mean over %d steps: block-jacobi %.1f it (%.1f ms solve); + rigid %.1f it (%.1f ms "
-        "solve, %.1f ms build); + rigid and dilation %.1f it (%.1f ms solve, %.1f ms build)\n",
-        steps, double(it_bj) / steps, ms_bj / steps, double(it6) / steps, ms6 / steps, b6 / steps,
-        double(it7) / steps, ms7 / steps, b7 / steps);
-    return 0;
-  }
   if (const char* spec = std::getenv("AGG_SETUP")) {
     // AGG_SETUP="θ:cap": what aggregate block-Jacobi's setup would cost inside a step, built the
     // way the engine could build it — from the friction operator's blocks (the assembled
