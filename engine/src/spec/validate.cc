@@ -97,9 +97,16 @@ std::vector<SpecError> validate(const SceneSpec& spec) {
     error("numerics.dt_min_s", formatNumber(*dmin) + " s exceeds numerics.dt_s = " +
                                    formatNumber(dt) + " s (the floor of the adaptive time step)");
 
-  if (spec.numerics.max_step_error_um > 0 && ok({"numerics.adaptive"}) && !spec.numerics.adaptive)
-    error("numerics.max_step_error_um",
-          "needs numerics.adaptive = true (a step over the estimate is retried at half Δt)");
+  if (spec.numerics.max_step_error_um > 0) {
+    if (ok({"numerics.integrator"}) && spec.numerics.integrator != IntegratorKind::Ros2)
+      error("numerics.max_step_error_um",
+            "needs numerics.integrator = ros2 (the only integrator with an error estimate); "
+            "set it to 0 for " +
+                std::string(toString(spec.numerics.integrator)));
+    else if (ok({"numerics.adaptive"}) && !spec.numerics.adaptive)
+      error("numerics.max_step_error_um",
+            "needs numerics.adaptive = true (a step over the estimate is retried at half Δt)");
+  }
 
   if (const SceneParams& sp = spec.scene_params; ok({"scene.prep_min_s", "scene.prep_max_s"}) &&
                                                  sp.prep_max_s > 0 && sp.prep_min_s > sp.prep_max_s)
