@@ -245,7 +245,8 @@ class Runner:
         self.expect_exit(rc, out, 2, [f"token file '{f}'"] + words, problems, "foam --token-file")
         if case.get("env", True) and b"\0" not in token:  # no NUL in an environment
             rc, out = self.run([str(FOAM), "list"], env=dict(self.env, FOAM_TOKEN=token))
-            self.expect_exit(rc, out, 2, ["FOAM_TOKEN"] + words, problems, "FOAM_TOKEN")
+            self.expect_exit(rc, out, 2, ["FOAM_TOKEN"] + case.get("env_error", words), problems,
+                             "FOAM_TOKEN")
         if activefoam is not None and case.get("python", True):
             try:
                 activefoam.Client(f"127.0.0.1:{self.port}",

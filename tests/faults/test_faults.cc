@@ -458,6 +458,27 @@ TEST(Faults, TokensThatCannotBeSentAreRefusedAtLoad) {
   fs::remove_all(dir);
 }
 
+// An empty FOAM_TOKEN (`FOAM_TOKEN=$TOKEN` with TOKEN unset) made foam call without a token in
+// silence, and so did `--token-file ''`; `--tls-ca ''` connected without TLS. Each is an error
+// naming the variable or option (exit 2) before any call: foam is pointed at port 1, where a
+// call would end in "unreachable" (exit 3) instead.
+TEST(Faults, EmptyTokenAndCaValuesOfFoamAreErrors) {
+  const std::string foam = std::string(FOAM_EXE) + " --server 127.0.0.1:1";
+  Proc r = sh("FOAM_TOKEN= timeout 10 " + foam + " list 2>&1");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("FOAM_TOKEN holds 0 bytes"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("set but empty"), std::string::npos) << r.out;
+  for (const std::string opt : {"--token-file", "--tls-ca"}) {
+    r = sh("timeout 10 " + std::string(FOAM_EXE) + " --server 127.0.0.1:1 " + opt +
+           " '' list 2>&1");
+    EXPECT_EQ(r.rc, 2) << opt << ": " << r.out;
+    EXPECT_NE(r.out.find(opt + ": empty"), std::string::npos) << r.out;
+  }
+  // Unset is no token: the call is made (and finds nothing on port 1).
+  r = sh("env -u FOAM_TOKEN timeout 10 " + foam + " list 2>&1");
+  EXPECT_EQ(r.rc, 3) << r.out;
+}
+
 // `foam submit /dev/zero` was OOM-killed at 24 GB and `yes | foam submit -` never
 // ended: foam reads at most the 1 MiB a spec may have, and says so (exit 2).
 TEST(Faults, UnboundedSpecInputIsCutAtItsLimit) {
