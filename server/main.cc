@@ -30,6 +30,7 @@
 #include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
 
+#include "activefoam/cli_finite.h"
 #include "activefoam/host_port.h"
 #include "activefoam/pem_file.h"
 #include "activefoam/token_file.h"
@@ -97,18 +98,6 @@ std::string configErrorMessage(const CLI::App& app, const std::string& what) {
 
 }  // namespace
 
-// CLI11's PositiveNumber and Range let NaN through (every comparison with NaN is false):
-// `--checkpoint-every-s nan` started foamd (tests/adversarial). Checked first: CLI11 reports
-// the first validator that fails.
-const CLI::Validator kFinite(
-    [](std::string& s) {
-      char* end = nullptr;
-      const double v = std::strtod(s.c_str(), &end);
-      return end != s.c_str() && !std::isfinite(v) ? "'" + s + "' is not a finite number"
-                                                   : std::string();
-    },
-    "FINITE");
-
 int main(int argc, char** argv) {
   CLI::App app{"foamd: activefoam simulation server (gRPC API, SQLite store, engine pool)"};
   std::string listen = "127.0.0.1:50051", db = defaultDbPath(), token_file, http, cert, key;
@@ -153,7 +142,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 1000000));
   app.add_option("--checkpoint-every-s", checkpoint_every_s,
                  "simulated seconds between checkpoints of a running job")
-      ->check(kFinite)
+      ->check(activefoam::finiteNumber())
       ->check(CLI::PositiveNumber);
   app.add_option("--spheroid-cache", spheroid_cache,
                  "directory of prepared spheroids reused by fusion jobs (default: 'spheroids' "
@@ -185,11 +174,11 @@ int main(int argc, char** argv) {
   app.add_option("--slurm-checkpoint-every-s", slurm.checkpoint_every_s,
                  "slurm: wall-clock seconds between a task's checkpoints (foam-run "
                  "--checkpoint-every): what a requeued task recomputes at most")
-      ->check(kFinite)
+      ->check(activefoam::finiteNumber())
       ->check(CLI::Range(1.0, 1e6))
       ->capture_default_str();
   app.add_option("--slurm-poll-s", slurm.poll_every_s, "slurm: seconds between squeue polls")
-      ->check(kFinite)
+      ->check(activefoam::finiteNumber())
       ->check(CLI::Range(0.1, 3600.0))
       ->capture_default_str();
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error")

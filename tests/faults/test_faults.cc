@@ -479,6 +479,18 @@ TEST(Faults, EmptyTokenAndCaValuesOfFoamAreErrors) {
   EXPECT_EQ(r.rc, 3) << r.out;
 }
 
+// CLI11's Range lets NaN through (every comparison with it is false): `foam export --movie
+// --fps nan` reached ffmpeg. A number option that is not finite is refused naming the option
+// (exit 2), before any call.
+TEST(Faults, NonFiniteNumbersOfFoamAreRefused) {
+  for (const std::string v : {"nan", "inf", "-inf"}) {
+    const Proc r = sh("timeout 10 " + std::string(FOAM_EXE) +
+                      " --server 127.0.0.1:1 export j-1 x.mp4 --movie --fps " + v + " 2>&1");
+    EXPECT_EQ(r.rc, 2) << v << ": " << r.out;
+    EXPECT_NE(r.out.find("--fps: '" + v + "' is not a finite number"), std::string::npos) << r.out;
+  }
+}
+
 // `foam submit /dev/zero` was OOM-killed at 24 GB and `yes | foam submit -` never
 // ended: foam reads at most the 1 MiB a spec may have, and says so (exit 2).
 TEST(Faults, UnboundedSpecInputIsCutAtItsLimit) {
