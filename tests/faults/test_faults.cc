@@ -351,6 +351,82 @@ TEST(Faults, ADamagedDatabaseIsRefusedAtStart) {
   fs::remove_all(dir);
 }
 
+// A job's tag altered on disk in its table row (its index entry left as it was) passes the
+// quick_check that foamd's start runs: foamd serves the altered row.
+// foamd --check-db runs the full integrity_check, which compares each index with its table:
+// exit 1, one line naming the database and the index. A sound store: exit 0; one that a running
+// foamd holds, or none at all: exit 2, nothing created.
+TEST(Faults, CheckDbFindsDamageThatTheStartMisses) {
+  const fs::path dir = tempDir();
+  const fs::path db = dir / "foamd.db";
+  const std::string marker = "integrity-marker-0001";
+  {
+    Foamd a(db, freePort());
+    for (int i = 0; i < 5; ++i) ASSERT_FALSE(submitCell(a, 1e6).empty());
+    const Proc r =
+        sh(a.foam() + " submit --scene cell --set duration_s=1e6 --set numerics.dt_s=0.1 --tag " +
+           marker + " 2>&1");
+    ASSERT_EQ(r.rc, 0) << r.out;
+    const Proc held = sh(std::string(FOAMD_EXE) + " --check-db --db " + db.string() + " 2>&1");
+    EXPECT_EQ(held.rc, 2) << held.out;
+    EXPECT_NE(held.out.find("foamd --check-db: "), std::string::npos) << held.out;
+    a.stop(SIGTERM);  // the WAL checkpointed into the file
+  }
+  Proc r = sh(std::string(FOAMD_EXE) + " --check-db --db " + db.string() + " 2>&1");
+  EXPECT_EQ(r.rc, 0) << r.out;
+  EXPECT_NE(r.out.find("database '" + db.string() + "' is sound"), std::string::npos) << r.out;
+  // The marker's copies: the jobs row, on a leaf page of a rowid table (type byte 0x0d at the
+  // page's start, past the file header on page 1; the tag is among the row's first columns, so
+  // not in an overflow page), the jobs_tag entry (an index page) and the submit event (events
+  // is a table WITHOUT ROWID: index pages too).
+  std::string bytes = readAll(db);
+  const std::size_t page = 4096;
+  ASSERT_EQ(static_cast<unsigned char>(bytes[16]) * 256 + static_cast<unsigned char>(bytes[17]),
+            static_cast<int>(page));
+  std::size_t in_row = std::string::npos;
+  int rows = 0, others = 0;
+  for (std::size_t at = bytes.find(marker); at != std::string::npos;
+       at = bytes.find(marker, at + 1)) {
+    const std::size_t start = at / page * page + (at < page ? 100 : 0);
+    if (static_cast<unsigned char>(bytes[start]) == 0x0d)
+      ++rows, in_row = at;
+    else
+      ++others;
+  }
+  ASSERT_EQ(rows, 1);
+  ASSERT_GE(others, 1);                     // the index entry
+  bytes[in_row + marker.size() - 1] = '2';  // ...-0002: same length, the record stays well-formed
+  {
+    std::ofstream f(db, std::ios::binary | std::ios::trunc);
+    f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  }
+  {
+    Foamd b(db, freePort());  // quick_check passes: foamd serves the altered row
+    std::string listed;
+    for (int i = 0; i < 100; ++i) {
+      const Proc l = sh(b.foam() + " list 2>&1");
+      if (l.rc == 0) {
+        listed = l.out;
+        break;
+      }
+      std::this_thread::sleep_for(100ms);
+    }
+    EXPECT_NE(listed.find("integrity-marker-0002"), std::string::npos) << listed;
+  }
+  r = sh(std::string(FOAMD_EXE) + " --check-db --db " + db.string() + " 2>&1");
+  EXPECT_EQ(r.rc, 1) << r.out;
+  EXPECT_NE(r.out.find("database '" + db.string() + "' is damaged (integrity_check: "),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("jobs_tag"), std::string::npos) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  r = sh(std::string(FOAMD_EXE) + " --check-db --db " + (dir / "none.db").string() + " 2>&1");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("no such file"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir / "none.db"));
+  fs::remove_all(dir);
+}
+
 // A hang-up stops foamd as SIGTERM does (exit 0, its running job re-queued to resume,
 // a log line saying why) instead of killing it silently (exit 129, no log).
 TEST(Faults, SighupStopsFoamdCleanlyWithALogLine) {
