@@ -12,8 +12,10 @@
 // A non-loopback --listen needs --token-file (and with it TLS) unless --insecure-public; a
 // non-loopback --http always needs the token and TLS. The token guards every HTTP route but the
 // dashboard's page and /healthz (and /metrics with --metrics-public).
-// SIGTERM / SIGINT / SIGHUP: stop accepting, stop the workers (their jobs go back to the queue and
-// resume from their last checkpoint on the next start), close the store. Exit 0; 2 on bad usage or
+// SIGTERM / SIGINT / SIGHUP / SIGQUIT / SIGXCPU: stop accepting, stop the workers (their jobs go
+// back to the queue and resume from their last checkpoint on the next start), close the store,
+// with a log line naming the signal. SIGUSR1, SIGUSR2, SIGALRM and the other signals that would
+// end a process are logged and ignored; SIGPIPE is ignored (kSignals). Exit 0; 2 on bad usage or
 // when the server cannot start.
 #include <algorithm>
 #include <cmath>
@@ -23,6 +25,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <memory>
 #include <sstream>
 #include <thread>
@@ -97,6 +100,24 @@ std::string configErrorMessage(const CLI::App& app, const std::string& what) {
   if (best_d <= std::max<std::size_t>(2, key.size() / 3)) msg += " (did you mean '" + best + "'?)";
   return msg + "; the keys are the long flag names without '--'";
 }
+
+// The signals foamd takes in its main thread (sigwait): those that stop it, and those that are
+// logged and ignored. Between them, every standard asynchronous signal whose default action ends
+// a process, but SIGPIPE and SIGXFSZ (ignored outright, main) and SIGPROF (left to a profiler).
+struct SignalAction {
+  int sig;
+  const char* name;
+  bool stops;
+};
+constexpr SignalAction kSignals[] = {
+    {SIGTERM, "SIGTERM", true},     {SIGINT, "SIGINT", true},
+    {SIGHUP, "SIGHUP", true},    // the terminal closed
+    {SIGQUIT, "SIGQUIT", true},  // its default would dump core: a stop here, with the store closed
+    {SIGXCPU, "SIGXCPU", true},  // the soft CPU limit: stop cleanly before the hard one kills
+    {SIGUSR1, "SIGUSR1", false},    {SIGUSR2, "SIGUSR2", false},
+    {SIGALRM, "SIGALRM", false},    {SIGVTALRM, "SIGVTALRM", false},
+    {SIGIO, "SIGIO", false},        {SIGPWR, "SIGPWR", false},
+    {SIGSTKFLT, "SIGSTKFLT", false}};
 
 }  // namespace
 
@@ -244,12 +265,20 @@ int main(int argc, char** argv) {
   spdlog::set_level(spdlog::level::from_str(log_level));
   spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
 
-  // Block the stop signals in every thread; the main thread waits for them below.
+  // Every signal whose default action would end foamd is handled or ignored on purpose (a
+  // SIGUSR1 or a SIGALRM once ended it with no log line, the store's writes cut short):
+  //   - the stop signals end it cleanly: running jobs re-queued, the store closed, a log line;
+  //   - the others that would kill it are logged and ignored;
+  //   - SIGPIPE is ignored outright: a client that goes away mid-answer makes that write fail
+  //     (EPIPE), not the server end. SIGXFSZ likewise: a write past the file-size limit fails
+  //     and the store reports it.
+  // The handled ones are blocked in every thread (threads started later inherit the mask) and
+  // taken by the main thread's sigwait below.
+  signal(SIGPIPE, SIG_IGN);
+  signal(SIGXFSZ, SIG_IGN);
   sigset_t sigs;
   sigemptyset(&sigs);
-  sigaddset(&sigs, SIGTERM);
-  sigaddset(&sigs, SIGINT);
-  sigaddset(&sigs, SIGHUP);  // the terminal closed: stop as for SIGTERM, with a log line
+  for (const SignalAction& a : kSignals) sigaddset(&sigs, a.sig);
   pthread_sigmask(SIG_BLOCK, &sigs, nullptr);
 
   try {
@@ -342,11 +371,21 @@ int main(int argc, char** argv) {
     if (!http.empty()) endpoint = std::make_unique<HttpEndpoint>(store, *pool, http_options);
     pool->start();
 
-    int sig = 0;
-    sigwait(&sigs, &sig);
-    spdlog::info("foamd: {} received, shutting down", sig == SIGTERM  ? "SIGTERM"
-                                                      : sig == SIGHUP ? "SIGHUP"
-                                                                      : "SIGINT");
+    for (;;) {
+      int sig = 0;
+      sigwait(&sigs, &sig);
+      const SignalAction* a = std::find_if(std::begin(kSignals), std::end(kSignals),
+                                           [&](const SignalAction& x) { return x.sig == sig; });
+      if (a == std::end(kSignals)) continue;  // not waited for
+      if (a->stops) {
+        spdlog::info("foamd: {} received, shutting down", a->name);
+        break;
+      }
+      spdlog::warn(
+          "foamd: {} received, ignored (foamd stops on SIGTERM, SIGINT, SIGHUP or "
+          "SIGQUIT)",
+          a->name);
+    }
     server.shutdown();
     pool->stop(true);  // pool: running jobs → queued (resume from their checkpoints)
     endpoint.reset();
