@@ -22,6 +22,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -79,6 +80,51 @@ std::string keyPairError(const std::string& cert_pem, const std::string& key_pem
     why = "--tls-cert and --tls-key do not belong together: the key is not the certificate's";
   X509_free(cert);
   EVP_PKEY_free(key);
+  return why;
+}
+
+std::string utcText(const std::tm& tm) {
+  char buf[40];
+  std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M:%S UTC", &tm);
+  return buf;
+}
+
+std::string utcText(const ASN1_TIME* t) {
+  std::tm tm{};
+  return ASN1_TIME_to_tm(t, &tm) == 1 ? utcText(tm) : "(an unreadable date)";
+}
+
+// Empty when every certificate of the PEM file (--tls-cert: the server's, then its chain) is
+// valid now; else which one is not, with its dates. An expired certificate was served: clients
+// saw only "certificate verify failed" and foamd's log said nothing. One that expires within 30
+// days is warned of.
+std::string certificateDatesError(const std::string& pem, const std::string& path) {
+  BIO* b = BIO_new_mem_buf(pem.data(), static_cast<int>(pem.size()));
+  std::time_t now = std::time(nullptr);
+  std::tm now_tm{};
+  gmtime_r(&now, &now_tm);
+  std::string why;
+  for (int k = 1; why.empty(); ++k) {
+    X509* cert = PEM_read_bio_X509(b, nullptr, nullptr, nullptr);
+    if (!cert) break;  // the end (a file without one is keyPairError's to name)
+    const ASN1_TIME* from = X509_get0_notBefore(cert);
+    const ASN1_TIME* to = X509_get0_notAfter(cert);
+    const std::string which = "--tls-cert '" + path + "': " +
+                              (k == 1 ? std::string("the certificate")
+                                      : "certificate " + std::to_string(k) + " of the file");
+    const std::string dates =
+        " (valid from " + utcText(from) + " to " + utcText(to) + "; now " + utcText(now_tm) + ")";
+    if (X509_cmp_time(from, &now) > 0)
+      why = which + " is not valid yet" + dates +
+            ": check this machine's clock, or use a certificate valid now";
+    else if (X509_cmp_time(to, &now) < 0)
+      why = which + " has expired" + dates + ": renew it";
+    else if (std::time_t soon = now + 30 * 86400; X509_cmp_time(to, &soon) < 0)
+      spdlog::warn("foamd: {} expires on {}: renew it before then (clients will refuse it)", which,
+                   utcText(to));
+    X509_free(cert);
+  }
+  BIO_free(b);
   return why;
 }
 
@@ -290,6 +336,8 @@ int main(int argc, char** argv) {
     if (!cert.empty())
       config.tls_cert =
           activefoam::readPemFile(cert, "--tls-cert", activefoam::PemKind::Certificate);
+    if (const std::string bad = certificateDatesError(config.tls_cert, cert); !bad.empty())
+      throw std::runtime_error(bad);
     if (!key.empty())
       config.tls_key = activefoam::readPemFile(key, "--tls-key", activefoam::PemKind::PrivateKey);
     if (!cert.empty() && !key.empty())

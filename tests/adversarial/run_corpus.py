@@ -175,7 +175,8 @@ class Runner:
 
     def placeholders(self, s, extra=None):
         values = {"dir": str(self.tmp), "grpc_port": str(self.port),
-                  "http_port": str(self.http_port), "free_port": str(free_port())}
+                  "http_port": str(self.http_port), "free_port": str(free_port()),
+                  "server_data": str(HERE.parent / "server" / "data")}
         values.update(extra or {})
         return re.sub(r"\{(\w+)\}", lambda m: values.get(m.group(1), m.group(0)), s)
 
