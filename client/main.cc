@@ -38,14 +38,19 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("foam ") + ACTIVEFOAM_VERSION);
   Conn conn;
   if (const char* s = std::getenv("FOAM_SERVER"); s && *s) conn.server = s;
-  if (const char* t = std::getenv("FOAM_TOKEN"); t && *t) conn.token = t;
+  // Set but empty (`FOAM_TOKEN=$TOKEN` with TOKEN unset) is a mistake, not "no auth": the calls
+  // would go out without a token and without a word.
+  const char* const env_token = std::getenv("FOAM_TOKEN");
+  if (env_token) conn.token = env_token;
   std::string token_file, tls_ca_file;
   if (const char* c = std::getenv("FOAM_TLS_CA"); c && *c) tls_ca_file = c;
   app.add_option("--server", conn.server, "server HOST:PORT (env FOAM_SERVER)");
-  app.add_option("--token-file", token_file, "file holding the bearer token (env FOAM_TOKEN)");
-  app.add_option("--tls-ca", tls_ca_file,
-                 "connect with TLS, trusting the certificate(s) in this PEM file (env "
-                 "FOAM_TLS_CA; for foamd --tls-cert, its certificate or its CA)");
+  CLI::Option* const token_opt =
+      app.add_option("--token-file", token_file, "file holding the bearer token (env FOAM_TOKEN)");
+  CLI::Option* const tls_ca_opt =
+      app.add_option("--tls-ca", tls_ca_file,
+                     "connect with TLS, trusting the certificate(s) in this PEM file (env "
+                     "FOAM_TLS_CA; for foamd --tls-cert, its certificate or its CA)");
   app.set_config("--config", "", "TOML config file (server = ..., token-file = ..., tls-ca = ...)");
 
   // In the order `foam --help` lists them.
@@ -85,9 +90,20 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? kOk : kUsage;
   }
-  if (token_file.empty() && !conn.token.empty())
+  // Given but empty, as in foamd and the Python client: no token, or no TLS, is never what an
+  // empty value meant.
+  for (const auto& [opt, value] : {std::pair{token_opt, &token_file}, {tls_ca_opt, &tls_ca_file}})
+    if (opt->count() > 0 && value->empty()) {
+      std::cerr << "foam: " << opt->get_name()
+                << ": empty: name the file, or leave the option out\n";
+      return kUsage;
+    }
+  if (token_file.empty() && env_token)
     if (const std::string bad = activefoam::tokenError(conn.token); !bad.empty()) {
-      std::cerr << "foam: FOAM_TOKEN " << bad << "\n";
+      std::cerr << "foam: FOAM_TOKEN " << bad
+                << (conn.token.empty() ? " (set but empty: unset it to connect without a token)"
+                                       : "")
+                << "\n";
       return kUsage;
     }
   if (const std::string bad = activefoam::hostPortError(conn.server); !bad.empty()) {

@@ -186,6 +186,17 @@ bool sameSecret(const std::string& a, const std::string& b) {
   return diff == 0;
 }
 
+// Every answer is whole: a Range header is ignored (RFC 7233 allows it) and the answer says so.
+// cpp-httplib cut any answer's body to the range asked, whatever its status, and left the status
+// as the handler set it: `Range: bytes=0-9` got "200" with 10 bytes of JSON, and a 401 was cut
+// to `{"error":"`. The answers are built per request (a job's JSON changes as it runs) and carry
+// no validator a client could resume against, so a part of one is not served.
+void ignoreRanges(const httplib::Request& req, httplib::Response& res) {
+  // The library parsed the ranges into this request, which it owns and does not hold const.
+  const_cast<httplib::Request&>(req).ranges.clear();
+  if (!res.has_header("Accept-Ranges")) res.set_header("Accept-Ranges", "none");
+}
+
 void jsonError(httplib::Response& res, int code, const std::string& what) {
   res.status = code;
   res.set_content(nlohmann::json{{"error", what}}.dump(), "application/json");
@@ -237,24 +248,28 @@ HttpEndpoint::HttpEndpoint(Store& store, Executor& pool, HttpOptions options)
   httplib::Server& srv = *http_;
   srv.set_payload_max_length(64 * 1024);  // GET only: a body is never needed
 
-  srv.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
-    auto refuse = [&res](int code, const std::string& why) {
-      jsonError(res, code, why);
-      return httplib::Server::HandlerResponse::Handled;
-    };
+  // A refusal before any route (true: `res` holds it): the method, a body, the target's length,
+  // the Host without a token, the token.
+  auto refused = [this](const httplib::Request& req, httplib::Response& res) {
     // Before the library reads any body (it waits up to the read timeout for one without a
     // length): every write is gRPC's.
     if (req.method != "GET" && req.method != "HEAD") {
       res.set_header("Allow", "GET, HEAD");
-      return refuse(405, "read-only endpoint: GET only (submit and cancel through gRPC: foam)");
+      jsonError(res, 405, "read-only endpoint: GET only (submit and cancel through gRPC: foam)");
+      return true;
     }
     // The library does not read a GET's body at all: a request that has one is refused.
     if (req.has_header("Transfer-Encoding") ||
-        (req.has_header("Content-Length") && req.get_header_value("Content-Length") != "0"))
-      return refuse(413, "a " + req.method + " request takes no body");
-    if (req.target.size() > options_.max_target_bytes)
-      return refuse(414, "request target of " + std::to_string(req.target.size()) +
-                             " bytes; the limit is " + std::to_string(options_.max_target_bytes));
+        (req.has_header("Content-Length") && req.get_header_value("Content-Length") != "0")) {
+      jsonError(res, 413, "a " + req.method + " request takes no body");
+      return true;
+    }
+    if (req.target.size() > options_.max_target_bytes) {
+      jsonError(res, 414,
+                "request target of " + std::to_string(req.target.size()) + " bytes; the limit is " +
+                    std::to_string(options_.max_target_bytes));
+      return true;
+    }
     if (options_.token.empty() && req.has_header("Host") &&
         !loopbackHostHeader(req.get_header_value("Host"))) {
       jsonError(res, 403,
@@ -262,7 +277,7 @@ HttpEndpoint::HttpEndpoint(Store& store, Executor& pool, HttpOptions options)
                     "' is not a loopback name: without --token-file foamd answers only requests "
                     "addressed to localhost, 127.0.0.0/8 or [::1] (a page elsewhere could reach "
                     "it by rebinding its DNS name)");
-      return httplib::Server::HandlerResponse::Handled;
+      return true;
     }
     if (!options_.token.empty() && !isPublic(req.path, options_.metrics_public) &&
         !sameSecret(req.get_header_value("Authorization"), "Bearer " + options_.token)) {
@@ -270,18 +285,31 @@ HttpEndpoint::HttpEndpoint(Store& store, Executor& pool, HttpOptions options)
       jsonError(res, 401,
                 req.has_header("Authorization") ? "wrong token"
                                                 : "missing 'Authorization: Bearer <token>'");
-      return httplib::Server::HandlerResponse::Handled;
+      return true;
     }
-    return httplib::Server::HandlerResponse::Unhandled;
-  });
-  srv.Get(".*", [this](const httplib::Request& req, httplib::Response& res) {
+    return false;
+  };
+  auto answer = [this](const httplib::Request& req, httplib::Response& res) {
     int code = 200;
     std::string type;
     std::string body = handle(req.target, code, type);
     res.status = code;
     res.set_content(std::move(body), type);
+  };
+  srv.set_pre_routing_handler([refused](const httplib::Request& req, httplib::Response& res) {
+    ignoreRanges(req, res);
+    return refused(req, res) ? httplib::Server::HandlerResponse::Handled
+                             : httplib::Server::HandlerResponse::Unhandled;
   });
-  srv.set_error_handler([](const httplib::Request&, httplib::Response& res) {
+  srv.Get(".*", answer);
+  srv.set_error_handler([refused, answer](const httplib::Request& req, httplib::Response& res) {
+    ignoreRanges(req, res);
+    // The library answers a Range header it cannot parse (another unit, FIRST > LAST) with 416
+    // before any route; it is ignored here as every Range is: the whole answer.
+    if (res.status == 416 && res.body.empty()) {
+      if (!refused(req, res)) answer(req, res);
+      return;
+    }
     // The library's own refusals (a malformed request, a target too long) come without a body.
     if (!res.body.empty()) return;
     const int c = res.status;

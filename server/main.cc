@@ -4,6 +4,7 @@
 //         [--token-file F] [--http HOST:PORT [--http-threads N] [--metrics-public]]
 //         [--tls-cert F --tls-key F] [--insecure-public] [--config F] [--keep-snapshots N]
 //         [--log-level L] [--allow-unstable]
+//   foamd --check-db [--db PATH]
 //
 // With no flags: gRPC on 127.0.0.1:50051, database $XDG_DATA_HOME/activefoam/foamd.db (or
 // ~/.local/share/activefoam/foamd.db), one engine worker per core. The config file is TOML with
@@ -11,16 +12,21 @@
 // A non-loopback --listen needs --token-file (and with it TLS) unless --insecure-public; a
 // non-loopback --http always needs the token and TLS. The token guards every HTTP route but the
 // dashboard's page and /healthz (and /metrics with --metrics-public).
-// SIGTERM / SIGINT / SIGHUP: stop accepting, stop the workers (their jobs go back to the queue and
-// resume from their last checkpoint on the next start), close the store. Exit 0; 2 on bad usage or
+// SIGTERM / SIGINT / SIGHUP / SIGQUIT / SIGXCPU: stop accepting, stop the workers (their jobs go
+// back to the queue and resume from their last checkpoint on the next start), close the store,
+// with a log line naming the signal. SIGUSR1, SIGUSR2, SIGALRM and the other signals that would
+// end a process are logged and ignored; SIGPIPE is ignored (kSignals). Exit 0; 2 on bad usage or
 // when the server cannot start.
 #include <algorithm>
 #include <cmath>
 #include <csignal>
+#include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <memory>
 #include <sstream>
 #include <thread>
@@ -30,6 +36,7 @@
 #include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
 
+#include "activefoam/cli_finite.h"
 #include "activefoam/host_port.h"
 #include "activefoam/pem_file.h"
 #include "activefoam/token_file.h"
@@ -76,6 +83,51 @@ std::string keyPairError(const std::string& cert_pem, const std::string& key_pem
   return why;
 }
 
+std::string utcText(const std::tm& tm) {
+  char buf[40];
+  std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M:%S UTC", &tm);
+  return buf;
+}
+
+std::string utcText(const ASN1_TIME* t) {
+  std::tm tm{};
+  return ASN1_TIME_to_tm(t, &tm) == 1 ? utcText(tm) : "(an unreadable date)";
+}
+
+// Empty when every certificate of the PEM file (--tls-cert: the server's, then its chain) is
+// valid now; else which one is not, with its dates. An expired certificate was served: clients
+// saw only "certificate verify failed" and foamd's log said nothing. One that expires within 30
+// days is warned of.
+std::string certificateDatesError(const std::string& pem, const std::string& path) {
+  BIO* b = BIO_new_mem_buf(pem.data(), static_cast<int>(pem.size()));
+  std::time_t now = std::time(nullptr);
+  std::tm now_tm{};
+  gmtime_r(&now, &now_tm);
+  std::string why;
+  for (int k = 1; why.empty(); ++k) {
+    X509* cert = PEM_read_bio_X509(b, nullptr, nullptr, nullptr);
+    if (!cert) break;  // the end (a file without one is keyPairError's to name)
+    const ASN1_TIME* from = X509_get0_notBefore(cert);
+    const ASN1_TIME* to = X509_get0_notAfter(cert);
+    const std::string which = "--tls-cert '" + path + "': " +
+                              (k == 1 ? std::string("the certificate")
+                                      : "certificate " + std::to_string(k) + " of the file");
+    const std::string dates =
+        " (valid from " + utcText(from) + " to " + utcText(to) + "; now " + utcText(now_tm) + ")";
+    if (X509_cmp_time(from, &now) > 0)
+      why = which + " is not valid yet" + dates +
+            ": check this machine's clock, or use a certificate valid now";
+    else if (X509_cmp_time(to, &now) < 0)
+      why = which + " has expired" + dates + ": renew it";
+    else if (std::time_t soon = now + 30 * 86400; X509_cmp_time(to, &soon) < 0)
+      spdlog::warn("foamd: {} expires on {}: renew it before then (clients will refuse it)", which,
+                   utcText(to));
+    X509_free(cert);
+  }
+  BIO_free(b);
+  return why;
+}
+
 // "INI was not able to parse token_file" → the key, what it is, and the closest known key.
 std::string configErrorMessage(const CLI::App& app, const std::string& what) {
   const std::string prefix = "INI was not able to parse ";
@@ -95,19 +147,25 @@ std::string configErrorMessage(const CLI::App& app, const std::string& what) {
   return msg + "; the keys are the long flag names without '--'";
 }
 
-}  // namespace
+// The signals foamd takes in its main thread (sigwait): those that stop it, and those that are
+// logged and ignored. Between them, every standard asynchronous signal whose default action ends
+// a process, but SIGPIPE and SIGXFSZ (ignored outright, main) and SIGPROF (left to a profiler).
+struct SignalAction {
+  int sig;
+  const char* name;
+  bool stops;
+};
+constexpr SignalAction kSignals[] = {
+    {SIGTERM, "SIGTERM", true},     {SIGINT, "SIGINT", true},
+    {SIGHUP, "SIGHUP", true},    // the terminal closed
+    {SIGQUIT, "SIGQUIT", true},  // its default would dump core: a stop here, with the store closed
+    {SIGXCPU, "SIGXCPU", true},  // the soft CPU limit: stop cleanly before the hard one kills
+    {SIGUSR1, "SIGUSR1", false},    {SIGUSR2, "SIGUSR2", false},
+    {SIGALRM, "SIGALRM", false},    {SIGVTALRM, "SIGVTALRM", false},
+    {SIGIO, "SIGIO", false},        {SIGPWR, "SIGPWR", false},
+    {SIGSTKFLT, "SIGSTKFLT", false}};
 
-// CLI11's PositiveNumber and Range let NaN through (every comparison with NaN is false):
-// `--checkpoint-every-s nan` started foamd (tests/adversarial). Checked first: CLI11 reports
-// the first validator that fails.
-const CLI::Validator kFinite(
-    [](std::string& s) {
-      char* end = nullptr;
-      const double v = std::strtod(s.c_str(), &end);
-      return end != s.c_str() && !std::isfinite(v) ? "'" + s + "' is not a finite number"
-                                                   : std::string();
-    },
-    "FINITE");
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"foamd: activefoam simulation server (gRPC API, SQLite store, engine pool)"};
@@ -153,7 +211,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 1000000));
   app.add_option("--checkpoint-every-s", checkpoint_every_s,
                  "simulated seconds between checkpoints of a running job")
-      ->check(kFinite)
+      ->check(activefoam::finiteNumber())
       ->check(CLI::PositiveNumber);
   app.add_option("--spheroid-cache", spheroid_cache,
                  "directory of prepared spheroids reused by fusion jobs (default: 'spheroids' "
@@ -185,16 +243,21 @@ int main(int argc, char** argv) {
   app.add_option("--slurm-checkpoint-every-s", slurm.checkpoint_every_s,
                  "slurm: wall-clock seconds between a task's checkpoints (foam-run "
                  "--checkpoint-every): what a requeued task recomputes at most")
-      ->check(kFinite)
+      ->check(activefoam::finiteNumber())
       ->check(CLI::Range(1.0, 1e6))
       ->capture_default_str();
   app.add_option("--slurm-poll-s", slurm.poll_every_s, "slurm: seconds between squeue polls")
-      ->check(kFinite)
+      ->check(activefoam::finiteNumber())
       ->check(CLI::Range(0.1, 3600.0))
       ->capture_default_str();
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
       ->capture_default_str();
+  bool check_db = false;
+  app.add_flag("--check-db", check_db,
+               "check the database (--db) with SQLite's integrity_check, which the start's "
+               "quick_check leaves out (every index against its table), print one line and exit: "
+               "0 sound, 1 damaged, 2 not checked (no such file, or a foamd serving it)");
   app.set_config("--config", "", "TOML config file (keys = long flag names)");
   // A key the config file misspells must not be dropped: `token_file = ...` for `token-file`
   // started foamd without its token.
@@ -207,6 +270,27 @@ int main(int argc, char** argv) {
     return 2;
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
+  }
+  if (check_db) {
+    try {
+      const DbCheck r = checkDatabase(db);
+      char cost[96];
+      std::snprintf(cost, sizeof cost, "%.1f MiB in %.1f s",
+                    static_cast<double>(r.bytes) / (1 << 20), r.seconds);
+      if (r.ok) {
+        std::cout << "foamd --check-db: database '" << db << "' is sound (integrity_check: ok; "
+                  << cost << ")" << std::endl;
+        return 0;
+      }
+      std::cout << "foamd --check-db: database '" << db
+                << "' is damaged (integrity_check: " << r.problems.substr(0, 600) << "; " << cost
+                << "): restore it from a backup, or move it aside with its -wal and -shm files"
+                << std::endl;
+      return 1;
+    } catch (const std::exception& e) {
+      std::cerr << "foamd --check-db: " << e.what() << "\n";
+      return 2;
+    }
   }
   // Given but empty (`--token-file ''`, `token-file = ""` in the config) once started foamd
   // without auth and without a word.
@@ -227,12 +311,20 @@ int main(int argc, char** argv) {
   spdlog::set_level(spdlog::level::from_str(log_level));
   spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
 
-  // Block the stop signals in every thread; the main thread waits for them below.
+  // Every signal whose default action would end foamd is handled or ignored on purpose (a
+  // SIGUSR1 or a SIGALRM once ended it with no log line, the store's writes cut short):
+  //   - the stop signals end it cleanly: running jobs re-queued, the store closed, a log line;
+  //   - the others that would kill it are logged and ignored;
+  //   - SIGPIPE is ignored outright: a client that goes away mid-answer makes that write fail
+  //     (EPIPE), not the server end. SIGXFSZ likewise: a write past the file-size limit fails
+  //     and the store reports it.
+  // The handled ones are blocked in every thread (threads started later inherit the mask) and
+  // taken by the main thread's sigwait below.
+  signal(SIGPIPE, SIG_IGN);
+  signal(SIGXFSZ, SIG_IGN);
   sigset_t sigs;
   sigemptyset(&sigs);
-  sigaddset(&sigs, SIGTERM);
-  sigaddset(&sigs, SIGINT);
-  sigaddset(&sigs, SIGHUP);  // the terminal closed: stop as for SIGTERM, with a log line
+  for (const SignalAction& a : kSignals) sigaddset(&sigs, a.sig);
   pthread_sigmask(SIG_BLOCK, &sigs, nullptr);
 
   try {
@@ -244,6 +336,8 @@ int main(int argc, char** argv) {
     if (!cert.empty())
       config.tls_cert =
           activefoam::readPemFile(cert, "--tls-cert", activefoam::PemKind::Certificate);
+    if (const std::string bad = certificateDatesError(config.tls_cert, cert); !bad.empty())
+      throw std::runtime_error(bad);
     if (!key.empty())
       config.tls_key = activefoam::readPemFile(key, "--tls-key", activefoam::PemKind::PrivateKey);
     if (!cert.empty() && !key.empty())
@@ -325,11 +419,21 @@ int main(int argc, char** argv) {
     if (!http.empty()) endpoint = std::make_unique<HttpEndpoint>(store, *pool, http_options);
     pool->start();
 
-    int sig = 0;
-    sigwait(&sigs, &sig);
-    spdlog::info("foamd: {} received, shutting down", sig == SIGTERM  ? "SIGTERM"
-                                                      : sig == SIGHUP ? "SIGHUP"
-                                                                      : "SIGINT");
+    for (;;) {
+      int sig = 0;
+      sigwait(&sigs, &sig);
+      const SignalAction* a = std::find_if(std::begin(kSignals), std::end(kSignals),
+                                           [&](const SignalAction& x) { return x.sig == sig; });
+      if (a == std::end(kSignals)) continue;  // not waited for
+      if (a->stops) {
+        spdlog::info("foamd: {} received, shutting down", a->name);
+        break;
+      }
+      spdlog::warn(
+          "foamd: {} received, ignored (foamd stops on SIGTERM, SIGINT, SIGHUP or "
+          "SIGQUIT)",
+          a->name);
+    }
     server.shutdown();
     pool->stop(true);  // pool: running jobs → queued (resume from their checkpoints)
     endpoint.reset();

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <ctime>
+#include <filesystem>
 #include <random>
 #include <set>
 #include <tuple>
@@ -13,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "activefoam/run_output.h"
+#include "heap_shm_vfs.h"
 #include "store_sql.h"
 
 namespace activefoam::server {
@@ -179,6 +181,37 @@ void checkIntegrity(sqlite3* db, const std::string& path) {
 }
 
 }  // namespace
+
+DbCheck checkDatabase(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec))
+    throw std::runtime_error("database '" + path + "': no such file");
+  DbLock lock(path);
+  sqlite3* db = nullptr;
+  // Not openDb: a missing file must not be created, and the journal mode is left as it is.
+  if (sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READWRITE, sql::heapShmVfs()->zName) !=
+      SQLITE_OK) {
+    const std::string msg = db ? sqlite3_errmsg(db) : "out of memory";
+    sqlite3_close(db);
+    throw std::runtime_error("cannot open database '" + path + "': " + msg);
+  }
+  DbCheck r;
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    Stmt q(db, "PRAGMA integrity_check(20)");
+    while (q.step()) r.problems += (r.problems.empty() ? "" : "; ") + q.text(0);
+  } catch (const SqliteError& e) {
+    r.problems = e.what();  // a header or a page too damaged to walk
+  }
+  sqlite3_close(db);
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.ok = r.problems == "ok";
+  for (char& c : r.problems)
+    if (c == '\n') c = ' ';
+  r.bytes = static_cast<std::int64_t>(fs::file_size(path, ec));
+  return r;
+}
 
 Store::Store(const std::string& path, StoreOptions options)
     : path_(path), options_(options), lock_(path) {

@@ -67,6 +67,19 @@ class DbLock {
   int db_fd_ = -1;  // the database file
 };
 
+// SQLite's full integrity_check of the database at `path` (foamd --check-db), which foamd's
+// start (quick_check) leaves out: it also compares every index with its table, so a row whose
+// indexed value was altered on disk is found. Content SQLite keeps no index of (a zeroed overflow
+// page of a spec) stays unseen by both. Held under DbLock: refused (std::runtime_error, naming
+// the holder) while a foamd serves the database, and refused when no database is there.
+struct DbCheck {
+  bool ok = false;
+  std::string problems;    // the first problems SQLite reports, one line ("ok" when none)
+  std::int64_t bytes = 0;  // of the database file (its WAL, if any, is checkpointed first)
+  double seconds = 0;      // of the check
+};
+DbCheck checkDatabase(const std::string& path);
+
 struct NewJob {
   SceneSpec spec;         // resolved
   std::string spec_json;  // specToJson(spec), what the worker runs

@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 
 #include "../commands.h"
+#include "activefoam/cli_finite.h"
 #include "activefoam/snapshot_vtk.h"
 #include "activefoam/vtk.h"
 
@@ -86,6 +87,7 @@ CLI::App* setupExport(CLI::App& app, ExportOptions& o) {
                     "snapshot, a fixed camera on both spheroids, the time in a corner");
   exportc->add_option("--fps", o.fps, "with --movie: frames (snapshots) a second")
       ->capture_default_str()
+      ->check(activefoam::finiteNumber())
       ->check(CLI::Range(0.1, 120.0));
   exportc->add_option("--size", o.size, "with --movie: WIDTHxHEIGHT in pixels")
       ->capture_default_str();

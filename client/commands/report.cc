@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 
 #include "../commands.h"
+#include "activefoam/cli_finite.h"
 
 namespace activefoam::client {
 
@@ -17,10 +18,12 @@ CLI::App* setupReport(CLI::App& app, ReportArgs& o) {
   report->add_option("COMMAND", o.command, "-- foam-run SPEC --out RUN ...")->required();
   report->add_option("--attempt", o.attempt, "the executor's handle of this task")->required();
   report->add_option("--every", o.every_s, "seconds between reads of the folder")
+      ->check(activefoam::finiteNumber())
       ->check(CLI::Range(0.05, 3600.0));
   report
       ->add_option("--give-up-after", o.give_up_after_s,
                    "seconds of foamd being unreachable before giving up (exit 75)")
+      ->check(activefoam::finiteNumber())
       ->check(CLI::Range(1.0, 1e7));
   return report;
 }

@@ -54,8 +54,8 @@ def test_the_count_sums_the_grids_and_stops_early(tmp_path):
         st.load(f)
     # Two grids of 1000 points each at 1 seed: 2000 runs, the most a study holds.
     f.write_text('[study]\nname = "h"\nseeds = [1]\n[spec]\nscene = "fusion"\n'
-                 '[[grid]]\n"cells.a" = [' + ", ".join(map(str, range(1000))) + ']\n'
-                 '[[grid]]\n"cells.b" = [' + ", ".join(map(str, range(1000))) + ']\n')
+                 '[[grid]]\n"cells.alpha" = [' + ", ".join(map(str, range(1000))) + ']\n'
+                 '[[grid]]\n"cells.gamma" = [' + ", ".join(map(str, range(1000))) + ']\n')
     assert len(st.load(f).runs()) == 2000
 
 
@@ -183,3 +183,29 @@ def test_the_other_files_the_study_tool_reads_are_capped_and_named(tmp_path):
     (d / "collected.json").write_text("{not json")
     with pytest.raises(st.StudyError, match=f"--with-data: {d / 'collected.json'}: not JSON"):
         st.carried_runs(st.load(f), d)
+
+
+def test_check_refuses_a_key_no_spec_has(tmp_path):
+    # `check` passed a grid of cells.bogus, which `run` then had refused by foamd; likewise a
+    # [spec] or [[diagnose]] key. Each is named with the closest key.
+    head = '[study]\nname = "s"\nseeds = [1]\n[spec]\nscene = "fusion"\n'
+    for rest, words in [
+            ('[[grid]]\n"cells.gama" = [0.5, 0.6]\n',
+             r"grid\[0\]\.cells\.gama: unknown spec key \(did you mean 'cells\.gamma'\?\)"),
+            ('"numerics.dt" = 0.5\n[[grid]]\n"cells.alpha" = [0.5]\n',
+             r"spec\.numerics\.dt: unknown spec key \(did you mean 'numerics\.dt_s'\?\)"),
+            ('[[grid]]\n"cells.alpha" = [0.5]\n[[diagnose]]\nname = "d"\n'
+             'spec = { "numerics.remesh_keepout_um" = 1.0 }\n',
+             r"diagnose\[0\]\.spec\.numerics\.remesh_keepout_um: unknown spec key \(did you "
+             r"mean 'numerics\.remesh_keep_out_um'\?\)")]:
+        f = tmp_path / "s.toml"
+        f.write_text(head + rest)
+        with pytest.raises(st.StudyError, match=words):
+            st.load(f)
+    # The keys foam-run --keys lists, the scene's own, and the earlier switches foamd reads.
+    keys = st.studyfile.spec_keys()
+    for k in ("scene", "scene.kind", "seed", "cells.alpha", "numerics.remesh_keep_out_um",
+              "scene.n_cells_a", "scene.axes_ratio", "accuracy.contact_angle_deg",
+              "numerics.remesh_rescue"):
+        assert k in keys, k
+    assert "cells.bogus" not in keys and "cells" not in keys

@@ -17,6 +17,8 @@
 
 #include <toml++/toml.h>
 
+#include "activefoam/spec_reads.h"
+
 namespace activefoam {
 namespace {
 
@@ -647,8 +649,22 @@ std::vector<SpecError> checkSceneKeys(const SceneSpec& spec, const std::vector<s
   std::vector<std::string_view> seen;
   for (const std::string& key : keys) {
     const SpecField* f = findField(key);
-    if (!f || f->readBy(scene) || std::find(seen.begin(), seen.end(), f->key) != seen.end())
+    if (!f || std::find(seen.begin(), seen.end(), f->key) != seen.end()) continue;
+    if (f->readBy(scene)) {
+      const std::string why = unreadCondition(spec, f->key);
+      if (why.empty()) continue;
+      // Compared with the value it would have unset here: an optional key's derived default
+      // (numerics.dt_min_s: this spec's Δt/64), another key's plain default.
+      SceneSpec unset = spec;
+      if (f->optional)
+        (void)clearField(unset, f->key);
+      else if (const auto v = getField(defaults, f->key))
+        (void)setField(unset, f->key, *v);
+      if (getField(spec, f->key) == getField(resolve(unset), f->key)) continue;
+      seen.push_back(f->key);
+      errors.push_back({key, "not used: " + why + "; remove it, or change that setting"});
       continue;
+    }
     seen.push_back(f->key);
     const std::string_view field = judgedBy(f->key);
     const SceneSpec& reference = field.substr(0, 6) == "cells." ? default_cells : defaults;

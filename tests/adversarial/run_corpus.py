@@ -175,7 +175,8 @@ class Runner:
 
     def placeholders(self, s, extra=None):
         values = {"dir": str(self.tmp), "grpc_port": str(self.port),
-                  "http_port": str(self.http_port), "free_port": str(free_port())}
+                  "http_port": str(self.http_port), "free_port": str(free_port()),
+                  "server_data": str(HERE.parent / "server" / "data")}
         values.update(extra or {})
         return re.sub(r"\{(\w+)\}", lambda m: values.get(m.group(1), m.group(0)), s)
 
@@ -245,7 +246,8 @@ class Runner:
         self.expect_exit(rc, out, 2, [f"token file '{f}'"] + words, problems, "foam --token-file")
         if case.get("env", True) and b"\0" not in token:  # no NUL in an environment
             rc, out = self.run([str(FOAM), "list"], env=dict(self.env, FOAM_TOKEN=token))
-            self.expect_exit(rc, out, 2, ["FOAM_TOKEN"] + words, problems, "FOAM_TOKEN")
+            self.expect_exit(rc, out, 2, ["FOAM_TOKEN"] + case.get("env_error", words), problems,
+                             "FOAM_TOKEN")
         if activefoam is not None and case.get("python", True):
             try:
                 activefoam.Client(f"127.0.0.1:{self.port}",

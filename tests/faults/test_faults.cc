@@ -1,6 +1,7 @@
 // Fault injection against foamd as a process: the everyday mistakes of a deployment
 // must not corrupt or split results.
 #include <algorithm>
+#include <csignal>
 #include <fstream>
 #include <iostream>
 #include <iterator>
@@ -351,21 +352,203 @@ TEST(Faults, ADamagedDatabaseIsRefusedAtStart) {
   fs::remove_all(dir);
 }
 
-// A hang-up stops foamd as SIGTERM does (exit 0, its running job re-queued to resume,
-// a log line saying why) instead of killing it silently (exit 129, no log).
-TEST(Faults, SighupStopsFoamdCleanlyWithALogLine) {
+// A job's tag altered on disk in its table row (its index entry left as it was) passes the
+// quick_check that foamd's start runs: foamd serves the altered row.
+// foamd --check-db runs the full integrity_check, which compares each index with its table:
+// exit 1, one line naming the database and the index. A sound store: exit 0; one that a running
+// foamd holds, or none at all: exit 2, nothing created.
+TEST(Faults, CheckDbFindsDamageThatTheStartMisses) {
+  const fs::path dir = tempDir();
+  const fs::path db = dir / "foamd.db";
+  const std::string marker = "integrity-marker-0001";
+  {
+    Foamd a(db, freePort());
+    for (int i = 0; i < 5; ++i) ASSERT_FALSE(submitCell(a, 1e6).empty());
+    const Proc r =
+        sh(a.foam() + " submit --scene cell --set duration_s=1e6 --set numerics.dt_s=0.1 --tag " +
+           marker + " 2>&1");
+    ASSERT_EQ(r.rc, 0) << r.out;
+    const Proc held = sh(std::string(FOAMD_EXE) + " --check-db --db " + db.string() + " 2>&1");
+    EXPECT_EQ(held.rc, 2) << held.out;
+    EXPECT_NE(held.out.find("foamd --check-db: "), std::string::npos) << held.out;
+    a.stop(SIGTERM);  // the WAL checkpointed into the file
+  }
+  Proc r = sh(std::string(FOAMD_EXE) + " --check-db --db " + db.string() + " 2>&1");
+  EXPECT_EQ(r.rc, 0) << r.out;
+  EXPECT_NE(r.out.find("database '" + db.string() + "' is sound"), std::string::npos) << r.out;
+  // The marker's copies: the jobs row, on a leaf page of a rowid table (type byte 0x0d at the
+  // page's start, past the file header on page 1; the tag is among the row's first columns, so
+  // not in an overflow page), the jobs_tag entry (an index page) and the submit event (events
+  // is a table WITHOUT ROWID: index pages too).
+  std::string bytes = readAll(db);
+  const std::size_t page = 4096;
+  ASSERT_EQ(static_cast<unsigned char>(bytes[16]) * 256 + static_cast<unsigned char>(bytes[17]),
+            static_cast<int>(page));
+  std::size_t in_row = std::string::npos;
+  int rows = 0, others = 0;
+  for (std::size_t at = bytes.find(marker); at != std::string::npos;
+       at = bytes.find(marker, at + 1)) {
+    const std::size_t start = at / page * page + (at < page ? 100 : 0);
+    if (static_cast<unsigned char>(bytes[start]) == 0x0d)
+      ++rows, in_row = at;
+    else
+      ++others;
+  }
+  ASSERT_EQ(rows, 1);
+  ASSERT_GE(others, 1);                     // the index entry
+  bytes[in_row + marker.size() - 1] = '2';  // ...-0002: same length, the record stays well-formed
+  {
+    std::ofstream f(db, std::ios::binary | std::ios::trunc);
+    f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  }
+  {
+    Foamd b(db, freePort());  // quick_check passes: foamd serves the altered row
+    std::string listed;
+    for (int i = 0; i < 100; ++i) {
+      const Proc l = sh(b.foam() + " list 2>&1");
+      if (l.rc == 0) {
+        listed = l.out;
+        break;
+      }
+      std::this_thread::sleep_for(100ms);
+    }
+    EXPECT_NE(listed.find("integrity-marker-0002"), std::string::npos) << listed;
+  }
+  r = sh(std::string(FOAMD_EXE) + " --check-db --db " + db.string() + " 2>&1");
+  EXPECT_EQ(r.rc, 1) << r.out;
+  EXPECT_NE(r.out.find("database '" + db.string() + "' is damaged (integrity_check: "),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("jobs_tag"), std::string::npos) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  r = sh(std::string(FOAMD_EXE) + " --check-db --db " + (dir / "none.db").string() + " 2>&1");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("no such file"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir / "none.db"));
+  fs::remove_all(dir);
+}
+
+// Each signal that stops foamd stops it as SIGTERM does: exit 0, its running job re-queued to
+// resume, a log line naming the signal, and a store that passes SQLite's integrity_check
+// (foamd --check-db) and serves the job on the next start. SIGHUP once killed it in silence
+// (exit 129, no log), SIGQUIT with a core dump.
+class StopSignal : public ::testing::TestWithParam<std::pair<int, std::string>> {};
+
+TEST_P(StopSignal, StopsFoamdCleanlyWithALogLine) {
+  const auto& [sig, name] = GetParam();
+  const fs::path dir = tempDir();
+  const int port = freePort();
+  std::string id;
+  {
+    Foamd a(dir / "foamd.db", port);
+    id = submitCell(a, 3000, 100);
+    ASSERT_FALSE(id.empty());
+    for (int i = 0; i < 200 && state(a, id) != "running"; ++i) std::this_thread::sleep_for(50ms);
+    ASSERT_EQ(state(a, id), "running");
+    ::kill(a.pid(), sig);
+    const std::optional<int> rc = a.exited(30s);
+    ASSERT_TRUE(rc.has_value()) << "foamd ignored " << name;
+    EXPECT_EQ(*rc, 0) << name;
+  }
+  const std::string log = readAll(dir / "foamd.log");
+  EXPECT_NE(log.find(name + " received, shutting down"), std::string::npos) << log;
+  EXPECT_NE(log.find("re-queued at shutdown"), std::string::npos) << log;
+  EXPECT_NE(log.find("foamd: stopped"), std::string::npos) << log;
+  const Proc check =
+      sh(std::string(FOAMD_EXE) + " --check-db --db " + (dir / "foamd.db").string() + " 2>&1");
+  EXPECT_EQ(check.rc, 0) << check.out;
+  Foamd b(dir / "foamd.db", port);
+  const std::string after = state(b, id);
+  EXPECT_TRUE(after == "queued" || after == "running" || after == "succeeded") << after;
+  fs::remove_all(dir);
+}
+
+INSTANTIATE_TEST_SUITE_P(Faults, StopSignal,
+                         ::testing::Values(std::pair<int, std::string>{SIGTERM, "SIGTERM"},
+                                           std::pair<int, std::string>{SIGINT, "SIGINT"},
+                                           std::pair<int, std::string>{SIGHUP, "SIGHUP"},
+                                           std::pair<int, std::string>{SIGQUIT, "SIGQUIT"},
+                                           std::pair<int, std::string>{SIGXCPU, "SIGXCPU"}),
+                         [](const auto& info) { return info.param.second; });
+
+// SIGUSR1, SIGUSR2, SIGALRM and SIGPIPE ended foamd with no log line (exit 138, 140, 142, 141).
+// Each signal whose default would end it is logged and ignored, SIGPIPE ignored without a word;
+// foamd then serves and runs a job. Without --http: cpp-httplib ignores SIGPIPE for the whole
+// process once its server exists, which hid the gap whenever the dashboard was on.
+TEST(Faults, SignalsThatDoNotStopFoamdAreIgnored) {
   const fs::path dir = tempDir();
   Foamd a(dir / "foamd.db", freePort());
-  const std::string id = submitCell(a, 3000, 100);
+  ASSERT_FALSE(submitCell(a, 1).empty());  // serving
+  const std::vector<std::pair<int, std::string>> ignored = {
+      {SIGUSR1, "SIGUSR1"},     {SIGUSR2, "SIGUSR2"}, {SIGALRM, "SIGALRM"},
+      {SIGVTALRM, "SIGVTALRM"}, {SIGIO, "SIGIO"},     {SIGPWR, "SIGPWR"},
+      {SIGSTKFLT, "SIGSTKFLT"}, {SIGPIPE, "SIGPIPE"}};
+  for (const auto& [sig, name] : ignored) {
+    ::kill(a.pid(), sig);
+    std::this_thread::sleep_for(100ms);
+    ASSERT_FALSE(a.exited(0ms).has_value()) << "foamd ended on " << name;
+  }
+  const std::string id = submitCell(a, 1);
   ASSERT_FALSE(id.empty());
-  for (int i = 0; i < 200 && state(a, id) != "running"; ++i) std::this_thread::sleep_for(50ms);
-  ::kill(a.pid(), SIGHUP);
-  const std::optional<int> rc = a.exited(30s);
-  ASSERT_TRUE(rc.has_value()) << "foamd ignored SIGHUP";
-  EXPECT_EQ(*rc, 0);
+  for (int i = 0; i < 200 && state(a, id) != "succeeded"; ++i) std::this_thread::sleep_for(50ms);
+  EXPECT_EQ(state(a, id), "succeeded");
+  a.stop(SIGTERM);
   const std::string log = readAll(dir / "foamd.log");
-  EXPECT_NE(log.find("SIGHUP received, shutting down"), std::string::npos) << log;
-  EXPECT_NE(log.find("re-queued at shutdown"), std::string::npos) << log;
+  for (const auto& [sig, name] : ignored) {
+    if (sig == SIGPIPE) continue;
+    EXPECT_NE(log.find(name + " received, ignored"), std::string::npos) << name << "\n" << log;
+  }
+  EXPECT_EQ(log.find("SIGPIPE"), std::string::npos) << log;
+  fs::remove_all(dir);
+}
+
+// A TLS client of the HTTP endpoint that is gone before its answer: foamd's writes to it fail
+// with EPIPE (SSL_write writes without MSG_NOSIGNAL, so each raises SIGPIPE). foamd goes on
+// serving: the client then reads /healthz whole.
+TEST(Faults, AClientGoneMidAnswerDoesNotStopFoamd) {
+  const fs::path dir = tempDir();
+  const int http = freePort();
+  const std::string data = SERVER_TEST_DATA;
+  fs::copy_file(data + "/test-key.pem", dir / "key.pem");
+  fs::permissions(dir / "key.pem", fs::perms::owner_read | fs::perms::owner_write);
+  Foamd a(dir / "foamd.db", freePort(), 1,
+          {"--http", "127.0.0.1:" + std::to_string(http), "--tls-cert", data + "/test-cert.pem",
+           "--tls-key", (dir / "key.pem").string()});
+  // Asks for the dashboard's script (32 KiB, several TLS records) and closes at once, five
+  // times; then /healthz.
+  const Proc gone = sh("/usr/bin/python3 - " + std::to_string(http) +
+                       " 2>&1 <<'EOF'\n"
+                       "import socket, ssl, sys, time\n"
+                       "ctx = ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT)\n"
+                       "ctx.check_hostname = False\n"
+                       "ctx.verify_mode = ssl.CERT_NONE\n"
+                       "def connect():\n"
+                       "    for _ in range(100):\n"
+                       "        try:\n"
+                       "            return ctx.wrap_socket(socket.create_connection(('127.0.0.1', "
+                       "int(sys.argv[1]))))\n"
+                       "        except OSError:\n"
+                       "            time.sleep(0.1)\n"
+                       "    sys.exit('foamd did not listen')\n"
+                       "for _ in range(5):\n"
+                       "    t = connect()\n"
+                       "    t.sendall(b'GET /app.js HTTP/1.1\\r\\nHost: 127.0.0.1\\r\\n\\r\\n')\n"
+                       "    t.close()\n"
+                       "    time.sleep(0.3)\n"
+                       "t = connect()\n"
+                       "t.sendall(b'GET /healthz HTTP/1.1\\r\\nHost: 127.0.0.1\\r\\n\\r\\n')\n"
+                       "answer = b''\n"
+                       "try:\n"
+                       "    while chunk := t.recv(4096):\n"
+                       "        answer += chunk\n"
+                       "except OSError:\n"
+                       "    pass  # closed without a close_notify: the answer is read\n"
+                       "print(answer.decode())\n"
+                       "EOF");
+  EXPECT_EQ(gone.rc, 0) << gone.out;
+  EXPECT_NE(gone.out.find("HTTP/1.1 200"), std::string::npos) << gone.out;
+  EXPECT_NE(gone.out.find("{\"status\":\"ok\"}"), std::string::npos) << gone.out;
+  EXPECT_FALSE(a.exited(0ms).has_value()) << "foamd ended when a client left mid-answer";
   fs::remove_all(dir);
 }
 
@@ -456,6 +639,39 @@ TEST(Faults, TokensThatCannotBeSentAreRefusedAtLoad) {
   EXPECT_EQ(env.rc, 2) << env.out;
   EXPECT_NE(env.out.find("FOAM_TOKEN has byte 0x20"), std::string::npos) << env.out;
   fs::remove_all(dir);
+}
+
+// An empty FOAM_TOKEN (`FOAM_TOKEN=$TOKEN` with TOKEN unset) made foam call without a token in
+// silence, and so did `--token-file ''`; `--tls-ca ''` connected without TLS. Each is an error
+// naming the variable or option (exit 2) before any call: foam is pointed at port 1, where a
+// call would end in "unreachable" (exit 3) instead.
+TEST(Faults, EmptyTokenAndCaValuesOfFoamAreErrors) {
+  const std::string foam = std::string(FOAM_EXE) + " --server 127.0.0.1:1";
+  Proc r = sh("FOAM_TOKEN= timeout 10 " + foam + " list 2>&1");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("FOAM_TOKEN holds 0 bytes"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("set but empty"), std::string::npos) << r.out;
+  for (const std::string opt : {"--token-file", "--tls-ca"}) {
+    r = sh("timeout 10 " + std::string(FOAM_EXE) + " --server 127.0.0.1:1 " + opt +
+           " '' list 2>&1");
+    EXPECT_EQ(r.rc, 2) << opt << ": " << r.out;
+    EXPECT_NE(r.out.find(opt + ": empty"), std::string::npos) << r.out;
+  }
+  // Unset is no token: the call is made (and finds nothing on port 1).
+  r = sh("env -u FOAM_TOKEN timeout 10 " + foam + " list 2>&1");
+  EXPECT_EQ(r.rc, 3) << r.out;
+}
+
+// CLI11's Range lets NaN through (every comparison with it is false): `foam export --movie
+// --fps nan` reached ffmpeg. A number option that is not finite is refused naming the option
+// (exit 2), before any call.
+TEST(Faults, NonFiniteNumbersOfFoamAreRefused) {
+  for (const std::string v : {"nan", "inf", "-inf"}) {
+    const Proc r = sh("timeout 10 " + std::string(FOAM_EXE) +
+                      " --server 127.0.0.1:1 export j-1 x.mp4 --movie --fps " + v + " 2>&1");
+    EXPECT_EQ(r.rc, 2) << v << ": " << r.out;
+    EXPECT_NE(r.out.find("--fps: '" + v + "' is not a finite number"), std::string::npos) << r.out;
+  }
 }
 
 // `foam submit /dev/zero` was OOM-killed at 24 GB and `yes | foam submit -` never

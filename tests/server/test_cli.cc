@@ -473,6 +473,51 @@ TEST(Cli, TlsFilesAreCheckedAtStartNamingTheFile) {
   fs::remove_all(dir);
 }
 
+// A certificate outside its validity period was served: clients saw only "certificate verify
+// failed". foamd refuses it at start, naming the file and the certificate's dates, before the
+// database is touched; with the same key, a certificate valid now starts.
+TEST(Cli, CertificatesOutsideTheirDatesAreRefusedAtStart) {
+  const fs::path dir = tempDir();
+  const fs::path data = SERVER_TEST_DATA;
+  fs::copy_file(data / "test-key.pem", dir / "key.pem");
+  fs::permissions(dir / "key.pem", fs::perms::owner_read | fs::perms::owner_write);
+  auto foamd = [&](const fs::path& cert, int timeout_s = 10) {
+    return sh("timeout " + std::to_string(timeout_s) + " " + std::string(FOAMD_EXE) +
+              " --listen 127.0.0.1:" + std::to_string(freePort()) + " --db " +
+              (dir / "foamd.db").string() + " --tls-cert " + cert.string() + " --tls-key " +
+              (dir / "key.pem").string() + " 2>&1");
+  };
+  Proc r = foamd(data / "expired-cert.pem");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("--tls-cert '" + (data / "expired-cert.pem").string() +
+                       "': the certificate has expired (valid from 2000-01-01 00:00:00 UTC to "
+                       "2001-01-01 00:00:00 UTC; now "),
+            std::string::npos)
+      << r.out;
+  r = foamd(data / "future-cert.pem");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("--tls-cert '" + (data / "future-cert.pem").string() +
+                       "': the certificate is not valid yet (valid from 2100-01-01 00:00:00 UTC "
+                       "to 2101-01-01 00:00:00 UTC; now "),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("check this machine's clock"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir / "foamd.db"));
+  // A chain whose second certificate has expired: named as such.
+  {
+    std::ofstream chain(dir / "chain.pem");
+    chain << std::ifstream(data / "test-cert.pem").rdbuf()
+          << std::ifstream(data / "expired-cert.pem").rdbuf();
+  }
+  r = foamd(dir / "chain.pem");
+  EXPECT_EQ(r.rc, 2) << r.out;
+  EXPECT_NE(r.out.find("certificate 2 of the file has expired"), std::string::npos) << r.out;
+  // The key and a certificate valid now: foamd starts (and serves until `timeout` ends it).
+  r = foamd(data / "test-cert.pem", 3);
+  EXPECT_EQ(r.rc, 124) << r.out;
+  fs::remove_all(dir);
+}
+
 TEST(Cli, TlsAndTokenFromFlagsAndEnvironment) {
   const fs::path dir = tempDir();
   const std::string cert = std::string(SERVER_TEST_DATA) + "/test-cert.pem";

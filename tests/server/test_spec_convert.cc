@@ -272,6 +272,87 @@ TEST(SpecConvert, TheRemeshKeepOutTravels) {
       << errorText(r.errors);
 }
 
+// Keys read only under another key's setting (the key table's read_if): the remesher's five
+// with remeshing off (remesh_every_s = 0: RemeshPolicy never remeshes), numerics.dt_min_s
+// without the adaptive step, and numerics.remesh_keep_out_um on a single cell (nothing touches
+// it) were accepted and changed nothing. Each is refused naming the key and the setting; the
+// same keys run where they are read, and a resolved spec that lists them at the values they
+// have unset passes.
+TEST(SpecConvert, KeysReadOnlyUnderAnotherSettingAreRefusedWhereUnread) {
+  const std::vector<std::string> remesh = {
+      "numerics.remesh_min_area_factor=0.25", "numerics.remesh_max_area_factor=4",
+      "numerics.remesh_on_surface=false", "numerics.remesh_repair=none",
+      "numerics.remesh_keep_out_um=1"};
+  for (const std::string& set : remesh) {
+    const std::string key = set.substr(0, set.find('='));
+    ConvertResult r =
+        convertSpec(v1::SceneSpec{}, "", {"scene=doublet", "numerics.remesh_every_s=0", set});
+    ASSERT_FALSE(r.ok()) << set;
+    ASSERT_EQ(r.errors.size(), 1u) << errorText(r.errors);
+    EXPECT_EQ(r.errors[0].field, key);
+    EXPECT_EQ(r.errors[0].message,
+              "not used: read only while remeshing is on (numerics.remesh_every_s > 0), which "
+              "this spec turns off (numerics.remesh_every_s = 0); remove it, or change that "
+              "setting");
+    // In the spec text, before the key that turns remeshing off, alike.
+    std::string value = set.substr(set.find('=') + 1);
+    if (value == "none") value = "\"none\"";
+    r = convertSpec(v1::SceneSpec{},
+                    "scene = \"doublet\"\n[numerics]\n" + key.substr(9) + " = " + value +
+                        "\nremesh_every_s = 0\n",
+                    {});
+    EXPECT_FALSE(r.ok()) << set;
+    r = convertSpec(v1::SceneSpec{}, "", {"scene=doublet", set});
+    EXPECT_TRUE(r.ok()) << set << ": " << errorText(r.errors);
+    r = convertSpec(v1::SceneSpec{}, "", {"scene=doublet", "numerics.remesh_every_s=30", set});
+    EXPECT_TRUE(r.ok()) << set << ": " << errorText(r.errors);
+  }
+  // At their defaults they change nothing either way.
+  ConvertResult r =
+      convertSpec(v1::SceneSpec{}, "",
+                  {"scene=doublet", "numerics.remesh_every_s=0",
+                   "numerics.remesh_max_area_factor=3", "numerics.remesh_keep_out_um=0"});
+  EXPECT_TRUE(r.ok()) << errorText(r.errors);
+
+  r = convertSpec(v1::SceneSpec{}, "",
+                  {"scene=cell", "numerics.adaptive=false", "numerics.dt_min_s=0.001"});
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.errors[0].field, "numerics.dt_min_s");
+  EXPECT_EQ(r.errors[0].message,
+            "not used: read only by the adaptive step (numerics.adaptive = true), which this spec "
+            "turns off (numerics.adaptive = false); remove it, or change that setting");
+  r = convertSpec(v1::SceneSpec{}, "", {"scene=cell", "numerics.dt_min_s=0.001"});
+  EXPECT_TRUE(r.ok()) << errorText(r.errors);
+
+  r = convertSpec(v1::SceneSpec{}, "", {"scene=cell", "numerics.remesh_keep_out_um=1"});
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.errors[0].field, "numerics.remesh_keep_out_um");
+  EXPECT_NE(r.errors[0].message.find("not used by the cell scene (only by: doublet, spheroid, "
+                                     "fusion)"),
+            std::string::npos)
+      << r.errors[0].message;
+
+  // A resolved spec (spec.json, what a Slurm task runs) lists every key: with remeshing and the
+  // adaptive step off, at a Δt of its own (dt_min_s resolved to that Δt/64), it passes.
+  SceneSpec fixed;
+  fixed.scene = SceneKind::Doublet;
+  fixed.numerics.remesh_every_s = 0;
+  fixed.numerics.adaptive = false;
+  fixed.numerics.dt_s = 0.05;
+  const SceneSpec resolved = resolve(fixed);
+  ASSERT_TRUE(resolved.numerics.dt_min_s.has_value());
+  const std::vector<std::string> all = {
+      "numerics.remesh_min_area_factor", "numerics.remesh_max_area_factor",
+      "numerics.remesh_on_surface",      "numerics.remesh_repair",
+      "numerics.remesh_keep_out_um",     "numerics.dt_min_s"};
+  EXPECT_TRUE(activefoam::checkSceneKeys(resolved, all).empty())
+      << errorText(activefoam::checkSceneKeys(resolved, all));
+  SceneSpec odd = resolved;
+  odd.numerics.dt_min_s = 0.01;
+  ASSERT_EQ(activefoam::checkSceneKeys(odd, all).size(), 1u);
+  EXPECT_EQ(activefoam::checkSceneKeys(odd, all)[0].field, "numerics.dt_min_s");
+}
+
 TEST(SpecConvert, MissingSceneNamesTheSceneKey) {
   ConvertResult r = convertSpec(v1::SceneSpec{});
   ASSERT_FALSE(r.ok());

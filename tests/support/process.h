@@ -63,6 +63,13 @@ class Foamd {
   void start() {
     pid_ = fork();
     if (pid_ == 0) {
+      // foamd as a shell starts it: default dispositions, nothing blocked (an ignored SIGPIPE
+      // of the test's parent would pass on through exec and hide foamd's own handling).
+      for (int sig = 1; sig < NSIG; ++sig)
+        if (sig != SIGKILL && sig != SIGSTOP) ::signal(sig, SIG_DFL);
+      sigset_t none;
+      sigemptyset(&none);
+      sigprocmask(SIG_SETMASK, &none, nullptr);
       const std::string listen = "127.0.0.1:" + std::to_string(port_);
       const std::string log = (db_.parent_path() / "foamd.log").string();
       freopen(log.c_str(), "a", stderr);

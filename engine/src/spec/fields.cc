@@ -2,6 +2,7 @@
 // value lives in a SceneSpec, and what the fingerprint, the preparation, the scene check and
 // clients need to know of it (SpecField). Adding a key is one entry here and its use.
 #include "activefoam/spec.h"
+#include "activefoam/spec_reads.h"
 
 #include <string>
 #include <utility>
@@ -54,7 +55,7 @@ SpecField choice(std::string key, std::vector<std::string> choices, std::string 
                std::move(choices));
 }
 
-// Annotations of the entry just added (SpecField: label, before, prep, scenes).
+// Annotations of the entry just added (SpecField: label, before, prep, scenes; Entry: read_if).
 constexpr unsigned kContacts = 0xE;  // doublet, spheroid, fusion: the scenes with contacts
 constexpr unsigned kFusionOnly = 1u << 3;
 void label(std::vector<Entry>& t) {
@@ -73,6 +74,16 @@ void prepOwn(std::vector<Entry>& t) {
 void readBy(std::vector<Entry>& t, unsigned scenes) {
   t.back().field.scenes = scenes;
 }
+void readIf(std::vector<Entry>& t, bool (*when)(const SceneSpec&), const char* text) {
+  t.back().read_if = when;
+  t.back().read_if_text = text;
+}
+bool remeshing(const SceneSpec& s) {
+  return remeshEveryS(s) > 0;
+}
+constexpr const char* kRemeshing =
+    "read only while remeshing is on (numerics.remesh_every_s > 0), which this spec turns off "
+    "(numerics.remesh_every_s = 0)";
 constexpr unsigned scenes(SceneKind k) {
   return 1u << static_cast<unsigned>(k);
 }
@@ -220,25 +231,31 @@ const std::vector<Entry>& entries() {
     t.push_back({real("numerics.remesh_min_area_factor", kOpen, 0, 1, kOpen, "",
                       "collapse triangles smaller than factor · A_Δ (A_Δ = 4πr²/triangles)"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.remesh_min_area_factor; }});
+    readIf(t, remeshing, kRemeshing);
     t.push_back({real("numerics.remesh_max_area_factor", kOpen, 1, 100, kClosed, "",
                       "split triangles larger than factor · A_Δ"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.remesh_max_area_factor; }});
+    readIf(t, remeshing, kRemeshing);
     t.push_back({boolean("numerics.remesh_on_surface",
                          "remeshing's smoothing keeps vertices on the cell's surface; false: "
                          "moves them along their normals, which can push one into a neighbour"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.remesh_on_surface; }});
+    readIf(t, remeshing, kRemeshing);
     since(t, false);
     t.push_back({choice("numerics.remesh_repair", {"none", "rescue", "rescue-rebuild"},
                         "a sliver the remesher cannot collapse: rescue remeshes the cell again "
                         "allowing valence 3, rescue-rebuild then lays a fresh mesh on a cell that "
                         "still has one; none leaves it (it can invert)"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.remesh_repair; }});
+    readIf(t, remeshing, kRemeshing);
     since(t, std::string("none"));
     prepAt(t, std::string("none"));
     t.push_back({real("numerics.remesh_keep_out_um", kClosed, 0, 100, kClosed, "µm",
                       "refuse a collapse (or rebuild) that puts a vertex deeper than this inside "
                       "a touching cell; 0: off"),
                  [](SceneSpec& s) -> Slot { return &s.numerics.remesh_keep_out_um; }});
+    readIf(t, remeshing, kRemeshing);
+    readBy(t, kContacts);  // out of a touching cell: a single cell has none
     since(t, 0.0);
     prepAt(t, 0.0);
     t.push_back({choice("numerics.contact_quadrature", {"exact", "dunavant7", "centroid"},
@@ -279,6 +296,10 @@ const std::vector<Entry>& entries() {
     t.push_back({real("numerics.dt_min_s", kOpen, 0, 10, kClosed, "s",
                       "smallest time step of the adaptive schedule; default dt_s/64", true),
                  [](SceneSpec& s) -> Slot { return &s.numerics.dt_min_s; }});
+    readIf(
+        t, [](const SceneSpec& s) { return s.numerics.adaptive; },
+        "read only by the adaptive step (numerics.adaptive = true), which this spec turns off "
+        "(numerics.adaptive = false)");
     prepAt(t, std::nullopt);
     t.back().at_before = [](const SceneSpec& s) {
       return dtMinS(s.numerics) == defaultDtMinS(s.numerics.dt_s);
@@ -384,6 +405,12 @@ const std::vector<SpecField>& specFields() {
     return f;
   }();
   return fields;
+}
+
+std::string unreadCondition(const SceneSpec& spec, std::string_view key) {
+  const Entry* e = findEntry(key);
+  if (!e || !e->read_if || e->read_if(spec)) return {};
+  return e->read_if_text;
 }
 
 const SpecField* findField(std::string_view key) {

@@ -29,6 +29,11 @@ struct Entry {
   // For a `before` that is not one value (numerics.dt_min_s: its derived default): whether the
   // spec holds the key at it.
   bool (*at_before)(const SceneSpec&) = nullptr;
+  // A key read only under a setting of another key (the remesher's while remeshing is on):
+  // whether the (resolved) spec reads it, and the words that say when it does (spec_reads.h).
+  // Null: read wherever its scene reads it.
+  bool (*read_if)(const SceneSpec&) = nullptr;
+  const char* read_if_text = nullptr;
 };
 
 // Whether `spec` holds the entry's key at its `before` value (false for a key without one).

@@ -116,6 +116,31 @@ def _unknown(keys, known, where: str) -> None:
                              f"{', '.join(sorted(known))}")
 
 
+def spec_keys() -> frozenset:
+    """Every key a spec may set, as foam-run --keys lists them (and the earlier switches foamd
+    still reads): from the generated SceneSpec message, whose fields mirror the key table —
+    scene and scene.kind, the top-level numbers, cells.*, numerics.*, accuracy.* and each
+    scene's [scene] keys."""
+    from activefoam.v1 import scene_pb2
+    keys = {"scene", "scene.kind"}
+    for f in scene_pb2.SceneSpec.DESCRIPTOR.fields:
+        if f.message_type is None:
+            keys.add(f.name)
+            continue
+        table = "scene" if f.containing_oneof is not None else f.name
+        keys.update(f"{table}.{g.name}" for g in f.message_type.fields)
+    return frozenset(keys)
+
+
+def _spec_key(where: str, key: str) -> None:
+    """`check` let a misspelt key through (a grid of cells.bogus), which `run` then had refused
+    by foamd after the first submissions."""
+    known = spec_keys()
+    if key not in known:
+        raise StudyError(f"{where}: unknown spec key{_closest(key, sorted(known))} (foam-run "
+                         "--keys lists them)")
+
+
 def _scalar(key: str, v: Any) -> Any:
     if isinstance(v, (bool, int, float, str)):
         if isinstance(v, float) and not math.isfinite(v):
@@ -348,6 +373,9 @@ def load(path: os.PathLike, _shares: bool = True,
     if not isinstance(spec, dict):
         raise StudyError("spec: a table of spec keys")
     study.spec = {k: _scalar(f"spec.{k}", v) for k, v in flatten(spec).items()}
+    for k in study.spec:
+        if k != "seed":  # named below
+            _spec_key(f"spec.{k}", k)
     if "seed" in study.spec:
         raise StudyError("spec.seed: seeds belong in study.seeds")
     if not study.base_text and "scene" not in study.spec:
@@ -373,6 +401,9 @@ def load(path: os.PathLike, _shares: bool = True,
         count = "more than 10^18" if n > 10**18 else str(n)
         raise StudyError(f"{p}: grid: {count} runs ([[grid]] products × {len(study.seeds)} "
                          f"seeds), more than the {MAX_RUNS} a study may hold: split it")
+    for i, g in enumerate(study.grids):
+        for k in g:
+            _spec_key(f"grid[{i}].{k}", k)
     swept = study.swept_keys()
     for key in ("x", "by"):
         v = getattr(study, key)
@@ -427,6 +458,7 @@ def _load_diagnosis(study: Study, i: int, d: Any) -> Diagnosis:
         raise StudyError(f"{where}.spec: a non-empty table of the spec keys the rerun changes")
     flat = {k: _scalar(f"{where}.spec.{k}", v) for k, v in flatten(spec).items()}
     for k in flat:
+        _spec_key(f"{where}.spec.{k}", k)
         if not k.startswith("numerics."):
             raise StudyError(f"{where}.spec.{k}: a diagnosis reruns the same point and seed "
                              "with other numerics: numerics.* keys only")

@@ -45,11 +45,13 @@ struct SpecParseResult {
   bool ok() const { return errors.empty(); }
 };
 
-// The keys among `keys` (those a document or settings set) that spec.scene does not use
-// (scene.n_cells on a cell, gap_um on a spheroid, the contacts' and motility's cells.* and
-// numerics.* keys on a single cell, ...) and that hold a value other than the default: one error
-// each, naming the key, the scene and the scenes that use it. A key that the
-// scene ignores is a mistake about what runs, not a harmless extra; a resolved spec, which
+// The keys among `keys` (those a document or settings set) that the run does not read and that
+// hold a value other than the one they would have unset: one error each, naming the key and why.
+// Keys of other scenes (scene.n_cells on a cell, gap_um on a spheroid, the contacts' and
+// motility's cells.* and numerics.* keys on a single cell, ...), named with the scenes that use
+// them; and keys read only under another key's setting (spec_reads.h: the remesher's with
+// remeshing off, numerics.dt_min_s without the adaptive step), named with that setting. A key
+// that goes unread is a mistake about what runs, not a harmless extra; a resolved spec, which
 // lists every key at its default, passes.
 std::vector<SpecError> checkSceneKeys(const SceneSpec& spec, const std::vector<std::string>& keys);
 
