@@ -1,0 +1,81 @@
+// The remesher of one cell surface (engine-internal), as remesh() runs it (remesh.cc).
+//
+// Each sweep works on a snapshot of the vertex→triangle incidence (rebuilt per sweep, O(T)).
+// An operation is applied only if everything it reads is unmodified since the snapshot (tracked
+// with per-triangle and per-vertex "touched" flags), so the snapshot stays valid for it.
+#pragma once
+
+#include <array>
+#include <vector>
+
+#include "activefoam/remesh.h"
+
+namespace activefoam::remesh_internal {
+
+class Remesher {
+ public:
+  Remesher(TriMesh& mesh, const RemeshParams& p, RemeshStats& st);
+
+  // The passes, and the rescue where they leave a triangle below half of A_m.
+  void run();
+  void passes();
+  void finish(std::vector<int>* old_to_new);
+  // on_surface: restores the volume the remesh changed.
+  void restoreVolume();
+
+ private:
+  // ---- snapshot structures ----
+  void computeAreas();
+  template <class Pred>
+  bool anyArea(Pred pred) const {
+    for (double a : area_)
+      if (pred(a)) return true;
+    return false;
+  }
+  void buildIncidence();
+  int valence(int i) const { return incStart_[i + 1] - incStart_[i]; }
+  int opposite(int i, int j) const;
+  bool touchedTri(int t, int nsnap) const { return t < 0 || t >= nsnap || triTouched_[t]; }
+  void removeDeadTriangles();
+
+  // ---- split ----
+  int splitSweep();
+
+  // ---- collapse ----
+  int collapseSweep();
+  bool ringsUntouched(int a, int b) const;
+  bool tryCollapse(int t, int u, int a, int b, int c, int d);
+
+  // ---- flip ----
+  int flipSweep();
+  double sinOppositeAngleSum(int i, int j, int k, int l) const;
+  bool flipAllowed(int i, int j, int k, int l, double& dv);
+  Vec3 volumeGradient(int q, int t, int u) const;
+  bool compensateFlipVolume(int t, int u, std::array<int, 4> q, double dv);
+
+  // ---- tangential smoothing ----
+  double minAngleCos(const Tri& f) const;
+  bool badTriangle(int t) const;
+  double ringWorstCos(int q) const;
+  int smoothSweep();
+  double volume() const;
+  Vec3 closestOnRing(int q, const Vec3& p) const;
+
+  TriMesh& mesh_;
+  const RemeshParams& p_;
+  RemeshStats& st_;
+  std::vector<Tri> tri_;
+  std::vector<Vec3> x_, v_;
+  std::vector<int> rep_;
+  std::vector<char> dead_;
+  int alive_ = 0;
+  bool relaxed_ = false;  // the rescue's passes
+  double vol_ = 0;
+  double v0_ = 0;  // on_surface: the volume to restore
+  std::vector<double> area_;
+  std::vector<int> incStart_, inc_, fill_, cand_, stamp_;
+  int stampId_ = 0;
+  std::vector<char> triTouched_, vertTouched_;
+};
+
+}  // namespace activefoam::remesh_internal
