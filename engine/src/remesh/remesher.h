@@ -1,4 +1,6 @@
-// The remesher of one cell surface (engine-internal), as remesh() runs it (remesh.cc).
+// The remesher of one cell surface (engine-internal), as remesh() runs it: its passes (split,
+// collapse, flip, smoothing) in remesh.cc, its repairs (the rescue, the keep-out of collapses and
+// the rebuild) in repair.cc.
 //
 // Each sweep works on a snapshot of the vertex→triangle incidence (rebuilt per sweep, O(T)).
 // An operation is applied only if everything it reads is unmodified since the snapshot (tracked
@@ -16,7 +18,7 @@ class Remesher {
  public:
   Remesher(TriMesh& mesh, const RemeshParams& p, RemeshStats& st);
 
-  // The passes, and the rescue where they leave a triangle below half of A_m.
+  // The passes, and the rescue where they leave a triangle below half of A_m (repair.cc).
   void run();
   void passes();
   void finish(std::vector<int>* old_to_new);
@@ -45,6 +47,9 @@ class Remesher {
   int collapseSweep();
   bool ringsUntouched(int a, int b) const;
   bool tryCollapse(int t, int u, int a, int b, int c, int d);
+  // RemeshParams::keep_out: refuses (true, counted) a merged vertex deeper inside a touching cell
+  // than keep_out_um and than both vertices it merges (repair.cc).
+  bool keptOut(const Vec3& merged, int a, int b);
 
   // ---- flip ----
   int flipSweep();
@@ -77,5 +82,12 @@ class Remesher {
   int stampId_ = 0;
   std::vector<char> triTouched_, vertTouched_;
 };
+
+// RemeshParams::rebuild_triangles: after the Remesher, rebuilds (rebuildRadially) a mesh still left
+// with a triangle below half of A_m, where that leaves its smallest triangle larger and engulfs no
+// touching cell's vertex (RemeshParams::keep_out_points); maps old_to_new, if given, to the new
+// vertices (repair.cc).
+void rebuildIfLeftSmall(TriMesh& mesh, const RemeshParams& params, std::vector<int>* old_to_new,
+                        RemeshStats& st);
 
 }  // namespace activefoam::remesh_internal
