@@ -1,6 +1,6 @@
 // The remesher of one cell surface (engine-internal), as remesh() runs it: its passes (split,
-// collapse, flip, smoothing) in remesh.cc, its repairs (the rescue, the keep-out of collapses and
-// the rebuild) in repair.cc.
+// collapse, flip) in remesh.cc, its tangential smoothing and the volume restore of on_surface in
+// smoothing.cc, its repairs (the rescue, the keep-out of collapses and the rebuild) in repair.cc.
 //
 // Each sweep works on a snapshot of the vertex→triangle incidence (rebuilt per sweep, O(T)).
 // An operation is applied only if everything it reads is unmodified since the snapshot (tracked
@@ -22,7 +22,7 @@ class Remesher {
   void run();
   void passes();
   void finish(std::vector<int>* old_to_new);
-  // on_surface: restores the volume the remesh changed.
+  // on_surface: restores the volume the remesh changed (smoothing.cc).
   void restoreVolume();
 
  private:
@@ -58,7 +58,7 @@ class Remesher {
   Vec3 volumeGradient(int q, int t, int u) const;
   bool compensateFlipVolume(int t, int u, std::array<int, 4> q, double dv);
 
-  // ---- tangential smoothing ----
+  // ---- tangential smoothing (smoothing.cc) ----
   double minAngleCos(const Tri& f) const;
   bool badTriangle(int t) const;
   double ringWorstCos(int q) const;
