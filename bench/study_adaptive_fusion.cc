@@ -4,7 +4,7 @@
 // several seeds. Each run reports whether it finished, its rejected tries, the shortest step it
 // took, and the first rejection: where the same run without the adaptive step
 // (numerics.adaptive = false) ends — up to that step the two runs are
-// the same run (tests/engine/test_integrator.cc).
+// the same run (tests/engine/test_adaptive_step.cc).
 //
 // Run (about 2 CPU hours; shards split the rows between processes, e.g. 0/2 and 1/2 on the
 // 2-core machine; prepared spheroids are shared through the cache):

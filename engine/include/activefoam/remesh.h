@@ -47,7 +47,7 @@ struct RemeshParams {
   // the same as without it.
   int rebuild_triangles = 0;
   // Tangential smoothing of the vertices of triangles smaller than min_area or with an angle
-  // below this (degrees; 0: off): what the collapse and flip guards refuse (see remesh.cc).
+  // below this (degrees; 0: off): what the collapse and flip guards refuse (see smoothing.cc).
   // The simulation uses 15°.
   double smooth_min_angle_deg = 0;
   // Smoothing keeps every vertex on the surface it had (numerics.remesh_on_surface): a smoothed
