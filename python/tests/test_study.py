@@ -1396,6 +1396,44 @@ def test_a_study_without_diagnose_tables_gets_the_built_in_diagnoses(tmp_path, s
         assert st.run_diagnoses(study, foamd, run) == study.listed_diagnoses()
 
 
+def test_the_built_in_diagnoses_are_the_tables_the_figure_studies_had(tmp_path):
+    # The reduced figure studies' [[diagnose]] tables, which the built-in diagnoses replaced:
+    # the same names, keys, kinds and titles, so that their committed reports regenerate as
+    # they were (the "Failed runs" list names each diagnosis).
+    tables = textwrap.dedent("""\
+        [[diagnose]]
+        name = "keep-out"
+        title = "no collapse puts a vertex past the guard's 1 µm inside a touching cell"
+        spec = { "numerics.remesh_keep_out_um" = 1.0 }
+        kinds = ["interpenetration"]
+
+        [[diagnose]]
+        name = "reference-step"
+        title = "0.25 s / 1e-3 under the law"
+        spec = { "numerics.preset" = "reference" }
+        kinds = ["volume-drift", "inverted-triangle", "non-finite", "cg-not-converged",
+                 "contact-oscillation", "step-error"]
+        """)
+    root = Path(__file__).resolve().parents[2]
+    for name in ("fig8-reduced", "fig9-reduced", "fig10-reduced", "fig11-reduced",
+                 "fig14-reduced", "fig9-scaling", "jam-day"):
+        path = root / "studies" / f"{name}.toml"
+        now = st.load(path)
+        assert not now.diagnoses and now.diagnose, name
+        (tmp_path / "specs").mkdir(exist_ok=True)
+        (tmp_path / "specs" / now.base.name).write_text(now.base_text)
+        text = path.read_text()
+        then = tmp_path / path.name
+        then.write_text(text.replace("\n[[grid]]", "\n" + tables + "\n[[grid]]", 1)
+                        .replace('file = "', 'file = "' + str(root / "studies") + "/"))
+        old = st.load(then)
+        assert old.diagnoses == now.listed_diagnoses(), name
+        data = root / "docs" / "science" / name / "data"
+        if data.is_dir():
+            runs = st.load_data(now, data).runs
+            assert st.failed_runs_markdown(now, runs) == st.failed_runs_markdown(old, runs)
+
+
 def test_the_built_in_diagnoses_read_the_runs_spec_as_foamd_resolves_it(client, tmp_path):
     # Against a real foamd: each run's diagnoses from its resolved spec are the ones a report
     # lists without foamd (the engine's defaults of the preset and the guard's depth), and
