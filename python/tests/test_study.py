@@ -161,6 +161,12 @@ BAD = [
      "[[grid]]\n'cells.alpha' = [0.5]\n[[diagnose]]\nname = 'k'\n"
      "spec = { 'numerics.dt_s' = 0.25 }\n",
      "diagnose[0].spec: the study's [spec] already sets numerics.dt_s = 0.25"),
+    ("[study]\nname = 'x'\nseeds = [1]\ndiagnose = 'no'\n[spec]\nscene = 'fusion'\n[[grid]]\n"
+     "'cells.alpha' = [0.5]\n", "study.diagnose: true"),
+    ("[study]\nname = 'x'\nseeds = [1]\ndiagnose = false\n[spec]\nscene = 'fusion'\n"
+     "[[grid]]\n'cells.alpha' = [0.5]\n[[diagnose]]\nname = 'k'\n"
+     "spec = { 'numerics.dt_s' = 0.25 }\n",
+     "study.diagnose: false turns the diagnoses off, but the file has [[diagnose]] tables"),
 ]
 
 
@@ -1262,13 +1268,14 @@ def _diagnosed_study(tmp: Path):
     return st.load(f)
 
 
-def _diagnosed_jobs(foamd):
+def _diagnosed_jobs(foamd, **settings):
     """Seed 1 failed at both α (interpenetration at 0.4375, volume drift at 0.6); seed 2
-    succeeded."""
+    succeeded. `settings`: more of the study's keys (dotted, "__" for ".")."""
+    extra = {k.replace("__", "."): v for k, v in settings.items()}
     for seed in (1, 2):
         for a in (0.4375, 0.6):
-            spec = foamd.spec({"duration_s": 240, "numerics.dt_s": 1.0, "cells.alpha": a,
-                               "seed": seed})
+            spec = foamd.spec({"duration_s": 240, "numerics.dt_s": 1.0, **extra,
+                               "cells.alpha": a, "seed": seed})
             kind = ("" if seed == 2 else "interpenetration" if a == 0.4375 else "volume-drift")
             j = _FakeJob(f"j-{a}-{seed}", seed, spec, state="FAILED" if kind else "SUCCEEDED",
                          failure_kind=kind)
@@ -1308,9 +1315,162 @@ def test_a_run_that_failed_in_the_simulation_is_rerun_once_per_diagnosis_naming_
     assert st.submit_diagnoses(study, foamd) == 2
     assert all(s["numerics.dt_s"] == "0.25" for s in foamd.submitted[3:])
     assert all(s["key"].endswith(":1") for s in foamd.submitted[3:])
-    # A study with no [[diagnose]] submits none.
-    (tmp_path / "plain").mkdir()
-    assert st.submit_diagnoses(_alpha_study(tmp_path / "plain"), foamd) == 0
+    # A study with diagnoses off submits none, for the same failed runs.
+    off = tmp_path / "off.toml"
+    off.write_text(_without_tables(study.path.read_text()).replace(
+        'seeds = [1, 2]\n', 'seeds = [1, 2]\ndiagnose = false\n'))
+    fresh = _FakeFoamd({"alpha": 0.4375})
+    _diagnosed_jobs(fresh)
+    assert st.submit_diagnoses(st.load(off), fresh) == 0 and not fresh.submitted
+
+
+def _without_tables(text: str) -> str:
+    return text[:text.index("[[diagnose]]")]
+
+
+# What foamd echoes for the keys the built-in diagnoses read, where nothing sets them; and a key
+# the preset sets where the spec does not (the study's Δt is explicit).
+_ENGINE_ECHO = {"numerics.preset": lambda spec: "standard",
+                "numerics.max_penetration_um": lambda spec: 1.0,
+                "numerics.remesh_keep_out_um": lambda spec: 0.0,
+                "numerics.cg_tol": lambda spec: 1e-3 if spec["numerics"]["preset"] == "reference"
+                else 1e-2}
+
+
+@pytest.mark.parametrize("study_keys,spec_keys,kinds_to", [
+    # A study at the default preset: an interpenetration with the keep-out at the guard's 1 µm,
+    # the volume drift at the reference preset.
+    ("", {}, {"interpenetration": ("keep-out", {"numerics.remesh_keep_out_um": "1.0"}),
+              "volume-drift": ("reference-step", {"numerics.preset": "reference"})}),
+    # A study at the reference preset: the volume drift at the supplement's Δt 0.1 s.
+    ('preset = "reference"\n', {},
+     {"interpenetration": ("keep-out", {"numerics.remesh_keep_out_um": "1.0"}),
+      "volume-drift": ("supplement-step", {"numerics.dt_s": "0.1"})}),
+    # The guard at 0.5 µm: the keep-out at 0.5 µm.
+    ("", {"numerics.max_penetration_um": 0.5},
+     {"interpenetration": ("keep-out", {"numerics.remesh_keep_out_um": "0.5"}),
+      "volume-drift": ("reference-step", {"numerics.preset": "reference"})}),
+    # Runs that had a keep-out already: the interpenetration too at the finer step.
+    ("", {"numerics.remesh_keep_out_um": 1.0},
+     {"interpenetration": ("reference-step", {"numerics.preset": "reference"}),
+      "volume-drift": ("reference-step", {"numerics.preset": "reference"})}),
+], ids=["standard", "reference", "guard-0.5", "had-keep-out"])
+def test_a_study_without_diagnose_tables_gets_the_built_in_diagnoses(tmp_path, study_keys,
+                                                                      spec_keys, kinds_to):
+    study = _diagnosed_study(tmp_path)
+    text = _without_tables(study.path.read_text()).replace(
+        'seeds = [1, 2]\n', 'seeds = [1, 2]\n' + study_keys).replace(
+        '"numerics.dt_s" = 1.0\n', '"numerics.dt_s" = 1.0\n' + "".join(
+            f'"{k}" = {v}\n' for k, v in spec_keys.items()))
+    study.path.write_text(text)
+    study = st.load(study.path)
+    assert not study.diagnoses and study.diagnose
+    foamd = _FakeFoamd({"alpha": 0.4375}, derived=_ENGINE_ECHO)
+    _diagnosed_jobs(foamd, **{k.replace(".", "__"): v for k, v in spec_keys.items()},
+                    **({"numerics__preset": "reference"} if "reference" in study_keys else {}))
+    assert st.submit_missing(study, foamd) == (0, 4)  # the failed runs are results
+    out = io.StringIO()
+    assert st.submit_diagnoses(study, foamd, out=out) == 2
+    # One rerun per failed run (seed 1 at both α), with the failed run's keys and the
+    # diagnosis's on top, under the diagnosis's name.
+    runs = study.runs()
+    by_alpha = {s["cells.alpha"]: s for s in foamd.submitted}
+    for alpha, kind in (("0.4375", "interpenetration"), ("0.6", "volume-drift")):
+        name, keys = kinds_to[kind]
+        got = by_alpha[alpha]
+        assert got["tag"] == "diag:alpha" and got["seed"] == "1"
+        assert got["key"].startswith(f"diag:alpha:{name}:"), got["key"]
+        for k, v in keys.items():
+            assert got[k] == v, (kind, k)
+        # The rest are the run's own keys.
+        assert got["numerics.dt_s"] == keys.get("numerics.dt_s", "1.0")
+        assert "numerics.remesh_keep_out_um" not in got or kind == "interpenetration" \
+            or "numerics.remesh_keep_out_um" in spec_keys
+    # Each rerun is matched to its run and diagnosis; run again, nothing more.
+    diag = matching._diag_jobs(study, foamd)
+    assert {(runs[i].point["cells.alpha"], name) for i, ds in diag.items() for name in ds} == {
+        (0.4375, kinds_to["interpenetration"][0]), (0.6, kinds_to["volume-drift"][0])}
+    assert st.submit_diagnoses(study, foamd) == 0
+    # What the report lists without foamd is what each run's resolved spec gives.
+    for run in runs:
+        assert st.run_diagnoses(study, foamd, run) == study.listed_diagnoses()
+
+
+def test_the_built_in_diagnoses_are_the_tables_the_figure_studies_had(tmp_path):
+    # The reduced figure studies' [[diagnose]] tables, which the built-in diagnoses replaced:
+    # the same names, keys, kinds and titles, so that their committed reports regenerate as
+    # they were (the "Failed runs" list names each diagnosis).
+    tables = textwrap.dedent("""\
+        [[diagnose]]
+        name = "keep-out"
+        title = "no collapse puts a vertex past the guard's 1 µm inside a touching cell"
+        spec = { "numerics.remesh_keep_out_um" = 1.0 }
+        kinds = ["interpenetration"]
+
+        [[diagnose]]
+        name = "reference-step"
+        title = "0.25 s / 1e-3 under the law"
+        spec = { "numerics.preset" = "reference" }
+        kinds = ["volume-drift", "inverted-triangle", "non-finite", "cg-not-converged",
+                 "contact-oscillation", "step-error"]
+        """)
+    root = Path(__file__).resolve().parents[2]
+    for name in ("fig8-reduced", "fig9-reduced", "fig10-reduced", "fig11-reduced",
+                 "fig14-reduced", "fig9-scaling", "jam-day"):
+        path = root / "studies" / f"{name}.toml"
+        now = st.load(path)
+        assert not now.diagnoses and now.diagnose, name
+        (tmp_path / "specs").mkdir(exist_ok=True)
+        (tmp_path / "specs" / now.base.name).write_text(now.base_text)
+        text = path.read_text()
+        then = tmp_path / path.name
+        then.write_text(text.replace("\n[[grid]]", "\n" + tables + "\n[[grid]]", 1)
+                        .replace('file = "', 'file = "' + str(root / "studies") + "/"))
+        old = st.load(then)
+        assert old.diagnoses == now.listed_diagnoses(), name
+        data = root / "docs" / "science" / name / "data"
+        if data.is_dir():
+            runs = st.load_data(now, data).runs
+            assert st.failed_runs_markdown(now, runs) == st.failed_runs_markdown(old, runs)
+
+
+def test_the_built_in_diagnoses_read_the_runs_spec_as_foamd_resolves_it(client, tmp_path):
+    # Against a real foamd: each run's diagnoses from its resolved spec are the ones a report
+    # lists without foamd (the engine's defaults of the preset and the guard's depth), and
+    # each finer step is finer: the reference preset's Δt below the standard one's, 0.1 s below
+    # the reference preset's.
+    (tmp_path / "base.toml").write_text('scene = "fusion"\n')
+    for preset, name in (("", "reference-step"), ('preset = "reference"\n', "supplement-step")):
+        f = tmp_path / "s.toml"
+        f.write_text(textwrap.dedent("""\
+            [study]
+            name = "builtin"
+            base = "base.toml"
+            seeds = [1]
+            """) + preset + textwrap.dedent("""\
+            [spec]
+            duration_s = 240
+            [[grid]]
+            "cells.alpha" = [0.4375, 0.6]
+            [[grid]]
+            "cells.alpha" = [0.5]
+            "numerics.max_penetration_um" = [0.5]
+            """))
+        study = st.load(f)
+        listed = study.listed_diagnoses()
+        assert [d.name for d in listed] == ["keep-out", name, "keep-out"]
+        assert [d.spec for d in listed if d.name == "keep-out"] == [
+            {"numerics.remesh_keep_out_um": 1.0}, {"numerics.remesh_keep_out_um": 0.5}]
+        for run in study.runs():
+            got = st.run_diagnoses(study, client, run)
+            assert all(d in listed for d in got) and [d.name for d in got] == ["keep-out", name]
+            resolved = matching._run_spec(study, client, study.settings(run), run.label()).spec
+            keep_out, step = got
+            assert keep_out.spec == {
+                "numerics.remesh_keep_out_um": resolved["numerics.max_penetration_um"]}
+            assert resolved["numerics.remesh_keep_out_um"] == 0
+            rerun = matching._run_spec(study, client, study.diag_settings(run, step), "rerun")
+            assert rerun.spec["numerics.dt_s"] < resolved["numerics.dt_s"]
 
 
 def test_a_diagnosis_whose_numerics_the_run_already_had_is_not_rerun(tmp_path):

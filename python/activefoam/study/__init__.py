@@ -23,12 +23,14 @@ supplement's hatched cells — and is not run again unless `--retry-failed` (`--
 preparation-failed`: only the runs that failed so). A job of the study that is no run of the
 file as it is now (an earlier version's [spec], grid or seeds) is named when it is queued or
 running, and cancelled with `--cancel-stale`. A run that failed in the simulation is rerun once
-per [[diagnose]] table of the file that names its failure kind, with that table's keys changed
-(tag `diag:NAME`): the report says whether the rerun ran past the failure (then the failure is
-those numerics', not the point's, and the verdict table's `failed` leaves it out). Exit codes: 0
-done, 1 some runs failed, 2 bad study file or spec, or a file that cannot be read or written
-(named), 3 foamd unreachable, 4 token refused, 130 interrupted (the jobs go on in foamd; rerun
-to follow them).
+with other numerics (tag `diag:NAME`): an interpenetration with the remesher's keep-out at the
+interpenetration guard's depth, any other failure of the step at the next finer step after the
+run's preset (`standard` → `reference` → Δt 0.1 s); a study file's [[diagnose]] tables replace
+these, `[study] diagnose = false` turns them off. The report says whether the rerun ran past the
+failure (then the failure is those numerics', not the point's, and the verdict table's `failed`
+leaves it out). Exit codes: 0 done, 1 some runs failed, 2 bad study file or spec, or a file that
+cannot be read or written (named), 3 foamd unreachable, 4 token refused, 130 interrupted (the
+jobs go on in foamd; rerun to follow them).
 
 The modules, each importing only those before it: outputs (files written whole or not at all),
 studyfile (the format), matching (jobs to runs), submission (submit, wait), data (collect,
@@ -38,8 +40,9 @@ statements), store_copy (save-store, restore-store) and cli.
 
 from activefoam.study.studyfile import (FITNESS_METRICS, MAX_ATTEMPTS, MAX_RUNS, METRICS,
                                         SAMPLE_COLUMNS, SIMULATION_FAILURES, Diagnosis, Run,
-                                        Share, Study, StudyError, load, shown_metrics)
-from activefoam.study.matching import NOOP_TEXT, Carried, carried_runs
+                                        Share, Study, StudyError, builtin_diagnoses, load,
+                                        shown_metrics)
+from activefoam.study.matching import NOOP_TEXT, Carried, carried_runs, run_diagnoses
 from activefoam.study.submission import (cancel_stale, live_stale_jobs, submit_diagnoses,
                                          submit_missing, wait)
 from activefoam.study.data import Data, collect, derive_metrics, load_data, study_radius
@@ -52,8 +55,9 @@ from activefoam.study.cli import main
 
 __all__ = ["FITNESS_METRICS", "MAX_ATTEMPTS", "MAX_RUNS", "METRICS", "NOOP_TEXT", "SAMPLE_COLUMNS",
            "SIMULATION_FAILURES", "Carried", "Data", "Diagnosis", "Run", "Share", "Study",
-           "StudyError", "cancel_stale", "carried_runs", "collect", "derive_metrics",
-           "failed_runs_markdown", "fitness_calibration", "fitness_paired", "fitness_table",
-           "live_stale_jobs", "load", "load_data", "main", "render", "render_fitness",
-           "shown_metrics", "study_radius", "submit_diagnoses", "submit_missing",
-           "summary_markdown", "summary_table", "unsaturated_fits_markdown", "wait"]
+           "StudyError", "builtin_diagnoses", "cancel_stale", "carried_runs", "collect",
+           "derive_metrics", "failed_runs_markdown", "fitness_calibration", "fitness_paired",
+           "fitness_table", "live_stale_jobs", "load", "load_data", "main", "render",
+           "render_fitness", "run_diagnoses", "shown_metrics", "study_radius",
+           "submit_diagnoses", "submit_missing", "summary_markdown", "summary_table",
+           "unsaturated_fits_markdown", "wait"]

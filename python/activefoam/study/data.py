@@ -15,7 +15,7 @@ from typing import Any, Dict, Optional, Tuple
 
 from activefoam.client import state_name
 from activefoam.study.matching import (NOOP_TEXT, Carried, _base_sha, _diag_is_noop,
-                                       _diag_of_runs, _run_jobs, _takes_carried)
+                                       _diag_of_runs, _run_jobs, _takes_carried, run_diagnoses)
 from activefoam.study.outputs import folder, to_csv, write_text
 from activefoam.study.studyfile import SAMPLE_COLUMNS, SIMULATION_FAILURES, Study, StudyError
 
@@ -74,7 +74,7 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
         row.update(job_id=j.id, state=state_name(j.state), failure_kind=j.failure_kind,
                    reason=j.reason, outcome=j.outcome, attempts=len(have), t_end_s=j.t_s)
         # A diagnosis that applies to the run's failure but would rerun the same numerics.
-        noop = ([d.name for d in study.diagnoses
+        noop = ([d.name for d in run_diagnoses(study, client, run)
                  if j.failure_kind in d.kinds and d.name not in diag.get(i, {})
                  and _diag_is_noop(study, client, run, d, j)]
                 if row["state"] == "failed" and i not in source else [])

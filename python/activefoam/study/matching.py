@@ -4,7 +4,7 @@ default, preset and derived value filled in) against each job's record as today'
 it (Job.resolved_spec_json: keys renamed, retired or added since the job was stored read as the
 engine's key table says). A job is a run when the two agree on every key but the labels (the
 preset's name, the accuracy targets, which only choose the other keys' values). Also: a
-[[share]]d run's jobs in the other study; a [[diagnose]] rerun's jobs; and the rows of an
+[[share]]d run's jobs in the other study; a diagnosis rerun's jobs; and the rows of an
 earlier store's data (a report's data folder) that a study carries over.
 """
 
@@ -22,7 +22,7 @@ from typing import Any, Dict, FrozenSet, List, Optional, Sequence, Tuple
 from activefoam.client import flatten, state_name
 from activefoam.inputs import read_bounded
 from activefoam.study.studyfile import (SIMULATION_FAILURES, Diagnosis, Run, Share, Study,
-                                        StudyError, _same, _same_point)
+                                        StudyError, _same, _same_point, builtin_diagnoses)
 
 
 def _base(study: Study) -> Any:
@@ -202,6 +202,17 @@ def _run_jobs(study: Study, client: Any) -> Tuple[Dict[int, List[Any]], Dict[int
 
 # ---- diagnoses: reruns of failed runs with some keys changed ------------------------------------
 
+def run_diagnoses(study: Study, client: Any, run: Run) -> List[Diagnosis]:
+    """A run's diagnoses: the study file's [[diagnose]] tables, else the built-in ones of the
+    run's spec as foamd resolves it (its preset, its guard's depth; builtin_diagnoses); none with
+    [study] diagnose = false. A run foamd refuses is a StudyError naming it."""
+    if not study.diagnose:
+        return []
+    if study.diagnoses:
+        return list(study.diagnoses)
+    return builtin_diagnoses(_run_spec(study, client, study.settings(run), run.label()).spec)
+
+
 def _rerun_spec(study: Study, client: Any, run: Run, d: Diagnosis) -> Optional[RunSpec]:
     """A diagnosis rerun's resolved spec; None where foamd refuses it (no job can be its rerun:
     submitting one says why)."""
@@ -215,7 +226,7 @@ def _rerun_spec(study: Study, client: Any, run: Run, d: Diagnosis) -> Optional[R
 def _diag_jobs(study: Study, client: Any) -> Dict[int, Dict[str, List[Any]]]:
     """Run index → diagnosis name → its reruns (tag diag:NAME), oldest first."""
     out: Dict[int, Dict[str, List[Any]]] = {}
-    if not study.diagnoses:
+    if not study.diagnose:
         return out
     runs = study.runs()
     by_seed: Dict[int, List[int]] = {}
@@ -226,7 +237,11 @@ def _diag_jobs(study: Study, client: Any) -> Dict[int, Dict[str, List[Any]]]:
         if spec is None:
             continue
         for i in by_seed.get(int(j.seed), []):
-            d = next((d for d in study.diagnoses
+            try:
+                ds = run_diagnoses(study, client, runs[i])
+            except StudyError:
+                continue  # a run foamd refuses has no job, nor reruns
+            d = next((d for d in ds
                       if (rerun := _rerun_spec(study, client, runs[i], d)) is not None
                       and _differing_key(rerun, spec) is None), None)
             if d is not None:
@@ -238,7 +253,7 @@ def _diag_jobs(study: Study, client: Any) -> Dict[int, Dict[str, List[Any]]]:
 def _diag_of_runs(study: Study, client: Any, source: Dict[int, str]
                   ) -> Dict[int, Dict[str, List[Any]]]:
     """Run index → diagnosis name → reruns, with a shared run's taken from the study that owns
-    it (the one whose job it is: its [[diagnose]] tables apply)."""
+    it (the one whose job it is: its diagnoses apply)."""
     own = _diag_jobs(study, client)
     out = {i: ds for i, ds in own.items() if i not in source}
     cache: Dict[str, Dict[int, Dict[str, List[Any]]]] = {}

@@ -2,8 +2,9 @@
 
 A study is a base spec, the keys set on top of it ([spec]), grids of keys to sweep ([[grid]]),
 seeds and a preset; a run is one (grid point, seed). [fitness] compares settings of one key,
-[[share]] takes another study's runs at a common point, [[diagnose]] reruns failed runs with
-other numerics (docs/usage.md and docs/science/README.md describe the format).
+[[share]] takes another study's runs at a common point; a run that failed in the simulation is
+rerun once with other numerics, by the tool's own diagnoses or the file's [[diagnose]] tables
+(docs/usage.md and docs/science/README.md describe the format).
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ MAX_ATTEMPTS = 5
 
 
 STUDY_KEYS = {"name", "title", "base", "preset", "seeds", "x", "x_label", "x_log", "by",
-              "by_label", "priority", "scale"}
+              "by_label", "priority", "scale", "diagnose"}
 
 
 FITNESS_KEYS = {"key", "reference", "metrics"}
@@ -60,6 +61,31 @@ SHARE_KEYS = {"file", "this", "that", "seeds"}
 
 
 PRESETS = {"standard", "reference"}
+
+
+# The failures of the step, which a finer one may cure. Not a failed preparation: it runs at its
+# own step (scene.prep_dt_s) with the solver settings fixed (spheroidPrepSpec), so a finer step
+# of the run prepares the same aggregates; nor an interpenetration where the run had no keep-out
+# (the keep-out diagnosis's, below).
+STEP_FAILURES = ["volume-drift", "inverted-triangle", "non-finite", "cg-not-converged",
+                 "contact-oscillation", "step-error"]
+
+
+# The next finer step after a run's preset (its resolved numerics.preset): name, the keys set on
+# top of the run's, title. After `reference` (Δt 0.25 s) the supplement's own Δt.
+FINER_STEP = {
+    "standard": ("reference-step", {"numerics.preset": "reference"},
+                 "0.25 s / 1e-3 under the law"),
+    "reference": ("supplement-step", {"numerics.dt_s": 0.1}, "Δt 0.1 s, the supplement's"),
+}
+
+
+# What foamd resolves for the keys the built-in diagnoses read where neither the base, the study
+# nor a preset sets them (foam-run --keys). Only a report rendered without foamd reads them (its
+# list of the diagnoses); with foamd each run's resolved spec is read, and a test holds the two
+# equal.
+ENGINE_DEFAULTS = {"numerics.preset": "standard", "numerics.max_penetration_um": 1.0,
+                   "numerics.remesh_keep_out_um": 0.0}
 
 
 # Per-run metrics of a fusion study: name → (label, where it comes from).
@@ -194,13 +220,42 @@ class Share:
 
 @dataclass
 class Diagnosis:
-    """[[diagnose]]: a run that failed in the simulation with one of `kinds` is rerun once with
-    `spec`'s keys set on top of its own (a reference step, a remesher fix): a rerun that runs
-    to the end says the failure was those numerics', not the point's."""
+    """A run that failed in the simulation with one of `kinds` is rerun once with `spec`'s keys
+    set on top of its own (a finer step, a remesher fix), tagged diag:NAME: a rerun that runs to
+    the end says the failure was those numerics', not the point's. The built-in ones
+    (builtin_diagnoses), or a study file's [[diagnose]] tables instead."""
     name: str
     spec: Dict[str, Any]
     kinds: List[str]
     title: str = ""
+
+
+def builtin_diagnoses(spec: Dict[str, Any]) -> List[Diagnosis]:
+    """The study tool's diagnoses of a run, from its spec by dotted key (as foamd resolved it;
+    a key it lacks is at ENGINE_DEFAULTS): an interpenetration is rerun with the remesher's
+    keep-out at the interpenetration guard's depth (numerics.max_penetration_um), where the run
+    had no keep-out: collapses shallower than the guard are routine and the keep-out lets them
+    be, so the rerun is the failed run bit for bit up to the collapse past the guard that failed
+    it (docs/numerics.md, "Remeshing"); any other failure of the step (STEP_FAILURES; an interpenetration too where the run had the
+    keep-out already) at the next finer step after the run's preset (FINER_STEP)."""
+    def get(key: str) -> Any:
+        v = spec.get(key)
+        return ENGINE_DEFAULTS[key] if v is None else v
+    out: List[Diagnosis] = []
+    step_kinds = list(STEP_FAILURES)
+    if get("numerics.remesh_keep_out_um"):
+        step_kinds.append("interpenetration")
+    else:
+        depth = float(get("numerics.max_penetration_um"))
+        out.append(Diagnosis("keep-out", {"numerics.remesh_keep_out_um": depth},
+                             ["interpenetration"],
+                             f"no collapse puts a vertex past the guard's {depth:g} µm inside a "
+                             "touching cell"))
+    finer = FINER_STEP.get(str(get("numerics.preset")))
+    if finer is not None:
+        name, keys, title = finer
+        out.append(Diagnosis(name, dict(keys), step_kinds, title))
+    return out
 
 
 def _same_point(a: Dict[str, Any], b: Dict[str, Any]) -> bool:
@@ -227,7 +282,46 @@ class Study:
     scale: str = ""
     fitness: Optional[Dict[str, Any]] = None
     shares: List["Share"] = field(default_factory=list)
-    diagnoses: List[Diagnosis] = field(default_factory=list)
+    diagnoses: List[Diagnosis] = field(default_factory=list)   # the file's [[diagnose]] tables
+    diagnose: bool = True   # [study] diagnose = false: no diagnosis reruns
+    _base_cache: Optional[Dict[str, Any]] = field(default=None, repr=False, compare=False)
+
+    def listed_diagnoses(self) -> List[Diagnosis]:
+        """The diagnoses as a report lists them: the file's [[diagnose]] tables, else the
+        built-in ones of its runs, each once, read from what the base file and the study set
+        (a report from data has no foamd to resolve the runs; where an accuracy target chooses
+        a run's preset, the finer step after each preset is listed)."""
+        if not self.diagnose:
+            return []
+        if self.diagnoses:
+            return list(self.diagnoses)
+        out: List[Diagnosis] = []
+        for point in self.points():  # the seed changes no numerics
+            spec = {**self._base_keys(), **self.settings(Run(point, self.seeds[0]))}
+            presets = [spec.get("numerics.preset")]
+            if presets[0] is None and any(k.startswith("accuracy.") for k in spec):
+                presets = list(FINER_STEP)
+            for preset in presets:
+                for d in builtin_diagnoses({**spec, "numerics.preset": preset}):
+                    if d not in out:
+                        out.append(d)
+        return out
+
+    def _base_keys(self) -> Dict[str, Any]:
+        """The base spec file's keys, dotted (TOML or JSON, as foamd reads a spec file); none
+        where it reads as neither (foamd names the error when a run is submitted)."""
+        if not self.base_text:
+            return {}
+        if self._base_cache is None:
+            try:
+                doc = tomllib.loads(self.base_text)
+            except tomllib.TOMLDecodeError:
+                try:
+                    doc = json.loads(self.base_text)
+                except ValueError:
+                    doc = {}
+            self._base_cache = flatten(doc) if isinstance(doc, dict) else {}
+        return self._base_cache
 
     @property
     def tag(self) -> str:
@@ -434,6 +528,14 @@ def load(path: os.PathLike, _shares: bool = True,
         raise StudyError("diagnose: [[diagnose]] tables (name, spec, kinds)")
     for i, d in enumerate(diagnoses):
         study.diagnoses.append(_load_diagnosis(study, i, d))
+    switch = st.get("diagnose", True)
+    if not isinstance(switch, bool):
+        raise StudyError(f"study.diagnose: true (failed runs are rerun by the built-in "
+                         f"diagnoses or the [[diagnose]] tables) or false (none), got {switch!r}")
+    if not switch and study.diagnoses:
+        raise StudyError("study.diagnose: false turns the diagnoses off, but the file has "
+                         "[[diagnose]] tables: remove one or the other")
+    study.diagnose = switch
     shares = doc.get("share", [])
     if not isinstance(shares, list):
         raise StudyError("share: [[share]] tables (file, this, that)")

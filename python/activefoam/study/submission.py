@@ -12,7 +12,7 @@ from typing import Any, Collection, Dict, List, Optional, Tuple, Union
 from activefoam.client import state_name
 from activefoam.study.matching import (NOOP_TEXT, Carried, _base, _diag_is_noop, _diag_jobs,
                                        _jobs_by_run, _owner_of_shared_run, _run_jobs,
-                                       _takes_carried)
+                                       _takes_carried, run_diagnoses)
 from activefoam.study.studyfile import MAX_ATTEMPTS, SIMULATION_FAILURES, Study, StudyError
 
 
@@ -62,8 +62,8 @@ def _diag_needed(jobs: List[Any]) -> bool:
 
 def submit_diagnoses(study: Study, client: Any, out=sys.stderr) -> int:
     """Submits the diagnosis reruns of the study's own runs that failed in the simulation with a
-    kind a [[diagnose]] table names and have no rerun yet; returns how many."""
-    if not study.diagnoses:
+    kind one of their diagnoses names (run_diagnoses) and have no rerun yet; returns how many."""
+    if not study.diagnose:
         return 0
     found, source, _ = _run_jobs(study, client)
     diag = _diag_jobs(study, client)
@@ -76,7 +76,7 @@ def submit_diagnoses(study: Study, client: Any, out=sys.stderr) -> int:
         last = have[-1]
         if state_name(last.state) != "failed" or last.failure_kind not in SIMULATION_FAILURES:
             continue
-        for d in study.diagnoses:
+        for d in run_diagnoses(study, client, run):
             if last.failure_kind not in d.kinds:
                 continue
             jobs = diag.get(i, {}).get(d.name, [])
@@ -84,8 +84,10 @@ def submit_diagnoses(study: Study, client: Any, out=sys.stderr) -> int:
                 continue
             if _diag_is_noop(study, client, run, d, last):
                 print(f"study {study.name}: {run.label()} failed ({last.failure_kind}): "
-                      f"diagnosis {d.name!r} {NOOP_TEXT} ({', '.join(d.spec)}): the study "
-                      "file's [[diagnose]] needs other values", file=out)
+                      f"diagnosis {d.name!r} {NOOP_TEXT} ({', '.join(d.spec)}): "
+                      + ("the study file's [[diagnose]] needs other values" if study.diagnoses
+                         else "a [[diagnose]] table of the study file can name others"),
+                      file=out)
                 continue
             try:
                 job = client.submit(
