@@ -64,11 +64,8 @@ def failed_runs_markdown(study: Study, runs: Any) -> str:
     keys = study.swept_keys()
     diagnoses = study.listed_diagnoses()
     if diagnoses:
-        # The words predate the built-in diagnoses (the figure studies' tables, which they
-        # replaced with the same names, keys and kinds): kept, so that a report regenerated
-        # from committed data reads as it did, byte for byte.
-        how = ("a diagnosis reruns the run with some keys changed (the study file's [[diagnose]] "
-               "tables: " + "; ".join(f"{d.name} sets " + ", ".join(
+        how = ("a diagnosis reruns the run with some keys changed (the study's diagnoses: "
+               + "; ".join(f"{d.name} sets " + ", ".join(
                    f"{k} = {_toml(v)}" for k, v in d.spec.items())
                    + (f" ({d.title})" if d.title else "") + " for " + ", ".join(d.kinds)
                    for d in diagnoses)
