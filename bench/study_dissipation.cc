@@ -56,6 +56,7 @@
 #include "activefoam/contacts.h"
 #include "activefoam/friction_operator.h"
 #include "activefoam/geometry.h"
+#include "activefoam/motility.h"
 #include "activefoam/observables.h"
 #include "activefoam/simulation.h"
 #include "activefoam/spec_io.h"

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "activefoam/contacts.h"
+#include "activefoam/motility.h"
 #include "activefoam/observables.h"
 #include "activefoam/spheroid.h"
 #include "test_support.h"

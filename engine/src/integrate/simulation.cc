@@ -6,6 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "activefoam/motility.h"
 #include "activefoam/remesh.h"
 #include "activefoam/threads.h"
 

@@ -1,12 +1,13 @@
 // S8–S11: active migration (ActiveMigration): the traction of each cell's protrusions on its
-// contacts, and the rotational diffusion of its polarity along one Wiener path per cell. Declared
-// in contacts.h with the other terms that read the step's contact areas.
+// contacts (the step's contact areas), and the rotational diffusion of its polarity along one
+// Wiener path per cell.
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
 
 #include "activefoam/contacts.h"
+#include "activefoam/motility.h"
 #include "activefoam/rng.h"
 #include "activefoam/threads.h"
 
