@@ -236,8 +236,9 @@ def builtin_diagnoses(spec: Dict[str, Any]) -> List[Diagnosis]:
     keep-out at the interpenetration guard's depth (numerics.max_penetration_um), where the run
     had no keep-out: collapses shallower than the guard are routine and the keep-out lets them
     be, so the rerun is the failed run bit for bit up to the collapse past the guard that failed
-    it (docs/numerics.md, "Remeshing"); any other failure of the step (STEP_FAILURES; an interpenetration too where the run had the
-    keep-out already) at the next finer step after the run's preset (FINER_STEP)."""
+    it (docs/numerics.md, "Remeshing"); any other failure of the step (STEP_FAILURES; an
+    interpenetration too where the run had the keep-out already) at the next finer step after
+    the run's preset (FINER_STEP)."""
     def get(key: str) -> Any:
         v = spec.get(key)
         return ENGINE_DEFAULTS[key] if v is None else v
