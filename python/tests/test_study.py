@@ -1167,6 +1167,42 @@ def test_an_earlier_stores_ended_runs_count_as_done_and_are_reported_with_the_st
         assert (out / f).read_bytes() == (out2 / f).read_bytes(), f
 
 
+def test_carried_rows_that_spelled_out_the_default_step_are_the_runs_that_leave_it(client,
+                                                                                  tmp_path):
+    # Data written while study files spelled out the figure step, in keys of an earlier version
+    # among them (the contact law's and the remesher's switches), are the runs of the file that
+    # leaves the step to the default: foamd resolves both to one spec. A row at another step
+    # (Δt 0.5 s) is not, and without foamd only the same keys and values are.
+    study = _alpha_study(tmp_path)
+    d = _earlier_data(tmp_path, study)
+    table = pd.read_csv(d / "runs.csv")
+    spelled = {"numerics.cg_tol": 0.01, "numerics.contact_within_prisms": True,
+               "numerics.contact_prisms_overlap_only": True, "numerics.dt_s": 1.0,
+               "numerics.integrator": "contact-implicit-consistent",
+               "numerics.max_volume_error": 0.2, "numerics.remesh_rescue": True,
+               "numerics.remesh_rebuild": True, "scene.polarity_from_preparation": True}
+    settings = []
+    for _, row in table.iterrows():
+        s = dict(json.loads(row["settings"]), **spelled)
+        if (row["seed"], row["cells.alpha"]) == (1, 0.6):
+            s["numerics.dt_s"] = 0.5
+        settings.append(json.dumps(s, sort_keys=True))
+    table["settings"] = settings
+    table.to_csv(d / "runs.csv", index=False)
+    runs = study.runs()
+    assert st.carried_runs(study, d).rows == {}
+    carried = st.carried_runs(study, d, client)
+    assert sorted((runs[i].seed, runs[i].point["cells.alpha"]) for i in carried.rows) == [
+        (1, 0.4375), (2, 0.6)]
+    # Nor is one whose earlier keys name another contact law (the supplement's).
+    table.loc[0, "settings"] = json.dumps(dict(json.loads(table.loc[0, "settings"]),
+                                               **{"numerics.contact_within_prisms": False}))
+    table.to_csv(d / "runs.csv", index=False)
+    carried = st.carried_runs(study, d, client)
+    assert sorted((runs[i].seed, runs[i].point["cells.alpha"]) for i in carried.rows) == [
+        (2, 0.6)]
+
+
 def test_carried_runs_whose_settings_changed_or_of_another_study_are_not_taken(tmp_path):
     study = _alpha_study(tmp_path)
     carried = st.carried_runs(study, _earlier_data(tmp_path, study, stale_settings=True))

@@ -192,19 +192,24 @@ def _main(argv: List[str]) -> int:
         if args.cmd == "report" else None
     if args.cmd == "run" and args.report:
         check_folder(args.report, "--report")
-    carried = None
-    if getattr(args, "with_data", None):
-        if args.cmd == "report" and args.from_data:
-            raise StudyError("--with-data: not with --from-data (which reads no store)")
-        carried = carried_runs(study, args.with_data)
+    if getattr(args, "with_data", None) and args.cmd == "report" and args.from_data:
+        raise StudyError("--with-data: not with --from-data (which reads no store)")
+
+    def carry(c: Any) -> Optional[Carried]:
+        if not getattr(args, "with_data", None):
+            return None
+        carried = carried_runs(study, args.with_data, c)
         print(f"study {study.name}: {len(carried.rows)} ended runs in {args.with_data}",
               file=sys.stderr)
+        return carried
+
     if args.cmd == "run":
         if args.retry_failed and args.retry_kinds:
             raise StudyError("--retry-failed reruns every failure kind: not with "
                              "--retry-kinds")
         retry = True if args.retry_failed else _retry_kinds(args.retry_kinds)
         with _client(args) as c:
+            carried = carry(c)
             # Stale jobs first: a changed step must not leave the old one's queue running.
             cancel_stale(study, c, args.cancel_stale)
             n_new, n_held = submit_missing(study, c, retry_failed=retry,
@@ -228,7 +233,7 @@ def _main(argv: List[str]) -> int:
             print(f)
         return 0
     with _client(args) as c:
-        _report(study, c, out, carried)
+        _report(study, c, out, carry(c))
     return 0
 
 

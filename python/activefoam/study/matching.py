@@ -305,12 +305,16 @@ def _py(v: Any) -> Any:
     return v
 
 
-def carried_runs(study: Study, data_dir: os.PathLike) -> Carried:
+def carried_runs(study: Study, data_dir: os.PathLike, client: Any = None) -> Carried:
     """The runs of data_dir that ended (succeeded, or failed in the simulation itself, which
     reruns the same way): each matched to this study's run by its seed and point values. A row
     carrying the run's settings and base spec's hash (data of an older tool has neither) is taken
-    only if they are this run's today: a study whose [spec] or base file changed does not take the
-    old runs."""
+    only if they are this run's today: a study whose base file changed does not take the old
+    runs, nor one whose keys changed the run. With a client, the row's settings are the run's
+    when foamd resolves the two to the same spec on every key but the labels (a row written
+    while the study file spelled out what is now the default step, or with a key an earlier
+    version had, is the run of the file that leaves it to the default); without, when the two
+    are the same keys and values."""
     import pandas as pd
     d = Path(data_dir)
     for f in ("runs.csv", "samples.csv.gz", "msrd.csv.gz"):
@@ -340,25 +344,42 @@ def carried_runs(study: Study, data_dir: os.PathLike) -> Carried:
         if not (state == "succeeded" or (state == "failed" and kind in SIMULATION_FAILURES)):
             continue
         seed = row.get("seed")
-        hit = next((i for i, r in enumerate(runs)
-                    if seed is not None and int(seed) == r.seed and
-                    all(k in row and _same(_py(row[k]), v) for k, v in r.point.items())), None)
-        if hit is None:
-            continue
-        settings = row.get("settings")
-        if isinstance(settings, str) and settings:
-            now = study.settings(runs[hit])
-            then = json.loads(settings)
-            if set(now) != set(then) or not all(_same(now[k], then[k]) for k in now):
-                continue
         base = row.get("base_sha256")
-        if isinstance(base, str) and base and base != _base_sha(study):
+        if seed is None or (isinstance(base, str) and base and base != _base_sha(study)):
             continue  # the base spec file changed since: another run
-        rows[hit] = row
+        settings = row.get("settings")
+        then = json.loads(settings) if isinstance(settings, str) and settings else None
+        # The point's columns where the row has them (a key the study varies today may have
+        # been another key then: the row's settings then decide, read by foamd).
+        for i, r in enumerate(runs):
+            if int(seed) != r.seed or not all(
+                    _same(_py(row[k]), v) for k, v in r.point.items() if k in row):
+                continue
+            if then is None:
+                if all(k in row for k in r.point):
+                    rows[i] = row
+                    break
+                continue
+            now = study.settings(r)
+            if (set(now) == set(then) and all(_same(now[k], then[k]) for k in now)) or (
+                    client is not None and _same_run(study, client, r, then)):
+                rows[i] = row
+                break
     ids = {r["job_id"] for r in rows.values()}
     samples = pd.read_csv(d / "samples.csv.gz")
     msrd = pd.read_csv(d / "msrd.csv.gz")
     return Carried(d, rows, samples[samples["job_id"].isin(ids)], msrd[msrd["job_id"].isin(ids)])
+
+
+def _same_run(study: Study, client: Any, run: Run, settings: Dict[str, Any]) -> bool:
+    """Whether settings recorded for `run` resolve to the spec the study's run does today; a
+    recorded spec foamd refuses (a key retired with a value it no longer reads) is not."""
+    try:
+        then = _run_spec(study, client, settings, run.label())
+    except StudyError:
+        return False
+    return _differing_key(_run_spec(study, client, study.settings(run), run.label()),
+                          then.spec) is None
 
 
 def _base_sha(study: Study) -> str:
