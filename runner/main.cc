@@ -137,6 +137,7 @@ void printKeys() {
     std::string notes;
     if (f.label) notes += "names other keys' values; ";
     if (f.before) notes += "before it existed: " + specText(*f.before) + "; ";
+    if (f.since_unset) notes += "before it existed: unset; ";
     if (f.prep == SpecField::Prep::Fixed)
       notes += "spheroid preparation: " + (f.prep_value ? specText(*f.prep_value) : "unset") + "; ";
     if (f.scenes != 0xF) {

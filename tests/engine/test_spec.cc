@@ -123,6 +123,43 @@ TEST(Spec, ReducedValuesWinOverAbsoluteOnes) {
   EXPECT_NEAR(resolve(s).cells.p_a, 0.05, 1e-4);
 }
 
+// Fig. 10 varies γ at fixed η and holds τ_shell at Table 1's γ_ref: the one key gives τ_K and τ_r
+// the values the study's committed runs set by hand (bit for bit, so that they stay its runs).
+TEST(Spec, ShellTimeGivesTauKAndTheRemeshIntervalWhereUnset) {
+  SceneSpec s;
+  s.cells.gamma = 1.0;
+  s.cells.tau_gamma_s = 5;  // η = 5 at γ = 1: its own τ_shell is half the base one
+  s.cells.tau_shell_s = 5.0 / (2 * std::sqrt(3.0) * 0.5);
+  ASSERT_TRUE(validate(s).empty()) << joined(validate(s));
+  SceneSpec r = resolve(s);
+  EXPECT_EQ(*r.cells.tau_k_s, 5.773502691896258);
+  EXPECT_EQ(*r.numerics.remesh_every_s, 14.433756729740645);
+  EXPECT_FALSE(r.cells.tau_shell_s);  // what it gave is in τ_K and τ_r
+  // At the run's own γ they would be half that.
+  s.cells.tau_shell_s.reset();
+  r = resolve(s);
+  EXPECT_DOUBLE_EQ(*r.cells.tau_k_s, 5.773502691896258 / 2);
+  EXPECT_DOUBLE_EQ(*r.numerics.remesh_every_s, 14.433756729740645 / 2);
+  // Unset, the defaults are those of before the key, bit for bit.
+  const CellParams c;
+  EXPECT_EQ(*resolve(SceneSpec{}).cells.tau_k_s, 2.0 * (c.eta / (2.0 * std::sqrt(3.0) * c.gamma)));
+  // A value given wins over it; given both, nothing reads it, and it is refused.
+  s.cells.tau_shell_s = 4.0;
+  s.cells.tau_k_s = 3.0;
+  r = resolve(s);
+  EXPECT_EQ(*r.cells.tau_k_s, 3.0);
+  EXPECT_EQ(*r.numerics.remesh_every_s, 20.0);
+  s.numerics.remesh_every_s = 10.0;
+  const auto errors = validate(s);
+  ASSERT_TRUE(hasErrorFor(errors, "cells.tau_shell_s")) << joined(errors);
+  EXPECT_NE(joined(errors).find("sets both"), std::string::npos) << joined(errors);
+  // The fingerprint of a spec without it is that of before the key (checkpoints resume).
+  EXPECT_EQ(specFingerprint(SceneSpec{}).find("tau_shell"), std::string::npos);
+  SceneSpec with;
+  with.cells.tau_shell_s = 4.0;
+  EXPECT_NE(specFingerprint(with), specFingerprint(SceneSpec{}));
+}
+
 TEST(Spec, ResolveIsIdempotent) {
   SceneSpec s;
   s.scene = SceneKind::Doublet;
@@ -764,6 +801,9 @@ TEST(SpecFields, TheFingerprintAndTheRecordBaseComeFromTheTable) {
       EXPECT_FALSE(in) << f.key;
     } else if (f.before) {
       EXPECT_EQ(getField(base, f.key), f.before) << f.key;
+      EXPECT_FALSE(in) << f.key;
+    } else if (f.since_unset) {
+      EXPECT_FALSE(getField(base, f.key)) << f.key;
       EXPECT_FALSE(in) << f.key;
     } else if (f.key != "numerics.dt_min_s") {
       EXPECT_TRUE(in) << f.key;  // set or not, every other key is in it

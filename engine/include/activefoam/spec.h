@@ -25,18 +25,20 @@ struct PresetPins {
 };
 
 struct CellParams {
-  double radius_mean_um = 8.88;     // mean cell radius r
-  double radius_gamma_k = 37;       // Gamma shape k (θ = r/k); 0 = every cell has radius r exactly
-  double gamma = 0.5;               // cortex tension γ, nN/µm
-  double eta = 5.0;                 // cortex 2D viscosity η, nN·s/µm
-  double eta_m = 0.4;               // medium viscosity η_m, kPa·s
-  double bulk_modulus = 0.5;        // K, kPa
-  std::optional<double> tau_k_s;    // PI integration time τ_K; default 2 τ_shell
-  double alpha = 0.4375;            // relative cell–cell tension α = 1 − w/γ
-  double p_a = 0.0372;              // protrusion pressure, kPa
-  double tau_p_s = 600;             // persistence time τ_p, s
-  double xi = 0.25;                 // contact friction ξ, kPa·s/µm
-  std::optional<double> xi_normal;  // ξ⊥, default ξ
+  double radius_mean_um = 8.88;   // mean cell radius r
+  double radius_gamma_k = 37;     // Gamma shape k (θ = r/k); 0 = every cell has radius r exactly
+  double gamma = 0.5;             // cortex tension γ, nN/µm
+  double eta = 5.0;               // cortex 2D viscosity η, nN·s/µm
+  double eta_m = 0.4;             // medium viscosity η_m, kPa·s
+  double bulk_modulus = 0.5;      // K, kPa
+  std::optional<double> tau_k_s;  // PI integration time τ_K; default 2 τ_shell
+  // τ_shell, from which τ_K and τ_r derive where not given; default η/(2√3 γ). Resolve clears it.
+  std::optional<double> tau_shell_s;
+  double alpha = 0.4375;                // relative cell–cell tension α = 1 − w/γ
+  double p_a = 0.0372;                  // protrusion pressure, kPa
+  double tau_p_s = 600;                 // persistence time τ_p, s
+  double xi = 0.25;                     // contact friction ξ, kPa·s/µm
+  std::optional<double> xi_normal;      // ξ⊥, default ξ
   std::optional<double> xi_tangential;  // ξ∥, default ξ
   double k_contact = 71.1;              // contact stiffness k_AB, nN/µm³
   double eps_n = 0.1;                   // out-of-plane factor of cortex viscosity (S13)
@@ -188,7 +190,8 @@ struct SpecField {
   // - `before`: the value that reproduces runs made before the key existed. The fingerprint
   //   leaves the key out at it (earlier checkpoints and prepared spheroids stay valid), and a
   //   record that lacks the key (an earlier job's resolved spec) reads at it. Empty: the key is
-  //   as old as the spec.
+  //   as old as the spec. `since_unset`: an optional key added later, whose absence is how the
+  //   runs before it read (the fingerprint leaves it out while unset).
   // - `prep`: how the spheroids' preparation treats the key (spheroidPrepSpec). Kept: it runs
   //   with the run's value (the key shapes the aggregates). Fixed: with `prep_value` (unset for
   //   an optional key when empty), so that runs differing only in it start from the same
@@ -197,6 +200,7 @@ struct SpecField {
   //   is told so.
   bool label = false;
   std::optional<SpecValue> before;
+  bool since_unset = false;
   enum class Prep { Kept, Fixed, Own } prep = Prep::Kept;
   std::optional<SpecValue> prep_value;
   unsigned scenes = 0xF;
@@ -320,7 +324,7 @@ inline constexpr double kMaxSamples = 1.0e7;         // duration_s / sample_ever
 inline constexpr double kMaxSnapshots = 1.0e5;       // duration_s / snapshot_every_s
 
 // Derived quantities of a (resolved) spec.
-double tauShell(const CellParams& c);        // η / (2√3 γ)
+double tauShell(const CellParams& c);        // cells.tau_shell_s, or η / (2√3 γ)
 double adhesionW(const CellParams& c);       // w = (1 − α) γ
 double contactRangeH0(const CellParams& c);  // h0 = √(w / k_AB)
 // The derived defaults, each computed here only: resolve() fills the unset keys with them, and

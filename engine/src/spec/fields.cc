@@ -55,7 +55,8 @@ SpecField choice(std::string key, std::vector<std::string> choices, std::string 
                std::move(choices));
 }
 
-// Annotations of the entry just added (SpecField: label, before, prep, scenes; Entry: read_if).
+// Annotations of the entry just added (SpecField: label, before or since_unset, prep, scenes;
+// Entry: read_if).
 constexpr unsigned kContacts = 0xE;  // doublet, spheroid, fusion: the scenes with contacts
 constexpr unsigned kFusionOnly = 1u << 3;
 void label(std::vector<Entry>& t) {
@@ -63,6 +64,9 @@ void label(std::vector<Entry>& t) {
 }
 void since(std::vector<Entry>& t, SpecValue before) {
   t.back().field.before = std::move(before);
+}
+void sinceUnset(std::vector<Entry>& t) {
+  t.back().field.since_unset = true;
 }
 void prepAt(std::vector<Entry>& t, std::optional<SpecValue> value) {
   t.back().field.prep = SpecField::Prep::Fixed;
@@ -144,6 +148,13 @@ const std::vector<Entry>& entries() {
     t.push_back({real("cells.tau_k_s", kOpen, 0, 1e6, kClosed, "s",
                       "integration time τ_K of the volume PI control; default 2 τ_shell", true),
                  [](SceneSpec& s) -> Slot { return &s.cells.tau_k_s; }});
+    t.push_back({real("cells.tau_shell_s", kOpen, 0, 1e6, kClosed, "s",
+                      "shell relaxation time τ_shell, from which τ_K = 2 τ_shell and the remesh "
+                      "interval τ_r = 5 τ_shell derive where they are not given; default "
+                      "η/(2√3 γ) at the run's own γ",
+                      true),
+                 [](SceneSpec& s) -> Slot { return &s.cells.tau_shell_s; }});
+    sinceUnset(t);
     t.push_back({real("cells.alpha", kClosed, 0, 1, kOpen, "",
                       "relative cell–cell tension α = 1 − w/γ; contact angle θ_c = arccos α"),
                  [](SceneSpec& s) -> Slot { return &s.cells.alpha; }});

@@ -80,6 +80,7 @@ std::string checkNumber(const Entry& e, double v, const std::string& shown) {
 
 bool atBefore(const Entry& e, const SceneSpec& spec) {
   if (e.at_before) return e.at_before(spec);
+  if (e.field.since_unset) return !getField(spec, e.field.key);
   return e.field.before && getField(spec, e.field.key) == e.field.before;
 }
 

@@ -35,6 +35,7 @@ SceneSpec resolveUnchecked(const SceneSpec& spec) {
   }
   if (!c.tau_k_s) c.tau_k_s = defaultTauKS(c);
   if (!r.numerics.remesh_every_s) r.numerics.remesh_every_s = defaultRemeshEveryS(c);
+  c.tau_shell_s.reset();  // what it gives is in τ_K and τ_r now
   if (!r.scene_params.gap_um) r.scene_params.gap_um = defaultGapUm(c);
   if (!r.numerics.dt_min_s) r.numerics.dt_min_s = defaultDtMinS(r.numerics.dt_s);
   if (!c.xi_normal) c.xi_normal = c.xi;
@@ -67,7 +68,7 @@ std::int64_t sceneCellCount(const SceneSpec& spec) {
 }
 
 double tauShell(const CellParams& c) {
-  return c.eta / (2.0 * std::sqrt(3.0) * c.gamma);
+  return c.tau_shell_s.value_or(c.eta / (2.0 * std::sqrt(3.0) * c.gamma));
 }
 double adhesionW(const CellParams& c) {
   return (1.0 - c.alpha) * c.gamma;

@@ -198,6 +198,10 @@ std::vector<SpecError> validate(const SceneSpec& spec) {
       derived("cells.pa_reduced", "cells.p_a", r.cells.p_a, "gives cells.p_a = value·2γ/r");
     if (c.l_eta_reduced)
       derived("cells.l_eta_reduced", "cells.xi", r.cells.xi, "gives cells.xi = η/(value·r)²");
+    if (c.tau_shell_s && c.tau_k_s && spec.numerics.remesh_every_s)
+      error("cells.tau_shell_s",
+            "is read by nothing here: it gives only the defaults of cells.tau_k_s and "
+            "numerics.remesh_every_s, and this spec sets both");
     if (!c.tau_k_s)
       derived("cells.tau_k_s", "cells.tau_k_s", *r.cells.tau_k_s,
               "unset, and its default 2 τ_shell");
