@@ -312,14 +312,8 @@ int main(int argc, char** argv) {
         }
         m0 /= nc;
         m1 /= nc;
-        Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
-        for (int c = 0; c < nc; ++c) h += (first_centroids[c] - m0) * (cen[c] - m1).transpose();
-        const Eigen::JacobiSVD<Eigen::Matrix3d> svd(h, Eigen::ComputeFullU | Eigen::ComputeFullV);
-        const double d = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1 : 1;
-        const Eigen::Matrix3d rot =
-            svd.matrixV() * Eigen::Vector3d(1, 1, d).asDiagonal() * svd.matrixU().transpose();
         drift = (m1 - m0).norm();
-        turned = std::acos(std::clamp((rot.trace() - 1) / 2, -1.0, 1.0)) * 180 / M_PI;
+        turned = rotationAngle(bestRotation(first_centroids, cen)) * 180 / M_PI;
       }
       const double wall =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

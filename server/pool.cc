@@ -147,7 +147,7 @@ void Pool::runJob(const Claimed& claimed, Running& flag) {
     return;
   }
   const SceneSpec spec = *parsed.spec;
-  const std::vector<std::string> columns = sampleColumns(spec.scene);
+  const std::vector<std::string> columns = sampleColumns(spec);
 
   // Outputs recorded after the checkpoint (or all, when starting from scratch) are dropped:
   // the run emits them again.

@@ -551,16 +551,18 @@ class FoamService final : public v1::Foam::CallbackService {
       resp.set_stop(true);
       return Status::OK;
     }
-    SceneKind scene = SceneKind::Cell;
-    for (SceneKind k :
-         {SceneKind::Cell, SceneKind::Doublet, SceneKind::Spheroid, SceneKind::Fusion})
-      if (toString(k) == j->scene()) scene = k;
-    const std::vector<std::string> columns = sampleColumns(scene);
+    // The columns of the job's own spec (its scene's, then its probes'), as its task writes them.
+    const SpecParseResult record = readRecord(j->spec_json());
+    if (!record.ok())
+      return Status(StatusCode::FAILED_PRECONDITION,
+                    "the job's stored spec does not parse: " + record.errors.front().str());
+    const std::vector<std::string> columns = sampleColumns(*record.spec);
     if (req.samples_size() > 0 &&
         std::vector<std::string>(req.columns().begin(), req.columns().end()) != columns)
       return Status(StatusCode::FAILED_PRECONDITION,
-                    "columns: the task's samples.csv columns differ from this foamd's for scene " +
-                        j->scene() + " (engine versions differ?)");
+                    "columns: the task's samples.csv columns differ from this foamd's for the "
+                    "job's spec (scene " +
+                        j->scene() + "; engine versions differ?)");
     if (req.snapshots_size() != req.snapshot_infos_size())
       return Status(StatusCode::INVALID_ARGUMENT, "snapshot_infos: one per snapshot");
     std::vector<std::vector<double>> samples;

@@ -111,6 +111,7 @@ std::vector<SpecError> applyTyped(const v1::SceneSpec& typed, SceneSpec& spec, b
   if (typed.has_cells()) applyMessage(typed.cells(), "cells.", spec, errors);
   if (typed.has_numerics()) applyMessage(typed.numerics(), "numerics.", spec, errors);
   if (typed.has_accuracy()) applyMessage(typed.accuracy(), "accuracy.", spec, errors);
+  if (typed.has_observe()) applyMessage(typed.observe(), "observe.", spec, errors);
   if (scene_msg) applyMessage(*scene_msg, "scene.", spec, errors);
   return errors;
 }
@@ -130,9 +131,16 @@ ConvertResult convertSpec(const v1::SceneSpec& typed, std::string_view spec_text
   }
   SceneSpec spec;
   bool scene_given = false;
-  std::vector<std::string> keys;  // given in spec_text and settings (typed fields are per scene)
+  // The keys whose scene is checked: those given in spec_text and settings, and the typed
+  // [observe] keys (a probe is read by some scenes only; the typed [scene] keys are per scene).
+  std::vector<std::string> keys;
   out.errors = applyTyped(typed, spec, scene_given);
   if (!out.errors.empty()) return out;
+  if (typed.has_observe()) {
+    std::vector<const pb::FieldDescriptor*> set;
+    typed.observe().GetReflection()->ListFields(typed.observe(), &set);
+    for (const pb::FieldDescriptor* f : set) keys.push_back("observe." + f->name());
+  }
 
   bool blank = true;
   for (char c : spec_text) blank = blank && std::isspace(static_cast<unsigned char>(c));
@@ -147,7 +155,7 @@ ConvertResult convertSpec(const v1::SceneSpec& typed, std::string_view spec_text
     }
     spec = *parsed.spec;
     scene_given = scene_given || parsed.scene_given;
-    keys = parsed.keys;
+    keys.insert(keys.end(), parsed.keys.begin(), parsed.keys.end());
   }
   if (!settings.empty()) {
     SpecParseResult set = applySettings(spec, settings);
@@ -221,6 +229,8 @@ v1::SceneSpec toProto(const SceneSpec& spec) {
         m = out.mutable_numerics();
       else if (table == "accuracy")
         m = out.mutable_accuracy();
+      else if (table == "observe")
+        m = out.mutable_observe();
       else
         m = scene_msg;
     }

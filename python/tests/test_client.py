@@ -54,6 +54,29 @@ def test_nested_tables_dotted_keys_and_spec_files_are_the_same_spec(client, tmp_
     pd.testing.assert_frame_equal(frames[0], frames[2])
 
 
+def test_a_probes_columns_come_with_the_samples(client):
+    # [observe] asks for a probe: its columns follow the scene's, the samples unchanged by it.
+    base = dict(TINY, duration_s=2, snapshot_every_s=0,
+                numerics={"triangles_per_cell": 80, "cg_tol": 1e-8})
+    plain = client.submit(base)
+    probed = client.submit(dict(base, observe={"dissipation": True}))
+    for j in (plain, probed):
+        assert j.wait(timeout_s=120) == "succeeded"
+    a, b = plain.samples(), probed.samples()
+    added = [c for c in b.columns if c not in a.columns]
+    assert added == ["diss_medium_nw", "diss_cortex_nw", "diss_friction_t_nw",
+                     "diss_friction_n_nw", "diss_springs_nw", "power_forces_nw",
+                     "power_active_nw"]
+    assert list(b.columns[:len(a.columns)]) == list(a.columns)
+    pd.testing.assert_frame_equal(a.drop(columns=["wall_s"]),
+                                  b[a.columns].drop(columns=["wall_s"]))
+    assert math.isnan(b["diss_medium_nw"].iloc[0])  # t = 0: no step yet
+    later = b.iloc[1:]
+    assert (later["diss_medium_nw"] > 0).all() and (later["diss_cortex_nw"] > 0).all()
+    balance = (later["diss_medium_nw"] + later["diss_cortex_nw"]) / later["power_forces_nw"]
+    assert ((balance - 1).abs() < 1e-4).all()
+
+
 def test_sweep_results_and_summary_over_seeds(client):
     base = dict(TINY, snapshot_every_s=0)
     sw = client.sweep(base, grid={"cells.gamma": [0.4, 0.6]}, seeds=[1, 2], tags=["sw"])

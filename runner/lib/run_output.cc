@@ -314,7 +314,7 @@ void RunOutput::start() {
   }
   const fs::path path = dir_ / "samples.csv";
   csv_.open(path, std::ios::binary | std::ios::trunc);
-  const std::vector<std::string> columns = sampleColumns(spec_.scene);
+  const std::vector<std::string> columns = sampleColumns(spec_);
   columns_ = columns.size();
   csv_ << csvLine(columns) << '\n';
   csv_.flush();
@@ -378,7 +378,7 @@ void RunOutput::resume(const RunCheckpoint& c) {
                                " rows, the checkpoint expects " + std::to_string(c.samples));
     in.close();
     writeFileAtomic(path, kept);
-    columns_ = sampleColumns(spec_.scene).size();
+    columns_ = sampleColumns(spec_).size();
     samples_ = c.samples;
     csv_.open(path, std::ios::binary | std::ios::app);
     if (!csv_)

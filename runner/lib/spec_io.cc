@@ -33,8 +33,8 @@ std::string join(std::string_view prefix, std::string_view key) {
   return prefix.empty() ? std::string(key) : std::string(prefix) + "." + std::string(key);
 }
 
-// A table of keys: "cells", "numerics", "scene", "accuracy" (every key "<group>.<leaf>" lives in
-// one).
+// A table of keys: "cells", "numerics", "scene", "accuracy", "observe" (every key "<group>.<leaf>"
+// lives in one).
 bool isGroup(std::string_view key) {
   for (const SpecField& f : specFields())
     if (f.key.size() > key.size() && f.key.compare(0, key.size(), key) == 0 &&
@@ -51,9 +51,9 @@ std::string expected(const SpecField& f) {
 
 SpecError unknownTable(const std::string& key) {
   std::string msg = "unknown table '" + key + "'";
-  for (std::string_view g : {"cells", "numerics", "scene", "accuracy"})
+  for (std::string_view g : {"cells", "numerics", "scene", "accuracy", "observe"})
     if (editDistance(g, key) <= 2) msg += " (did you mean [" + std::string(g) + "]?)";
-  msg += "; the tables are [cells], [numerics], [scene], [accuracy]";
+  msg += "; the tables are [cells], [numerics], [scene], [accuracy], [observe]";
   return {key, msg};
 }
 

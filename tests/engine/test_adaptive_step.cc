@@ -272,7 +272,7 @@ TEST(AdaptiveStep, SemiImplicitDoubletSurvivesAndSamplesSayHow) {
   s.duration_s = 40;
   s.sample_every_s = 5;
   s.snapshot_every_s = 0;
-  const auto cols = sampleColumns(SceneKind::Doublet);
+  const auto cols = sampleColumns(s);
   const auto dt_min_col = std::find(cols.begin(), cols.end(), "dt_min_s") - cols.begin();
   const auto rejected_col = std::find(cols.begin(), cols.end(), "steps_rejected") - cols.begin();
   ASSERT_LT(rejected_col, static_cast<long>(cols.size()));

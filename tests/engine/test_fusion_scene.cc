@@ -358,7 +358,7 @@ TEST(FusionScene, PrepMinHoldsCompactionBackAndWeakAdhesionAsksForIt) {
 TEST(FusionScene, SamplesFitsAndResumeFromCheckpoint) {
   TempDir dir;
   const SceneSpec s = smallFusionSpec();
-  const auto cols = sampleColumns(SceneKind::Fusion);
+  const auto cols = sampleColumns(s);
   ASSERT_EQ(cols[5], "dt_min_s");
   ASSERT_EQ(cols[6], "steps_rejected");
   ASSERT_EQ(cols[7], "theta_deg");

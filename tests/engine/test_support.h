@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 #include <cstdint>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -90,6 +91,17 @@ inline std::vector<std::vector<double>> physicsColumns(const std::vector<Sample>
     auto v = s.values;
     v.erase(v.begin() + 2);
     out.push_back(v);
+  }
+  return out;
+}
+
+// The values' bits, for comparing runs whose samples hold NaN (a probe's columns at t = 0).
+inline std::vector<std::vector<std::uint64_t>> bits(const std::vector<std::vector<double>>& rows) {
+  std::vector<std::vector<std::uint64_t>> out;
+  for (const auto& r : rows) {
+    std::vector<std::uint64_t> b(r.size());
+    std::memcpy(b.data(), r.data(), sizeof(double) * r.size());
+    out.push_back(std::move(b));
   }
   return out;
 }

@@ -304,8 +304,12 @@ TEST(Threads, Ros2MotileDoubletRunIsBitIdenticalForAnyThreadCount) {
   expectSameRuns(s, kFine);
 }
 
+// With the probes on: their columns too (the dissipation's products run the parallel kernels).
 TEST(Threads, StudiesStepFusionRunIsBitIdenticalForAnyThreadCount) {
-  expectSameRuns(studiesStep(fusion2x4()), kFine);
+  SceneSpec s = studiesStep(fusion2x4());
+  s.observe.rigid_motion = true;
+  s.observe.dissipation = true;
+  expectSameRuns(s, kFine);
 }
 
 // Every preset as it ships (its repairs, guard and polarities the defaults'), on the fusion.

@@ -33,6 +33,13 @@ using testing::lines;
 using testing::readFile;
 using testing::writeFile;
 
+// A spec of the scene with no probes: the scene's own columns.
+SceneSpec specOf(SceneKind scene) {
+  SceneSpec s;
+  s.scene = scene;
+  return s;
+}
+
 std::string quote(const std::string& s) {
   std::string q = "'";
   for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
@@ -104,6 +111,10 @@ const BadSpec kBad[] = {
     {"scene = \"cell\"\n[scene]\nn_cells = 20\n", "scene.n_cells"},
     {"scene = \"doublet\"\n[scene]\naxes_ratio = 2\n", "scene.axes_ratio"},
     {"scene = \"spheroid\"\n[scene]\ngap_um = 0.01\n", "scene.gap_um"},
+    // A probe where its scene gives it no meaning: a doublet's two centroids fix no turn.
+    {"scene = \"doublet\"\n[observe]\nrigid_motion = true\n", "observe.rigid_motion"},
+    {"scene = \"cell\"\n[observe]\ndissipation = 1\n", "observe.dissipation"},
+    {"scene = \"cell\"\n[observ]\ndissipation = true\n", "observ"},
 };
 
 TEST_F(FoamRun, InvalidSpecExits2NamingTheKeyAndWritesNothing) {
@@ -235,9 +246,10 @@ void expectCompleteOutput(const fs::path& out, SceneKind scene, std::size_t rows
   const auto csv = lines(readFile(out / "samples.csv"));
   ASSERT_EQ(csv.size(), rows + 1);
   std::string header;
-  for (const std::string& c : sampleColumns(scene)) header += (header.empty() ? "" : ",") + c;
+  for (const std::string& c : sampleColumns(specOf(scene)))
+    header += (header.empty() ? "" : ",") + c;
   EXPECT_EQ(csv[0], header);
-  const std::size_t ncols = sampleColumns(scene).size();
+  const std::size_t ncols = sampleColumns(specOf(scene)).size();
   for (std::size_t i = 1; i < csv.size(); ++i)
     EXPECT_EQ(static_cast<std::size_t>(std::count(csv[i].begin(), csv[i].end(), ',')) + 1, ncols)
         << csv[i];
@@ -282,7 +294,7 @@ TEST_F(FoamRun, DoubletReportsContactAnglePerSample) {
   ASSERT_EQ(r.code, 0) << r.err;
   expectCompleteOutput(out, SceneKind::Doublet, 7);
   const auto rows = lines(readFile(out / "samples.csv"));
-  const auto cols = sampleColumns(SceneKind::Doublet);
+  const auto cols = sampleColumns(specOf(SceneKind::Doublet));
   const auto at = std::find(cols.begin(), cols.end(), "contact_angle_deg") - cols.begin();
   ASSERT_LT(at, static_cast<long>(cols.size()));
   // The angle starts at 0 (cells apart) and has opened towards arccos α = 64° by t = 300 s.
@@ -295,6 +307,37 @@ TEST_F(FoamRun, DoubletReportsContactAnglePerSample) {
   EXPECT_EQ(angle(rows[1]), 0.0);
   EXPECT_GT(angle(rows.back()), 30.0);
   EXPECT_LT(angle(rows.back()), 70.0);
+}
+
+// A probe's columns follow the scene's in samples.csv, with its values (no step yet at t = 0),
+// and the probe is in spec.json.
+TEST_F(FoamRun, ProbeColumnsReachSamplesCsv) {
+  const std::string text = std::string(kCell) + "[observe]\ndissipation = true\n";
+  const fs::path out = dir_ / "out";
+  const Result r = run(quote(spec(text).string()) + " --out " + quote(out.string()) + " --quiet");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto parsed = parseSpecText(readFile(out / "spec.json"));
+  ASSERT_TRUE(parsed.ok());
+  EXPECT_TRUE(parsed.spec->observe.dissipation);
+  const std::vector<std::string> cols = sampleColumns(*parsed.spec);
+  const std::vector<std::string> scene = sampleColumns(specOf(SceneKind::Cell));
+  ASSERT_EQ(cols.size(), scene.size() + 7);
+  const auto csv = lines(readFile(out / "samples.csv"));
+  ASSERT_EQ(csv.size(), 7u);
+  EXPECT_EQ(csv[0], csvLine(cols));
+  auto field = [&](const std::string& row, std::size_t k) {
+    std::stringstream ss(row);
+    std::string cell;
+    for (std::size_t i = 0; i <= k; ++i) std::getline(ss, cell, ',');
+    return cell;
+  };
+  const std::size_t medium = scene.size(), forces = scene.size() + 5;
+  EXPECT_EQ(cols[medium], "diss_medium_nw");
+  EXPECT_EQ(field(csv[1], medium), "nan");
+  for (std::size_t row = 2; row < csv.size(); ++row) {
+    EXPECT_GT(std::stod(field(csv[row], medium)), 0) << csv[row];
+    EXPECT_GT(std::stod(field(csv[row], forces)), 0) << csv[row];
+  }
 }
 
 TEST_F(FoamRun, OverridesStdinAndSnapshots) {
@@ -369,7 +412,7 @@ TEST_F(FoamRun, SigintCancelsWithExit130AndASummary) {
   const auto csv = lines(readFile(out / "samples.csv"));
   for (std::size_t i = 1; i < csv.size(); ++i)
     EXPECT_EQ(static_cast<std::size_t>(std::count(csv[i].begin(), csv[i].end(), ',')) + 1,
-              sampleColumns(SceneKind::Cell).size());
+              sampleColumns(specOf(SceneKind::Cell)).size());
 }
 
 // ---- interrupted runs continue from their checkpoint ------------------------------------------
@@ -420,7 +463,7 @@ std::vector<std::string> physicsRows(const fs::path& csv) {
 }  // namespace resume
 
 TEST_F(FoamRun, InterruptedRunResumesToTheUninterruptedResult) {
-  ASSERT_EQ(sampleColumns(SceneKind::Doublet)[2], "wall_s");
+  ASSERT_EQ(sampleColumns(specOf(SceneKind::Doublet))[2], "wall_s");
   const fs::path s = spec(
       "scene = \"doublet\"\nduration_s = 200\nsample_every_s = 5\nsnapshot_every_s = 20\n"
       "[cells]\nradius_gamma_k = 0\n");

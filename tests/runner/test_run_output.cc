@@ -121,7 +121,7 @@ TEST_F(RunOutputTest, StreamsSamplesAndSnapshots) {
   RunOutput out(dir_, spec);
   out.start();
   ASSERT_EQ(out.error(), "");
-  const std::size_t ncols = sampleColumns(SceneKind::Cell).size();
+  const std::size_t ncols = sampleColumns(spec).size();
   Sample a;
   a.values.assign(ncols, 1.5);
   out.onSample(a);
@@ -148,7 +148,7 @@ TEST_F(RunOutputTest, StreamsSamplesAndSnapshots) {
   std::getline(in, header);
   std::getline(in, row1);
   std::getline(in, row2);
-  EXPECT_EQ(header, csvLine(sampleColumns(SceneKind::Cell)));
+  EXPECT_EQ(header, csvLine(sampleColumns(spec)));
   EXPECT_EQ(row1, csvLine(a.values));
   EXPECT_EQ(row2.substr(0, 4), "2,na");
   EXPECT_TRUE(fs::exists(dir_ / "snapshots" / "snap_000001.vtp"));

@@ -75,7 +75,7 @@ TEST(DefaultStep, TheReducedBasePointRunsTheFigureStudiesStep) {
   fs::remove_all(dir);
   ASSERT_TRUE(r.ok()) << r.reason;
   ASSERT_EQ(got.size(), 3u);
-  const std::vector<std::string> columns = sampleColumns(SceneKind::Fusion);
+  const std::vector<std::string> columns = sampleColumns(s);
   int compared = 0;
   for (std::size_t c = 0; c < want.header.size(); ++c) {
     const std::string& name = want.header[c];

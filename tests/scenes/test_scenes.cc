@@ -16,8 +16,13 @@ using activefoam::testing::physicsColumns;
 namespace fs = std::filesystem;
 
 namespace {
+SceneSpec specOf(SceneKind scene) {
+  SceneSpec s;
+  s.scene = scene;
+  return s;
+}
 int column(SceneKind scene, const std::string& name) {
-  const auto cols = sampleColumns(scene);
+  const auto cols = sampleColumns(specOf(scene));
   return static_cast<int>(std::find(cols.begin(), cols.end(), name) - cols.begin());
 }
 }  // namespace

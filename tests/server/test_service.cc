@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -23,6 +24,7 @@
 #include <thread>
 #include <variant>
 
+#include "activefoam/run.h"
 #include "activefoam/v1/service.grpc.pb.h"
 #include "activefoam/vtk.h"
 #include "faulty_vfs.h"
@@ -282,6 +284,46 @@ TEST_F(ServiceTest, SubmitWatchResults) {
   EXPECT_EQ(rejected, 0.0);  // the adaptive time step's totals are results too
   EXPECT_GT(dt_min.value_or(0), 0);
   EXPECT_EQ(res.job().engine_version(), ACTIVEFOAM_VERSION);
+}
+
+// A probe asked for in the typed spec: its columns follow the scene's in the job's samples, as
+// the engine names them, with no server code of its own.
+TEST_F(ServiceTest, ProbeColumnsReachTheJobsSamples) {
+  startServer();
+  v1::SubmitJobRequest req = tinyCell(3);
+  req.mutable_spec()->mutable_observe()->set_dissipation(true);
+  const std::string id = submit(req);
+  const v1::Job job = waitFor(id, terminal);
+  ASSERT_EQ(job.state(), v1::JOB_STATE_SUCCEEDED) << job.reason();
+  v1::GetResultsRequest rr;
+  rr.set_job_id(id);
+  rr.set_with_samples(true);
+  v1::JobResults res;
+  auto c = ctx();
+  ASSERT_TRUE(stub_->GetResults(c.get(), rr, &res).ok());
+  SceneSpec spec;
+  spec.scene = SceneKind::Cell;
+  spec.observe.dissipation = true;
+  const std::vector<std::string> want = sampleColumns(spec);
+  ASSERT_EQ(std::vector<std::string>(res.columns().begin(), res.columns().end()), want);
+  ASSERT_EQ(res.samples_size(), 4);
+  const int medium = static_cast<int>(want.size()) - 7;
+  ASSERT_EQ(want[medium], "diss_medium_nw");
+  EXPECT_TRUE(std::isnan(res.samples(0).values(medium)));
+  for (int k = 1; k < res.samples_size(); ++k) {
+    ASSERT_EQ(res.samples(k).values_size(), static_cast<int>(want.size()));
+    EXPECT_GT(res.samples(k).values(medium), 0);
+  }
+  // The job's record holds the key, and a spec that sets it where it means nothing is refused.
+  EXPECT_EQ(nlohmann::json::parse(job.spec_json())["observe"]["dissipation"], true);
+  v1::SubmitJobRequest bad = tinyCell(3);
+  bad.mutable_spec()->mutable_observe()->set_rigid_motion(true);
+  v1::SubmitJobResponse resp;
+  auto c2 = ctx();
+  const grpc::Status st = stub_->SubmitJob(c2.get(), bad, &resp);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("observe.rigid_motion"), std::string::npos)
+      << st.error_message();
 }
 
 TEST_F(ServiceTest, CancelWhileRunning) {

@@ -157,7 +157,15 @@ class ContactFriction : public ForceTerm {
   // product streamed ~100 MB.
   void addFriction(const StepContext& ctx, FrictionOperator& op) const override;
 
+  // One part of this term's Γ as a term of its own (the dissipation probe's split): the friction
+  // across the contact plane (ξ∥), along its normal (ξ⊥), or the contact springs' stiffness that
+  // the step context puts in Γ (StepContext::contact_stiffness_dt; none when it is 0). Γ is
+  // linear in ξ∥, ξ⊥ and k_AB: the three parts sum to the term's Γ.
+  enum class Part { Tangential, Normal, Springs };
+  ContactFriction part(Part which) const;
+
  private:
+  ContactFriction(double xi_n, double xi_t, double k) : xi_n_(xi_n), xi_t_(xi_t), k_(k) {}
   // Its friction block, with the stiffness factor of the step (StepContext).
   Eigen::Matrix3d pairMatrix(const ContactPair& p, double stiffness_dt) const;
   double xi_n_, xi_t_, k_;

@@ -75,6 +75,14 @@ double meanShapeIndex(const Geometry& geo);
 std::vector<std::pair<int, int>> contactingCellPairs(const CellSet& cells,
                                                      const ContactList& contacts);
 
+// The rotation R (det +1) that best carries the points p onto q about their centroids (their
+// unweighted means), in the least-squares sense (Kabsch): q_i − q̄ ≈ R (p_i − p̄). With fewer
+// than three points not on one line the turn about their line is undetermined. Throws
+// std::invalid_argument unless p and q are equal in number and not empty.
+Eigen::Matrix3d bestRotation(const std::vector<Vec3>& p, const std::vector<Vec3>& q);
+// The angle of a rotation matrix, radians in [0, π].
+double rotationAngle(const Eigen::Matrix3d& r);
+
 // Mean squared relative displacement of neighbours. Feed one sample per observable interval
 // (equal intervals): the cell centroids and the contacting cell pairs at that time.
 // msrd(lag) = ⟨|(x_i − x_j)(t₀ + lag) − (x_i − x_j)(t₀)|²⟩ over all time origins t₀ and the

@@ -17,16 +17,17 @@
 
 namespace activefoam {
 
-// One row of samples.csv. `values` is aligned with sampleColumns(scene).
+// One row of samples.csv. `values` is aligned with sampleColumns(spec).
 struct Sample {
   std::vector<double> values;
 };
 
-// Column names of a scene's samples, in order. The first seven are common to every scene:
+// Column names of a run's samples, in order. The first seven are common to every scene:
 // t_s, steps, wall_s, cg_iters_mean, volume_error_max, and of the adaptive time step dt_min_s
 // (the shortest step taken since the last sample) and steps_rejected (tries undone and retried
-// since the last sample); then the scene's observables.
-std::vector<std::string> sampleColumns(SceneKind scene);
+// since the last sample); then the scene's observables; then the columns of the probes the
+// spec's [observe] table asks for (probe.h).
+std::vector<std::string> sampleColumns(const SceneSpec& spec);
 
 // Every cell's surface at one time, packed (global vertex indices).
 struct Snapshot {

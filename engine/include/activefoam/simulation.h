@@ -118,6 +118,10 @@ class Simulation {
     return names;
   }
   void addGuard(std::unique_ptr<StepGuard> guard) { guards_.push_back(std::move(guard)); }
+  // Called in every try of a step once its scheme has solved the velocity at the step's start
+  // (StartSolve), before the guards judge the try; it must not change anything it is shown.
+  // Empty: none (the default).
+  void onStartSolve(StartSolveObserver observer) { start_solve_ = std::move(observer); }
 
   // Pieces of a step, exposed for tests and benchmarks. Geometry must be current.
   void detect();                              // contacts of the current geometry
@@ -192,6 +196,7 @@ class Simulation {
   std::int64_t remesh_kept_out_ = 0;
   std::int64_t steps_rejected_ = 0;
   PhaseTimes times_;
+  StartSolveObserver start_solve_;
   PenetrationScratch penetration_;  // scratch of interpenetration()
   struct Saved {
     CellSet cells;

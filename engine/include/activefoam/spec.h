@@ -153,6 +153,16 @@ struct AccuracyTarget {
   friend bool operator==(const AccuracyTarget&, const AccuracyTarget&) = default;
 };
 
+// The [observe] table: probes, measurements a run adds to its samples as columns of their own
+// (probe.h). A probe reads the state and never changes it: the run's other columns keep their bits,
+// and the spheroids' preparation ignores these keys.
+struct ObserveParams {
+  bool rigid_motion = false;  // the aggregate's rigid turn and drift since t = 0
+  bool dissipation = false;   // the power each friction term dissipates, and the forces' power
+
+  friend bool operator==(const ObserveParams&, const ObserveParams&) = default;
+};
+
 struct SceneSpec {
   SceneKind scene = SceneKind::Fusion;
   std::uint64_t seed = 1;
@@ -163,6 +173,7 @@ struct SceneSpec {
   NumericsParams numerics;
   SceneParams scene_params;  // the [scene] table
   AccuracyTarget accuracy;   // the [accuracy] table
+  ObserveParams observe;     // the [observe] table
 
   // Exact, field by field (doubles compared by value): what a round trip must keep.
   friend bool operator==(const SceneSpec&, const SceneSpec&) = default;
@@ -208,7 +219,7 @@ struct SpecField {
   bool readBy(SceneKind k) const { return scenes & (1u << static_cast<unsigned>(k)); }
 };
 
-// Every key, in a stable order (top level, [cells], [numerics], [scene], [accuracy]).
+// Every key, in a stable order (top level, [cells], [numerics], [scene], [accuracy], [observe]).
 //
 // The top-level key "scene" (the scene kind) shares its name with the [scene] table, which TOML
 // and JSON cannot both hold in one document. The kind may therefore also be written as `kind`

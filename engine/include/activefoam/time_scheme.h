@@ -39,6 +39,17 @@ void timed(double& seconds, F&& f) {
   seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// The velocity solve at the start of a step, as a scheme shows it to an observer
+// (Simulation::onStartSolve; the dissipation probe): valid during the call only.
+struct StartSolve {
+  const StepContext& ctx;     // the start: geometry, contacts, Δt, what Γ carries
+  const Eigen::Matrix3Xd& f;  // F(x₀)
+  const Eigen::VectorXd& v;   // solved from Γ(x₀) v = F(x₀) (ros2: the first stage, k₁)
+  const ForceTerms& terms;    // the terms that made F and Γ
+  const FrictionOperator& friction;  // Γ(x₀) as solved
+};
+using StartSolveObserver = std::function<void(const StartSolve&)>;
+
 // The simulation's state as a scheme works on it during one try of a step. On entry `geo` and
 // the contacts (StepContext::contacts) are those of cells.x, the step's start.
 struct SchemeState {
@@ -52,6 +63,12 @@ struct SchemeState {
   PhaseTimes& times;
   std::function<void()> detect;  // the contacts of `geo`, into the context's contact list
   bool start_kept = false;
+  const StartSolveObserver* on_start_solve = nullptr;  // null: nobody watches
+  // A scheme calls this once it has solved Γ(x₀) v = F(x₀) into v, before it moves the cells or
+  // keeps the start (ctx must still describe x₀); it reads and changes nothing.
+  void startSolved(const StepContext& ctx) const {
+    if (on_start_solve && *on_start_solve) (*on_start_solve)({ctx, f, v, terms, solver.friction()});
+  }
   // A scheme that evaluates the cells elsewhere than at the start calls this first: the start's
   // geometry is kept for the end of the step and the guards, and `geo` is free.
   void keepStart() {

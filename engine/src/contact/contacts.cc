@@ -280,6 +280,18 @@ double ContactAdhesion::addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) c
   return energy;
 }
 
+ContactFriction ContactFriction::part(Part which) const {
+  switch (which) {
+    case Part::Tangential:
+      return {0.0, xi_t_, 0.0};
+    case Part::Normal:
+      return {xi_n_, 0.0, 0.0};
+    case Part::Springs:
+      break;
+  }
+  return {0.0, 0.0, k_};
+}
+
 Eigen::Matrix3d ContactFriction::pairMatrix(const ContactPair& p, double stiffness_dt) const {
   const Vec3& n = p.c.normal;
   const Eigen::Matrix3d nn = n * n.transpose();

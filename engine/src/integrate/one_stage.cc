@@ -26,6 +26,7 @@ class OneStage : public TimeScheme {
     timed(s.times.forces, [&] { s.solver.computeForces(ctx, s.terms, s.f); });
     timed(s.times.matrix, [&] { s.solver.prepareFriction(ctx, s.terms); });
     timed(s.times.solve, [&] { r.cg = s.solver.solve(s.f, s.v); });
+    s.startSolved(ctx);
     return r;
   }
 

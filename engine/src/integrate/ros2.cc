@@ -53,6 +53,9 @@ SchemeResult Ros2::solve(SchemeState& s, const StepContext& ctx) {
   timed(s.times.forces, [&] { s.solver.computeForces(ctx, s.terms, s.f); });
   timed(s.times.matrix, [&] { s.solver.prepareFriction(ctx, s.terms); });
   timed(s.times.solve, [&] { r.cg = s.solver.solve(s.f, s.v); });
+  // What an observer sees of the step: the first stage, (Γ₀ + γΔt K₀) k₁ = F(x₀), the one solve
+  // at the start (the step moves by 3/2 k₁ + 1/2 k₂, which differs from k₁ by O(Δt)).
+  s.startSolved(ctx);
   s.keepStart();
 
   // Stage 1 must be usable before anything is evaluated at x*: NaNs in the broad phase, or a

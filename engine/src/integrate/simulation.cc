@@ -181,6 +181,7 @@ StepReport Simulation::tryStep() {
   // guards) once geo_ moves on: within the scheme if it evaluates elsewhere (ros2's x*; the
   // Solved guards then see that state's contacts), else after the Solved guards.
   SchemeState state{cells_, geo_, geo_prev_, terms_, solver_, f_, v_, times_, [this] { detect(); }};
+  state.on_start_solve = &start_solve_;
   v_ = Eigen::Map<const Eigen::VectorXd>(cells_.v.data(), cells_.v.size());  // warm start
   SchemeResult solved = scheme_->solve(state, ctx);
   rep.cg = solved.cg;

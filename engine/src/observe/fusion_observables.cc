@@ -249,11 +249,9 @@ std::vector<int> MsrdTracker::origins() const {
   return o;
 }
 
-namespace {
-
-// The rotation R (det +1) that best carries the points p onto q about their centroids, in the
-// least-squares sense (Kabsch): q_i − q̄ ≈ R (p_i − p̄).
 Eigen::Matrix3d bestRotation(const std::vector<Vec3>& p, const std::vector<Vec3>& q) {
+  if (p.size() != q.size() || p.empty())
+    throw std::invalid_argument("bestRotation: two equal, non-empty sets of points");
   const int n = static_cast<int>(p.size());
   Vec3 pm = Vec3::Zero(), qm = Vec3::Zero();
   for (int i = 0; i < n; ++i) {
@@ -271,7 +269,9 @@ Eigen::Matrix3d bestRotation(const std::vector<Vec3>& p, const std::vector<Vec3>
   return v * d * u.transpose();
 }
 
-}  // namespace
+double rotationAngle(const Eigen::Matrix3d& r) {
+  return std::acos(std::clamp((r.trace() - 1.0) / 2.0, -1.0, 1.0));
+}
 
 MsrdTracker::LagSums MsrdTracker::lagSums(int lag, bool less_rotation) const {
   LagSums s;
@@ -285,7 +285,7 @@ MsrdTracker::LagSums MsrdTracker::lagSums(int lag, bool less_rotation) const {
     Eigen::Matrix3d rot = Eigen::Matrix3d::Identity();
     if (less_rotation) {
       rot = bestRotation(x0, x1);
-      s.angle += std::acos(std::clamp((rot.trace() - 1.0) / 2.0, -1.0, 1.0));
+      s.angle += rotationAngle(rot);
     }
     for (const auto& [i, j] : pairs_[o]) {
       const Vec3 d0 = x0[i] - x0[j];

@@ -12,6 +12,7 @@
 #include "../integrate/bytes.h"
 #include "activefoam/fusion_outcome.h"
 #include "activefoam/observables.h"
+#include "activefoam/probe.h"
 #include "activefoam/simulation.h"
 #include "activefoam/spheroid.h"
 #include "activefoam/step_loop.h"
@@ -152,9 +153,9 @@ std::string fitResultName(std::string_view model, std::string_view parameter) {
                                   : std::string(parameter);
 }
 
-std::vector<std::string> sampleColumns(SceneKind scene) {
+std::vector<std::string> sampleColumns(const SceneSpec& spec) {
   std::vector<std::string> cols = kCommon;
-  switch (scene) {
+  switch (spec.scene) {
     case SceneKind::Cell:
       cols.insert(cols.end(), {"aspect_ratio", "pressure_kpa", "laplace_pressure_kpa"});
       break;
@@ -173,6 +174,8 @@ std::vector<std::string> sampleColumns(SceneKind scene) {
                    "contact_area_ab_um2"});
       break;
   }
+  const std::vector<std::string> probes = probeColumns(spec);
+  cols.insert(cols.end(), probes.begin(), probes.end());
   return cols;
 }
 
@@ -213,6 +216,7 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
     simp = std::make_unique<Simulation>(spec);
   }
   Simulation& sim = *simp;
+  const std::vector<std::unique_ptr<Probe>> probes = makeProbes(spec);
   const TimeStepper& clock = sim.stepper();
   const double dt = spec.numerics.dt_s;
   // Sample, snapshot and end times in ticks (whole steps of the spec's Δt): the adaptive schedule
@@ -234,11 +238,21 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
   double& all_iters = acc.all_iters;
   std::int64_t& window_steps = acc.window_steps;
   window_vol = maxVolumeError(sim);
+  // Probes that read the velocity solve see the tries of the steps that end on a sample.
+  bool reads_solve = false;
+  for (const auto& p : probes) reads_solve = reads_solve || p->readsSolve();
+  if (reads_solve)
+    sim.onStartSolve([&](const StartSolve& solve) {
+      if ((clock.ticks() + clock.stepTicks()) % sample_every != 0) return;
+      for (const auto& p : probes)
+        if (p->readsSolve()) p->solved(solve);
+    });
   if (resume) {
     const std::string extra = sim.loadState(*resume);
     bytes::Reader r(extra, "checkpoint");  // holds a reference: `extra` must outlive it
     acc = r.pod<Accumulators>();
     const std::string history = r.str();
+    for (const auto& p : probes) p->restore(r.str());
     if (!r.done())
       throw std::invalid_argument("checkpoint: not written by runScene of this engine version");
     if (fusion) fs.restore(history);
@@ -251,6 +265,7 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
     bytes::Writer w;
     w.pod(acc);
     w.str(fusion ? fs.save() : std::string());
+    for (const auto& p : probes) w.str(p->save());
     obs.on_checkpoint(sim.time(), sim.saveState(w.take()));
   };
 
@@ -266,6 +281,9 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
       fs.neck.push_back(values[1].second);
       fs.area.push_back(values.back().second);
     }
+    // Every sample, watched or not: a probe may keep what it saw first (the aggregate at t = 0).
+    std::vector<double> probed;
+    for (const auto& p : probes) p->sample(sim, probed);
     if (obs.on_sample) {
       if (!fusion) values = sceneObservables(sim, nullptr);
       Sample s;
@@ -278,6 +296,7 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
                   window_steps ? acc.window_dt_min : dt,
                   static_cast<double>(acc.window_rejected)};
       for (const auto& [name, value] : values) s.values.push_back(value);
+      s.values.insert(s.values.end(), probed.begin(), probed.end());
       obs.on_sample(s);
     }
     window_iters = 0;

@@ -395,6 +395,25 @@ const std::vector<Entry>& entries() {
                  [](SceneSpec& s) -> Slot { return &s.accuracy.trajectory_deg; }});
     label(t);
     prepAt(t, std::nullopt);
+    // ---- [observe]: probes (probe.h). They change nothing of the run: the preparation runs
+    // without them, and the fingerprint leaves them out while off (at true it holds them, so that
+    // a checkpoint without a probe's state is refused by a run that asks for the probe).
+    t.push_back({boolean("observe.rigid_motion",
+                         "probe: sample columns rigid_turn_deg, the angle of the rotation that "
+                         "best carries the cells' centroids at t = 0 onto those now (Kabsch), "
+                         "and rigid_drift_um, how far their mean moved"),
+                 [](SceneSpec& s) -> Slot { return &s.observe.rigid_motion; }});
+    readBy(t, scenes(SceneKind::Spheroid) | kFusionOnly);  // a turn needs three cells or more
+    since(t, false);
+    prepAt(t, false);
+    t.push_back({boolean("observe.dissipation",
+                         "probe: sample columns of the power (nW) each friction term dissipates "
+                         "in the step that ends at the sample, vᵀΓ_term v (medium, cortex, "
+                         "contact friction ∥ and ⊥, the contact springs' implicit part), and the "
+                         "power vᵀF of the forces and of the active ones"),
+                 [](SceneSpec& s) -> Slot { return &s.observe.dissipation; }});
+    since(t, false);
+    prepAt(t, false);
     return t;
   }();
   return table;

@@ -145,7 +145,7 @@ def _unknown(keys, known, where: str) -> None:
 def spec_keys() -> frozenset:
     """Every key a spec may set, as foam-run --keys lists them (and the earlier switches foamd
     still reads): from the generated SceneSpec message, whose fields mirror the key table —
-    scene and scene.kind, the top-level numbers, cells.*, numerics.*, accuracy.* and each
+    scene and scene.kind, the top-level numbers, cells.*, numerics.*, accuracy.*, observe.* and each
     scene's [scene] keys."""
     from activefoam.v1 import scene_pb2
     keys = {"scene", "scene.kind"}

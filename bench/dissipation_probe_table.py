@@ -1,0 +1,74 @@
+#!/usr/bin/python3
+"""The dissipation by term from foam-run output folders whose spec asks for the probe
+(`[observe] dissipation = true`, docs/scenes.md): per run, the median share of the power each
+friction term dissipates (medians over the samples, as bench/dissipation_table.py takes them:
+a contact snapping now and then spikes the springs' part for one sample) and of the active
+forces' power in the forces', and, with `rigid_motion`, the aggregate's turn and drift at the
+end.
+
+    bench/dissipation_probe_table.py RUN_DIR [RUN_DIR …]
+
+Prints Markdown, one row per folder (labelled by its name, with ξ from its spec.json). The power
+balance (the terms' sum against vᵀF) is checked per sample and its worst relative error printed.
+"""
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import pandas as pd
+
+TERMS = ["diss_medium_nw", "diss_cortex_nw", "diss_friction_t_nw", "diss_friction_n_nw",
+         "diss_springs_nw"]
+LABELS = ["medium", "cortex", "friction ∥", "friction ⊥", "springs (implicit)"]
+
+
+def read_run(folder):
+    """The folder's samples (the rows with a step: t = 0 has none) and its resolved spec."""
+    folder = Path(folder)
+    samples = pd.read_csv(folder / "samples.csv")
+    missing = [c for c in TERMS + ["power_forces_nw"] if c not in samples.columns]
+    if missing:
+        raise ValueError(f"{folder}: samples.csv lacks {', '.join(missing)} "
+                         "(run the spec with [observe] dissipation = true)")
+    spec = json.loads((folder / "spec.json").read_text())
+    return samples.dropna(subset=TERMS), spec
+
+
+def table(runs):
+    """runs: (label, samples, spec) triples. Returns the Markdown table and the worst balance."""
+    rows, balance = [], 0.0
+    for label, d, spec in runs:
+        total = d[TERMS].sum(axis=1)
+        if len(d):
+            balance = max(balance, float(((total - d["power_forces_nw"]).abs()
+                                          / d["power_forces_nw"].abs()).max()))
+        share = d[TERMS].div(total, axis=0).median()
+        row = {"run": label, "ξ (kPa·s/µm)": f"{spec['cells']['xi']:.4g}", "samples": len(d)}
+        for t, name in zip(TERMS, LABELS):
+            row[f"{name} %"] = f"{100 * share[t]:.0f}" if len(d) else "—"
+        active = (d["power_active_nw"] / d["power_forces_nw"]).median() if len(d) else float("nan")
+        row["active / forces %"] = f"{100 * active:.0f}" if len(d) else "—"
+        if "rigid_turn_deg" in d.columns and len(d):
+            row["turn (°)"] = f"{d['rigid_turn_deg'].iloc[-1]:.3g}"
+            row["drift (µm)"] = f"{d['rigid_drift_um'].iloc[-1]:.3g}"
+        rows.append(row)
+    out = pd.DataFrame(rows).fillna("—")
+    lines = ["| " + " | ".join(out.columns) + " |", "|" + "---|" * len(out.columns)]
+    lines += ["| " + " | ".join(str(v) for v in r) + " |" for r in out.itertuples(index=False)]
+    return "\n".join(lines), balance
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("run", nargs="+", help="foam-run output folders")
+    a = ap.parse_args(argv)
+    runs = [(Path(f).name, *read_run(f)) for f in a.run]
+    text, balance = table(runs)
+    print(text)
+    print(f"\nPower balance: the terms' sum is vᵀF within {100 * balance:.2g} % at every sample.")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,151 @@
+#include "activefoam/probe.h"
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "../integrate/bytes.h"
+#include "activefoam/contacts.h"
+#include "activefoam/motility.h"
+#include "activefoam/observables.h"
+#include "activefoam/simulation.h"
+#include "activefoam/terms.h"
+
+namespace activefoam {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// vᵀΓ_term v, Γ_term made by the term alone. A fresh operator each time: FrictionOperator keys
+// its couplings by the term's address, and the parts of the contact friction are temporaries.
+double quadratic(const ForceTerm& term, const StepContext& ctx, const Eigen::VectorXd& v) {
+  FrictionOperator op;
+  op.reset(ctx.cells.numVertices(), ctx.cells.topology_version);
+  term.addFriction(ctx, op);
+  Eigen::VectorXd y(v.size());
+  op.apply(v.data(), y.data());
+  return v.dot(y);
+}
+
+// The cells' centroids at t = 0 (the first sample) against those now.
+class RigidMotionProbe : public Probe {
+ public:
+  std::vector<std::string> columns() const override { return {"rigid_turn_deg", "rigid_drift_um"}; }
+  void sample(const Simulation& sim, std::vector<double>& out) override {
+    const std::vector<Vec3>& now = sim.geometry().cell_centroid;
+    if (reference_.empty()) reference_ = now;
+    const RigidMotion m = rigidMotion(reference_, now);
+    out.push_back(m.turn_deg);
+    out.push_back(m.drift_um);
+  }
+  std::string save() const override {
+    std::vector<double> flat;
+    flat.reserve(3 * reference_.size());
+    for (const Vec3& x : reference_) flat.insert(flat.end(), {x[0], x[1], x[2]});
+    bytes::Writer w;
+    w.vec(flat);
+    return w.take();
+  }
+  void restore(const std::string& data) override {
+    bytes::Reader r(data, "checkpoint");
+    const std::vector<double> flat = r.vec<double>();
+    if (!r.done() || flat.size() % 3 != 0)
+      throw std::invalid_argument("checkpoint: malformed state of observe.rigid_motion");
+    reference_.clear();
+    for (std::size_t i = 0; i < flat.size(); i += 3)
+      reference_.emplace_back(flat[i], flat[i + 1], flat[i + 2]);
+  }
+
+ private:
+  std::vector<Vec3> reference_;
+};
+
+// The last solve shown (the step that ends on the sample); NaN at t = 0, before any step.
+class DissipationProbe : public Probe {
+ public:
+  std::vector<std::string> columns() const override {
+    return {"diss_medium_nw",  "diss_cortex_nw",  "diss_friction_t_nw", "diss_friction_n_nw",
+            "diss_springs_nw", "power_forces_nw", "power_active_nw"};
+  }
+  bool readsSolve() const override { return true; }
+  void solved(const StartSolve& s) override {
+    last_ = dissipation(s);
+    seen_ = true;
+  }
+  void sample(const Simulation& /*sim*/, std::vector<double>& out) override {
+    const Dissipation& d = last_;
+    for (double v : {d.medium, d.cortex, d.friction_t, d.friction_n, d.springs, d.forces, d.active})
+      out.push_back(seen_ ? v : kNaN);
+    seen_ = false;  // each sample its own step's
+  }
+
+ private:
+  Dissipation last_;
+  bool seen_ = false;
+};
+
+bool asked(const SceneSpec& spec, const char* key, bool on) {
+  return on && findField(key)->readBy(spec.scene);
+}
+
+}  // namespace
+
+RigidMotion rigidMotion(const std::vector<Vec3>& from, const std::vector<Vec3>& to) {
+  if (from.size() != to.size() || from.empty())
+    throw std::invalid_argument("rigidMotion: the same cells at both times");
+  Vec3 a = Vec3::Zero(), b = Vec3::Zero();
+  for (std::size_t i = 0; i < from.size(); ++i) {
+    a += from[i];
+    b += to[i];
+  }
+  const double n = static_cast<double>(from.size());
+  RigidMotion m;
+  m.turn_deg = rotationAngle(bestRotation(from, to)) * 180.0 / M_PI;
+  m.drift_um = (b / n - a / n).norm();
+  return m;
+}
+
+Dissipation dissipation(const StartSolve& s) {
+  Dissipation d;
+  const StepContext& ctx = s.ctx;
+  const Eigen::VectorXd& v = s.v;
+  d.forces = Eigen::Map<const Eigen::VectorXd>(s.f.data(), s.f.size()).dot(v);
+  for (const auto& term : s.terms) {
+    const ForceTerm& t = *term;
+    if (dynamic_cast<const MediumDrag*>(&t)) {
+      d.medium += quadratic(t, ctx, v);
+    } else if (dynamic_cast<const CortexViscosity*>(&t)) {
+      d.cortex += quadratic(t, ctx, v);
+    } else if (const auto* cf = dynamic_cast<const ContactFriction*>(&t)) {
+      using Part = ContactFriction::Part;
+      d.friction_t += quadratic(cf->part(Part::Tangential), ctx, v);
+      d.friction_n += quadratic(cf->part(Part::Normal), ctx, v);
+      if (ctx.contact_stiffness_dt > 0) d.springs += quadratic(cf->part(Part::Springs), ctx, v);
+    } else if (dynamic_cast<const ActiveMigration*>(&t)) {
+      Eigen::Matrix3Xd fa = Eigen::Matrix3Xd::Zero(3, ctx.cells.numVertices());
+      t.addForces(ctx, fa);
+      d.active += Eigen::Map<const Eigen::VectorXd>(fa.data(), fa.size()).dot(v);
+    }
+  }
+  return d;
+}
+
+std::vector<std::unique_ptr<Probe>> makeProbes(const SceneSpec& spec) {
+  std::vector<std::unique_ptr<Probe>> probes;
+  if (asked(spec, "observe.rigid_motion", spec.observe.rigid_motion))
+    probes.push_back(std::make_unique<RigidMotionProbe>());
+  if (asked(spec, "observe.dissipation", spec.observe.dissipation))
+    probes.push_back(std::make_unique<DissipationProbe>());
+  return probes;
+}
+
+std::vector<std::string> probeColumns(const SceneSpec& spec) {
+  std::vector<std::string> cols;
+  for (const auto& p : makeProbes(spec)) {
+    const std::vector<std::string> c = p->columns();
+    cols.insert(cols.end(), c.begin(), c.end());
+  }
+  return cols;
+}
+
+}  // namespace activefoam

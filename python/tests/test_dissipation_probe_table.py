@@ -1,0 +1,68 @@
+"""bench/dissipation_probe_table.py: shares and the power balance from foam-run folders with the
+dissipation probe's columns, on synthetic samples with known answers."""
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+_PATH = Path(__file__).resolve().parents[2] / "bench" / "dissipation_probe_table.py"
+_spec = importlib.util.spec_from_file_location("dissipation_probe_table", _PATH)
+pt = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(pt)
+
+
+def run_folder(path, shares, n=6, spike_at=None, rigid=False, broken_at=None):
+    """A foam-run folder whose terms dissipate `shares` of 10 nW (t = 0 without a step)."""
+    path.mkdir()
+    rows = []
+    for k in range(n):
+        p = {t: 10 * s for t, s in zip(pt.TERMS, shares)}
+        if k == spike_at:
+            p["diss_springs_nw"] *= 100
+        forces = sum(p.values())
+        if k == broken_at:
+            forces *= 1.5
+        row = {"t_s": float(k), **p, "power_forces_nw": forces, "power_active_nw": 0.25 * forces}
+        if k == 0:
+            row.update({c: np.nan for c in p} | {"power_forces_nw": np.nan,
+                                                 "power_active_nw": np.nan})
+        if rigid:
+            row.update({"rigid_turn_deg": 0.5 * k, "rigid_drift_um": 0.1 * k})
+        rows.append(row)
+    pd.DataFrame(rows).to_csv(path / "samples.csv", index=False)
+    (path / "spec.json").write_text(json.dumps({"cells": {"xi": 0.25}}))
+    return path
+
+
+def test_shares_are_medians_the_first_row_has_no_step_and_the_turn_is_the_last(tmp_path):
+    f = run_folder(tmp_path / "base", [0.1, 0.6, 0.2, 0.05, 0.05], spike_at=3, rigid=True)
+    samples, spec = pt.read_run(f)
+    assert len(samples) == 5  # t = 0 dropped
+    text, balance = pt.table([("base", samples, spec)])
+    row = text.splitlines()[2].strip("| ").split(" | ")
+    assert row[:3] == ["base", "0.25", "5"]
+    assert row[3:8] == ["10", "60", "20", "5", "5"]  # medium, cortex, ∥, ⊥, springs
+    assert row[8] == "25"                            # active / forces
+    assert row[9:] == ["2.5", "0.5"]                 # turn and drift at the last sample
+    assert balance < 1e-12
+
+
+def test_a_broken_balance_is_reported_and_runs_without_the_rigid_probe_read(tmp_path):
+    a = run_folder(tmp_path / "a", [0.2] * 5, broken_at=2)
+    b = run_folder(tmp_path / "b", [0.2] * 5, rigid=True)
+    text, balance = pt.table([(f.name, *pt.read_run(f)) for f in (a, b)])
+    assert abs(balance - 1 / 3) < 1e-9
+    lines = text.splitlines()
+    assert lines[2].rstrip().endswith("| — | — |")
+
+
+def test_a_run_without_the_probe_is_refused_naming_the_key(tmp_path):
+    path = tmp_path / "plain"
+    path.mkdir()
+    pd.DataFrame({"t_s": [0.0], "aspect_ratio": [1.0]}).to_csv(path / "samples.csv", index=False)
+    (path / "spec.json").write_text("{}")
+    with pytest.raises(ValueError, match="dissipation = true"):
+        pt.read_run(path)
