@@ -1194,6 +1194,14 @@ def test_carried_rows_that_spelled_out_the_default_step_are_the_runs_that_leave_
     carried = st.carried_runs(study, d, client)
     assert sorted((runs[i].seed, runs[i].point["cells.alpha"]) for i in carried.rows) == [
         (1, 0.4375), (2, 0.6)]
+    # The report's data keep the settings each carried run recorded, so that what it was made
+    # with stays on record; collected again, they carry over again.
+    out = st.collect(study, client, tmp_path / "report" / "data", carried)
+    got = pd.read_csv(out / "runs.csv")
+    kept = got[got["carried_from"].notna()]
+    assert len(kept) == 2
+    assert all(json.loads(t)["numerics.contact_within_prisms"] is True for t in kept["settings"])
+    assert sorted(st.carried_runs(study, out, client).rows) == sorted(carried.rows)
     # Nor is one whose earlier keys name another contact law (the supplement's).
     table.loc[0, "settings"] = json.dumps(dict(json.loads(table.loc[0, "settings"]),
                                                **{"numerics.contact_within_prisms": False}))

@@ -57,6 +57,11 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
         if _takes_carried(have, carried, i):
             old = carried.rows[i]
             row.update({k: v for k, v in old.items() if k not in row and k != "carried_from"})
+            # The settings the run was made with, as it recorded them (the same run as today's
+            # settings, which may spell it otherwise: an earlier version's keys, a default then
+            # given explicitly).
+            if isinstance(old.get("settings"), str) and old["settings"]:
+                row["settings"] = old["settings"]
             row["carried_from"] = str(carried.source)
             jid = old["job_id"]
             samples += carried.samples[carried.samples["job_id"] == jid].to_dict("records")
