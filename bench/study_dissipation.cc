@@ -58,6 +58,7 @@
 #include "activefoam/geometry.h"
 #include "activefoam/motility.h"
 #include "activefoam/observables.h"
+#include "activefoam/probe.h"
 #include "activefoam/simulation.h"
 #include "activefoam/spec_io.h"
 #include "activefoam/spheroid.h"
@@ -68,15 +69,6 @@
 using namespace activefoam;
 
 namespace {
-
-double quadratic(const ForceTerm& term, const StepContext& ctx, const Eigen::VectorXd& v) {
-  FrictionOperator op;
-  op.reset(ctx.cells.numVertices(), ctx.cells.topology_version);
-  term.addFriction(ctx, op);
-  Eigen::VectorXd y(v.size());
-  op.apply(v.data(), y.data());
-  return v.dot(y);
-}
 
 // The torque about xbar of a term's dissipative forces on v, Σ (x_i − x̄) × (Γ_term v)_i: what the
 // term takes out of (or, with the opposite sign, puts into) the aggregate's turning.
@@ -164,9 +156,9 @@ int main(int argc, char** argv) {
       plain.consistent_stiffness = consistent;
       StepContext stiff = plain;
       stiff.contact_stiffness_dt = stiffness_dt;
-      const double pm = quadratic(medium, plain, v), pc = quadratic(cortex, plain, v);
-      const double pt = quadratic(fric_t, plain, v), pn = quadratic(fric_n, plain, v);
-      const double ps = stiffness_dt > 0 ? quadratic(springs, stiff, v) : 0.0;
+      const double pm = frictionPower(medium, plain, v), pc = frictionPower(cortex, plain, v);
+      const double pt = frictionPower(fric_t, plain, v), pn = frictionPower(fric_n, plain, v);
+      const double ps = stiffness_dt > 0 ? frictionPower(springs, stiff, v) : 0.0;
       double pf = 0;
       for (int i = 0; i < nv; ++i) pf += v.segment<3>(3 * i).dot(f.col(i));
       // The active forces alone: the migration term's forces at the start.
@@ -214,8 +206,9 @@ int main(int argc, char** argv) {
         }
       }
       // Each cell's translation alone: what carries cells apart (the MSRD's motion).
-      const double pm_m = quadratic(medium, plain, v_move), pt_m = quadratic(fric_t, plain, v_move),
-                   pn_m = quadratic(fric_n, plain, v_move);
+      const double pm_m = frictionPower(medium, plain, v_move),
+                   pt_m = frictionPower(fric_t, plain, v_move),
+                   pn_m = frictionPower(fric_n, plain, v_move);
       const Eigen::VectorXd v_rest = v - v_aff;
       // The vertex-scale part: v less its one-ring mean. A field smooth over a few edges leaves
       // little here; jitter from vertex to vertex (a discretisation's noise) leaves most of itself.
@@ -232,10 +225,13 @@ int main(int argc, char** argv) {
         for (int i = 0; i < nv; ++i)
           if (count[i]) v_ring.segment<3>(3 * i) -= sum.segment<3>(3 * i) / count[i];
       }
-      const double pc_ring = quadratic(cortex, plain, v_ring);
-      const double pm_a = quadratic(medium, plain, v_aff), pc_a = quadratic(cortex, plain, v_aff);
-      const double pt_a = quadratic(fric_t, plain, v_aff), pn_a = quadratic(fric_n, plain, v_aff);
-      const double pc_r = quadratic(cortex, plain, v_rest), pt_r = quadratic(fric_t, plain, v_rest);
+      const double pc_ring = frictionPower(cortex, plain, v_ring);
+      const double pm_a = frictionPower(medium, plain, v_aff),
+                   pc_a = frictionPower(cortex, plain, v_aff);
+      const double pt_a = frictionPower(fric_t, plain, v_aff),
+                   pn_a = frictionPower(fric_n, plain, v_aff);
+      const double pc_r = frictionPower(cortex, plain, v_rest),
+                   pt_r = frictionPower(fric_t, plain, v_rest);
       // Centroid speeds, absolute and relative to the contacting neighbours' mean.
       std::vector<Vec3> vc(nc, Vec3::Zero());
       std::vector<double> area(nc, 0.0);

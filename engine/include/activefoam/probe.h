@@ -68,5 +68,7 @@ struct Dissipation {
   double active = 0;  // vᵀF_active, ActiveMigration's forces alone
 };
 Dissipation dissipation(const StartSolve& s);
+// vᵀΓ_term v, Γ_term made by the term alone from `ctx`.
+double frictionPower(const ForceTerm& term, const StepContext& ctx, const Eigen::VectorXd& v);
 
 }  // namespace activefoam

@@ -16,17 +16,6 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// vᵀΓ_term v, Γ_term made by the term alone. A fresh operator each time: FrictionOperator keys
-// its couplings by the term's address, and the parts of the contact friction are temporaries.
-double quadratic(const ForceTerm& term, const StepContext& ctx, const Eigen::VectorXd& v) {
-  FrictionOperator op;
-  op.reset(ctx.cells.numVertices(), ctx.cells.topology_version);
-  term.addFriction(ctx, op);
-  Eigen::VectorXd y(v.size());
-  op.apply(v.data(), y.data());
-  return v.dot(y);
-}
-
 // The cells' centroids at t = 0 (the first sample) against those now.
 class RigidMotionProbe : public Probe {
  public:
@@ -90,6 +79,17 @@ bool asked(const SceneSpec& spec, const char* key, bool on) {
 
 }  // namespace
 
+// A fresh operator each time: FrictionOperator keys its couplings by the term's address, and the
+// parts of the contact friction are temporaries.
+double frictionPower(const ForceTerm& term, const StepContext& ctx, const Eigen::VectorXd& v) {
+  FrictionOperator op;
+  op.reset(ctx.cells.numVertices(), ctx.cells.topology_version);
+  term.addFriction(ctx, op);
+  Eigen::VectorXd y(v.size());
+  op.apply(v.data(), y.data());
+  return v.dot(y);
+}
+
 RigidMotion rigidMotion(const std::vector<Vec3>& from, const std::vector<Vec3>& to) {
   if (from.size() != to.size() || from.empty())
     throw std::invalid_argument("rigidMotion: the same cells at both times");
@@ -113,14 +113,14 @@ Dissipation dissipation(const StartSolve& s) {
   for (const auto& term : s.terms) {
     const ForceTerm& t = *term;
     if (dynamic_cast<const MediumDrag*>(&t)) {
-      d.medium += quadratic(t, ctx, v);
+      d.medium += frictionPower(t, ctx, v);
     } else if (dynamic_cast<const CortexViscosity*>(&t)) {
-      d.cortex += quadratic(t, ctx, v);
+      d.cortex += frictionPower(t, ctx, v);
     } else if (const auto* cf = dynamic_cast<const ContactFriction*>(&t)) {
       using Part = ContactFriction::Part;
-      d.friction_t += quadratic(cf->part(Part::Tangential), ctx, v);
-      d.friction_n += quadratic(cf->part(Part::Normal), ctx, v);
-      if (ctx.contact_stiffness_dt > 0) d.springs += quadratic(cf->part(Part::Springs), ctx, v);
+      d.friction_t += frictionPower(cf->part(Part::Tangential), ctx, v);
+      d.friction_n += frictionPower(cf->part(Part::Normal), ctx, v);
+      if (ctx.contact_stiffness_dt > 0) d.springs += frictionPower(cf->part(Part::Springs), ctx, v);
     } else if (dynamic_cast<const ActiveMigration*>(&t)) {
       Eigen::Matrix3Xd fa = Eigen::Matrix3Xd::Zero(3, ctx.cells.numVertices());
       t.addForces(ctx, fa);
