@@ -8,18 +8,12 @@
 
 using namespace activefoam;
 using activefoam::testing::bits;
-using activefoam::testing::cellSpec;
 using activefoam::testing::physicsColumns;
 
 namespace {
 
 SceneSpec doublet() {
-  SceneSpec s = cellSpec(1.0, 80);
-  s.scene = SceneKind::Doublet;
-  s.duration_s = 60;
-  s.sample_every_s = 5;
-  s.snapshot_every_s = 0;
-  return s;
+  return activefoam::testing::doubletSpec(60, 5);
 }
 
 }  // namespace

@@ -40,12 +40,7 @@ Vec3 mean(const std::vector<Vec3>& p) {
 }
 
 SceneSpec doublet() {
-  SceneSpec s = cellSpec(1.0, 80);
-  s.scene = SceneKind::Doublet;
-  s.duration_s = 6;
-  s.sample_every_s = 1;
-  s.snapshot_every_s = 0;
-  return s;
+  return activefoam::testing::doubletSpec(6, 1);
 }
 
 struct Column {

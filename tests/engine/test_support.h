@@ -44,6 +44,16 @@ inline SceneSpec cellSpec(double axes_ratio = 1.0, int triangles = 320) {
   return s;
 }
 
+// Two such cells of 80 triangles, sampled every `sample_every_s`, no snapshots.
+inline SceneSpec doubletSpec(double duration_s, double sample_every_s) {
+  SceneSpec s = cellSpec(1.0, 80);
+  s.scene = SceneKind::Doublet;
+  s.duration_s = duration_s;
+  s.sample_every_s = sample_every_s;
+  s.snapshot_every_s = 0;
+  return s;
+}
+
 // A resolved fusion of two tiny spheroids (by default 3 + 4 cells of 80 triangles, 10 s at
 // Δt 0.5 s, sampled every second), relaxed for 10 s only: fast enough for the sanitizer passes.
 inline SceneSpec smallFusionSpec(std::uint64_t seed = 5, int n_cells_a = 3, int n_cells_b = 4,

@@ -135,6 +135,16 @@ class ServiceTest : public ::testing::Test {
     EXPECT_TRUE(st.ok()) << st.error_message();
     return resp.job_id();
   }
+  // GetResults of a job, with its samples; an error status fails the test.
+  v1::JobResults results(const std::string& id, bool with_samples = true) {
+    v1::GetResultsRequest r;
+    r.set_job_id(id);
+    r.set_with_samples(with_samples);
+    v1::JobResults res;
+    auto c = ctx();
+    EXPECT_TRUE(stub_->GetResults(c.get(), r, &res).ok());
+    return res;
+  }
   v1::Job get(const std::string& id) {
     v1::GetJobRequest r;
     r.set_job_id(id);
@@ -261,12 +271,7 @@ TEST_F(ServiceTest, SubmitWatchResults) {
   ASSERT_TRUE(evs.back().has_state());
   EXPECT_EQ(evs.back().state().state(), v1::JOB_STATE_SUCCEEDED);
 
-  v1::GetResultsRequest rr;
-  rr.set_job_id(id);
-  rr.set_with_samples(true);
-  v1::JobResults res;
-  auto c = ctx();
-  ASSERT_TRUE(stub_->GetResults(c.get(), rr, &res).ok());
+  const v1::JobResults res = results(id);
   EXPECT_EQ(res.job().state(), v1::JOB_STATE_SUCCEEDED);
   EXPECT_EQ(res.samples_size(), 6);
   ASSERT_GE(res.columns_size(), 8);
@@ -295,12 +300,7 @@ TEST_F(ServiceTest, ProbeColumnsReachTheJobsSamples) {
   const std::string id = submit(req);
   const v1::Job job = waitFor(id, terminal);
   ASSERT_EQ(job.state(), v1::JOB_STATE_SUCCEEDED) << job.reason();
-  v1::GetResultsRequest rr;
-  rr.set_job_id(id);
-  rr.set_with_samples(true);
-  v1::JobResults res;
-  auto c = ctx();
-  ASSERT_TRUE(stub_->GetResults(c.get(), rr, &res).ok());
+  const v1::JobResults res = results(id);
   SceneSpec spec;
   spec.scene = SceneKind::Cell;
   spec.observe.dissipation = true;
@@ -605,12 +605,7 @@ TEST_F(ServiceTest, AnEarlierVersionsRecordIsServedInTodaysKeys) {
   ASSERT_TRUE(stub_->ListJobs(c1.get(), lr, &list).ok());
   ASSERT_EQ(list.jobs_size(), 1);
   EXPECT_EQ(list.jobs(0).resolved_spec_json(), j.resolved_spec_json());
-  v1::GetResultsRequest rr;
-  rr.set_job_id(id);
-  v1::JobResults res;
-  auto c2 = ctx();
-  ASSERT_TRUE(stub_->GetResults(c2.get(), rr, &res).ok());
-  EXPECT_EQ(res.job().resolved_spec_json(), j.resolved_spec_json());
+  EXPECT_EQ(results(id, false).job().resolved_spec_json(), j.resolved_spec_json());
   const std::vector<v1::JobEvent> events = watch(id, 0, 1);
   ASSERT_FALSE(events.empty());
   ASSERT_TRUE(events[0].has_state());
