@@ -5,7 +5,7 @@
 # "8. CG iterations"; docs/study/fusion-ros2.md).
 #
 #   bench/fusion_cpu_cost.sh FOAM_RUN CACHE_DIR OUT_DIR [DURATION ≥ 30] ["integrator dt pre" ...]
-# CACHE_DIR: the study's spheroid cache (bench/study_fusion_accuracy.py DIR fills DIR/cache).
+# CACHE_DIR: the study's spheroid cache (docs/study/fusion_accuracy.py DIR fills DIR/cache).
 set -euo pipefail
 fr=$1 cache=$2 out=$3 duration=${4:-120}
 shift $(( $# < 4 ? $# : 4 ))

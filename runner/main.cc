@@ -185,7 +185,7 @@ struct Args {
 };
 
 // One thread unless told otherwise: the studies and users run many foam-run side by side (one
-// per core, bench/study_all.sh), where OpenMP's default of every core per process would
+// per core), where OpenMP's default of every core per process would
 // oversubscribe the machine, and its spinning barriers then slow every run down many times
 // (measured: 25 s instead of 1 s for two 3-thread tests on 2 cores). A Slurm task owns exactly
 // its --cpus-per-task, so there the allocation is the right default.

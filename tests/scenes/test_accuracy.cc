@@ -1,5 +1,5 @@
 // The quick version of the speed/accuracy study (the full one is
-// bench/study_accuracy, docs/study/): the orderings the study relies on, measured on the doublet
+// docs/study/): the orderings the study relies on, measured on the doublet
 // against a finer reference (Δt = 0.025 s, ε_CG = 1e-6) — the equilibrium contact angle θ_c, and
 // the θ_c(t) trajectory on the way there.
 #include <algorithm>

@@ -1,4 +1,4 @@
-// The committed stability map (docs/study/stability-map.csv, bench/study_stability_map) holds:
+// The committed stability map (docs/study/stability-map.csv) holds:
 // at every (integrator, k_AB, p_a) the largest fixed Δt it calls stable runs 1000 steps of the
 // doublet without a failure. (The adaptive ladders' rows say where a run finishes by rejecting
 // tries; the fixed-Δt rows are the claim a refusal rests on.)

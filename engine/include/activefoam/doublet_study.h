@@ -1,6 +1,6 @@
 // The doublet as a measuring instrument: two passive cells from a small gap, run to
 // equilibrium, their contact angle averaged over the last stretch. The speed/accuracy study
-// (bench/study_accuracy) and its quick version in the tests measure every numerical setting
+// and its quick version in the tests measure every numerical setting
 // this way, so that both judge the same quantity.
 #pragma once
 

@@ -4,7 +4,7 @@ adaptive Δt), every run of
 study_stability_map's stability-map.csv as a point at (k_AB factor, Δt), its marker the outcome
 (stable, or the failure kind that ended it), the largest stable Δt per motility joined by a line.
 
-    bench/plot_stability_map.py stability-map.csv OUT.png
+    docs/study/plot_stability_map.py stability-map.csv OUT.png
 
 Within each k_AB group the three motilities p_a r/2γ = 0, 0.33, 1 sit left to right.
 """

@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
-"""θ(t) RMS error against cost of a study (study_accuracy's doublet.csv or
-study_fusion_accuracy.py's fusion.csv), one point per configuration, the Pareto front drawn
+"""θ(t) RMS error against cost of a study (the doublet study's doublet.csv or
+fusion_accuracy.py's fusion.csv), one point per configuration, the Pareto front drawn
 through the configurations no other beats on both (PNG, gnuplot).
 
-    bench/plot_study.py STUDY.csv OUT.png [TITLE]
+    docs/study/plot_study.py STUDY.csv OUT.png [TITLE]
 
 Errors below 0.01° are drawn at 0.01° (log scale); failed runs are left out and listed in the
 title.
