@@ -21,10 +21,10 @@ first row of samples.csv (t = 0) is written after them, so its wall_s is subtrac
 (wall_s − samples.csv's wall_s at t = 0) / steps. The phases are accumulated inside the steps
 only and need no correction; what a step spends outside them (guards, moving the vertices, the
 end sample) is in ms a step and in no phase. Every step counts, the first ones included: CG
-starts the first step from rest and builds the matrix pattern, so the first step costs about
-twice a later one (2 × 20, consistent step at Δt 0.5 s), which adds a few per cent to the mean
-of 30 steps and under one per cent to that of 200. With an adaptive step the simulated time
-(summary.json's t_s) makes the projections, not Δt.
+starts the first step from rest, so it takes about twice the iterations and the time of a later
+one (2 × 20, consistent step at Δt 0.5 s), which adds a few per cent to the means of 30 steps
+and under one per cent to those of 200. With an adaptive step the simulated time (summary.json's
+t_s) makes the projections, not Δt.
 """
 import argparse
 import csv
