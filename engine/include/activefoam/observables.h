@@ -34,7 +34,8 @@ SphereFit fitSphere(const Eigen::Matrix3Xd& points);
 double doubletContactAngleDeg(const CellSet& cells, const ContactList& contacts);
 
 // ---------------------------------------------------------------------------------------------
-// Fusion observables (docs/model.md §8; implemented in observe/fusion_observables.cc).
+// Fusion observables (docs/model.md §8; implemented in observe/fusion_observables.cc, the
+// contacting pairs, MSRD and unique contacts in observe/msrd.cc).
 
 // Fusion angle of two spheroids (cells.label[c] = 0 or 1). Each spheroid's centroid is the
 // volume-weighted mean of its cells' volume centroids; the axis runs through the two centroids
