@@ -1,5 +1,5 @@
 // Neighbours over time (docs/model.md §8.6): the contacting cell pairs, the MSRD and its pooling
-// over origins, the unique contacts, and the Kabsch rotation they share.
+// over origins (by pair class too), the unique contacts, and the Kabsch rotation they share.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -34,9 +34,12 @@ std::vector<std::pair<int, int>> contactingCellPairs(const CellSet& cells,
 }
 
 void MsrdTracker::addSample(double t_s, std::vector<Vec3> centroids,
-                            std::vector<std::pair<int, int>> contact_pairs) {
+                            std::vector<std::pair<int, int>> contact_pairs,
+                            std::vector<int> labels) {
   if (!x_.empty() && centroids.size() != x_.front().size())
     throw std::invalid_argument("MsrdTracker: the number of cells changed");
+  if (!labels.empty() && labels.size() != centroids.size())
+    throw std::invalid_argument("MsrdTracker: labels, one per cell");
   if (!t_.empty() && !(t_s > t_.back()))
     throw std::invalid_argument("MsrdTracker: sample times must increase");
   const int nc = static_cast<int>(centroids.size());
@@ -50,6 +53,7 @@ void MsrdTracker::addSample(double t_s, std::vector<Vec3> centroids,
   t_.push_back(t_s);
   x_.push_back(std::move(centroids));
   pairs_.push_back(std::move(contact_pairs));
+  labels_.push_back(std::move(labels));
 }
 
 void MsrdTracker::addSample(double t_s, const CellSet& cells, const Geometry& geo,
@@ -94,7 +98,8 @@ double rotationAngle(const Eigen::Matrix3d& r) {
   return std::acos(std::clamp((r.trace() - 1.0) / 2.0, -1.0, 1.0));
 }
 
-MsrdTracker::LagSums MsrdTracker::lagSums(int lag, bool less_rotation) const {
+MsrdTracker::LagSums MsrdTracker::lagSums(int lag, bool less_rotation, const ClassOf* class_of,
+                                          std::vector<Pooled>* by_class) const {
   LagSums s;
   const int n = numSamples();
   if (lag < 0 || lag >= n) return s;
@@ -108,10 +113,20 @@ MsrdTracker::LagSums MsrdTracker::lagSums(int lag, bool less_rotation) const {
       rot = bestRotation(x0, x1);
       s.angle += rotationAngle(rot);
     }
+    const std::vector<int>& label = labels_[o];
+    if (by_class && label.empty())
+      throw std::invalid_argument("MsrdTracker: sample " + std::to_string(o) + " has no labels");
     for (const auto& [i, j] : pairs_[o]) {
       const Vec3 d0 = x0[i] - x0[j];
-      s.sum += ((x1[i] - x1[j]) - (less_rotation ? Vec3(rot * d0) : d0)).squaredNorm();
+      const double d2 = ((x1[i] - x1[j]) - (less_rotation ? Vec3(rot * d0) : d0)).squaredNorm();
+      s.sum += d2;
       ++s.pairs;
+      if (!by_class) continue;
+      const int c = (*class_of)(label[i], label[j]);
+      if (c < 0 || c >= static_cast<int>(by_class->size()))
+        throw std::invalid_argument("MsrdTracker: pair class out of range");
+      (*by_class)[c].sum += d2;
+      ++(*by_class)[c].pairs;
     }
     ++s.origins;
   }
@@ -133,6 +148,17 @@ double MsrdTracker::turnDeg(int lag) const {
   return s.origins ? s.angle / s.origins * 180.0 / M_PI : kNaN;
 }
 
+double MsrdTracker::Pooled::mean() const {
+  return pairs ? sum / pairs : kNaN;
+}
+
+std::vector<MsrdTracker::Pooled> MsrdTracker::pooledByClass(int lag, int classes,
+                                                            const ClassOf& class_of) const {
+  std::vector<Pooled> out(static_cast<std::size_t>(std::max(classes, 0)));
+  lagSums(lag, false, &class_of, &out);
+  return out;
+}
+
 std::vector<double> MsrdTracker::msrdCurve() const {
   std::vector<double> c(t_.size());
   for (int k = 0; k < numSamples(); ++k) c[k] = msrd(k);
@@ -147,14 +173,24 @@ MsrdTracker::Mixing MsrdTracker::mixingTimeLessRotation(double r_um) const {
   return mixingOf(r_um, true);
 }
 
+MsrdTracker::Mixing MsrdTracker::mixingTime(double r_um, const std::vector<double>& curve) const {
+  return mixingOn(r_um,
+                  [&](int k) { return k < static_cast<int>(curve.size()) ? curve[k] : kNaN; });
+}
+
 MsrdTracker::Mixing MsrdTracker::mixingOf(double r_um, bool less_rotation) const {
+  return mixingOn(r_um, [&](int k) { return less_rotation ? msrdLessRotation(k) : msrd(k); });
+}
+
+MsrdTracker::Mixing MsrdTracker::mixingOn(double r_um,
+                                          const std::function<double(int)>& msrd_at) const {
   Mixing m;
   const int n = numSamples();
   m.time_s = lagTime(std::max(n - 1, 0));
   const double target = r_um * r_um;
   double prev = 0;
   for (int k = 1; k < n; ++k) {
-    const double v = less_rotation ? msrdLessRotation(k) : msrd(k);
+    const double v = msrd_at(k);
     if (!std::isfinite(v)) continue;
     if (v >= target) {
       // Linear between lag k − 1 (MSRD prev < r²) and lag k.
@@ -199,6 +235,9 @@ std::string MsrdTracker::save() const {
     w.vec(x_[k]);
     w.vec(pairs_[k]);
   }
+  // Labels only where some sample has them: a tracker without keeps the bytes it had before them.
+  if (std::any_of(labels_.begin(), labels_.end(), [](const auto& l) { return !l.empty(); }))
+    for (const auto& l : labels_) w.vec(l);
   return w.take();
 }
 
@@ -211,6 +250,12 @@ void MsrdTracker::restore(const std::string& data) {
   for (std::uint64_t k = 0; k < n; ++k) {
     m.x_.push_back(r.vec<Vec3>());
     m.pairs_.push_back(r.vec<std::pair<int, int>>());
+  }
+  const bool labelled = !r.done();
+  for (std::uint64_t k = 0; k < n; ++k) {
+    m.labels_.push_back(labelled ? r.vec<int>() : std::vector<int>());
+    if (!m.labels_[k].empty() && m.labels_[k].size() != m.x_[k].size())
+      throw std::invalid_argument("msrd tracker: labels of a sample, one per cell");
   }
   if (!r.done()) throw std::invalid_argument("msrd tracker: trailing bytes");
   *this = std::move(m);
