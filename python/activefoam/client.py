@@ -452,8 +452,10 @@ class Job:
 
     def curve(self, name: str = "msrd") -> pd.DataFrame:
         """A curve the finished run ended with, as columns x, y: "msrd" (fusion) is the MSRD
-        (µm², y) against the lag (s, x). LookupError when the run has none (not finished, not a
-        fusion, or run by a foamd older than the curves)."""
+        (µm², y) against the lag (s, x); a probe's by its name (observe.msrd_by_depth:
+        "msrd_surface", "msrd_mixed", "msrd_buried", "msrd_layer0", "msrd_layer1",
+        "msrd_layer2plus", the same axes). LookupError when the run has none (not finished, not
+        a fusion, its probe not asked for, or run by a foamd older than the curves)."""
         for c in self.results_message(False).curves:
             if c.name == name:
                 return pd.DataFrame({"x": list(c.x), "y": list(c.y)})

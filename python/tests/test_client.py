@@ -77,6 +77,26 @@ def test_a_probes_columns_come_with_the_samples(client):
     assert ((balance - 1).abs() < 1e-4).all()
 
 
+def test_a_probes_curves_come_with_the_results(client):
+    # observe.msrd_by_depth ends a fusion with curves of its own, read by name as "msrd" is. No
+    # cell of 3 + 4 is buried: the surface pairs are all the pairs.
+    job = client.submit({"scene": "fusion", "duration_s": 4, "sample_every_s": 1,
+                         "snapshot_every_s": 0, "scene.n_cells_a": 3, "scene.n_cells_b": 4,
+                         "scene.prep_max_s": 10, "scene.allow_uncompacted": True,
+                         "numerics": {"triangles_per_cell": 80, "dt_s": 0.2},
+                         "observe": {"msrd_by_depth": True}})
+    assert job.wait(timeout_s=120) == "succeeded"
+    msrd, surface = job.curve("msrd"), job.curve("msrd_surface")
+    assert len(msrd) > 0 and list(surface["x"]) == list(msrd["x"])
+    assert ((surface["y"] - msrd["y"]).abs() <= 1e-12 * msrd["y"]).all()
+    assert len(job.curve("msrd_buried")) == 0
+    samples = job.samples()
+    assert (samples["cells_buried"] == 0).all() and (samples["cells_surface"] == 7).all()
+    r = job.results()
+    assert r["mixing_time_surface_s"] == r["mixing_time_s"]
+    assert math.isnan(r["mixing_time_buried_s"])
+
+
 def test_sweep_results_and_summary_over_seeds(client):
     base = dict(TINY, snapshot_every_s=0)
     sw = client.sweep(base, grid={"cells.gamma": [0.4, 0.6]}, seeds=[1, 2], tags=["sw"])

@@ -162,6 +162,17 @@ nlohmann::json summaryToJson(const RunSummary& summary, const SceneSpec& resolve
     }
     j["msrd"] = {{"lag_s", lag}, {"msrd_um2", value}};
   }
+  if (!summary.curves.empty()) {
+    // The probes' curves by name, x and y aligned ("msrd" keeps its own place and spelling).
+    nlohmann::json curves = nlohmann::json::object();
+    for (const RunSummary::Curve& c : summary.curves) {
+      nlohmann::json x = nlohmann::json::array(), y = nlohmann::json::array();
+      for (double v : c.x) x.push_back(number(v));
+      for (double v : c.y) y.push_back(number(v));
+      curves[c.name] = {{"x", x}, {"y", y}};
+    }
+    j["curves"] = curves;
+  }
   j["reduced"] = reducedParameters(resolved);
   j["samples"] = ctx.samples_written;
   j["snapshots"] = ctx.snapshots_written;
@@ -216,6 +227,18 @@ FlatResults flattenSummary(const nlohmann::json& j) {
       }
       out.curves.push_back(std::move(c));
     }
+  }
+  const nlohmann::json& curves = j.contains("curves") ? j["curves"] : none;
+  for (const auto& [name, cj] : curves.items()) {
+    if (!cj.is_object() || !cj.contains("x") || !cj.contains("y") || !cj["x"].is_array() ||
+        !cj["y"].is_array() || cj["x"].size() != cj["y"].size())
+      continue;
+    FlatCurve c{name, {}, {}};
+    for (std::size_t k = 0; k < cj["x"].size(); ++k) {
+      c.x.push_back(num(cj["x"][k]));
+      c.y.push_back(num(cj["y"][k]));
+    }
+    out.curves.push_back(std::move(c));
   }
   return out;
 }

@@ -110,13 +110,15 @@ TEST(Checkpoint, RejectsForeignOrDamagedState) {
 
 // The figure studies' step (the consistent stiffness at Δt 1 s, ε_CG 1e-2, the overlap within
 // prisms) on a motile fusion: cut mid-run and resumed, the same samples as straight through —
-// the probes' columns included (the rigid motion's reference at t = 0 rides in the checkpoint).
+// the probes' columns included (the rigid motion's reference at t = 0 rides in the checkpoint) —
+// and the same curves and final values (the MSRD by depth's samples ride in it too).
 TEST(Checkpoint, StudiesStepFusionResumesWithTheSameSamples) {
   SceneSpec s = activefoam::testing::studiesStep(activefoam::testing::smallFusionSpec(
       /*seed=*/11, 4, 4, /*duration_s=*/30, /*sample_every_s=*/2));
   s.observe.rigid_motion = true;
   s.observe.dissipation = true;
-  ASSERT_EQ(sampleColumns(s).back(), "power_active_nw");
+  s.observe.msrd_by_depth = true;
+  ASSERT_EQ(sampleColumns(s).back(), "cells_buried");
 
   std::vector<Sample> straight, first, second;
   RunObserver o1;
@@ -144,8 +146,18 @@ TEST(Checkpoint, StudiesStepFusionResumesWithTheSameSamples) {
   first.insert(first.end(), second.begin(), second.end());
   EXPECT_EQ(bits(physicsColumns(first)), bits(physicsColumns(straight)));
   EXPECT_EQ(rest.steps, whole.steps);
+  EXPECT_EQ(activefoam::testing::curveBits(rest), activefoam::testing::curveBits(whole));
+  ASSERT_EQ(rest.curves.size(), 6u);
+  EXPECT_FALSE(rest.curves[0].y.empty());  // msrd_surface
+  ASSERT_EQ(rest.final_values.size(), whole.final_values.size());
+  for (std::size_t i = 0; i < whole.final_values.size(); ++i) {
+    if (whole.final_values[i].first.rfind("mixing_", 0) != 0) continue;
+    EXPECT_EQ(
+        std::memcmp(&rest.final_values[i].second, &whole.final_values[i].second, sizeof(double)), 0)
+        << whole.final_values[i].first;
+  }
   // The aggregate turned and moved, and the probes measured it after the resume as well.
-  const std::size_t turn = sampleColumns(s).size() - 9;
+  const std::size_t turn = sampleColumns(s).size() - 11;
   EXPECT_GT(straight.back().values[turn], 0);
   EXPECT_GT(second.back().values[turn + 1], 0);
 }

@@ -1,5 +1,6 @@
-// Probes ([observe]): the aggregate's rigid motion and the dissipation by term, on states with
-// known answers; a run's other columns keep their bits with probes on.
+// Probes ([observe]): the aggregate's rigid motion, the dissipation by term and the MSRD by depth,
+// on states with known answers; a run's other columns keep their bits with probes on.
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstring>
@@ -255,6 +256,7 @@ TEST(Probes, ChangeNoBitOfTheRun) {
   SceneSpec probed = plain;
   probed.observe.rigid_motion = true;
   probed.observe.dissipation = true;
+  probed.observe.msrd_by_depth = true;
   std::vector<Sample> a, b;
   RunObserver oa, ob;
   oa.on_sample = [&](const Sample& x) { a.push_back(x); };
@@ -262,15 +264,20 @@ TEST(Probes, ChangeNoBitOfTheRun) {
   const RunSummary sa = runScene(plain, oa), sb = runScene(probed, ob);
   ASSERT_TRUE(sa.ok() && sb.ok());
   const std::vector<std::string> cols = sampleColumns(plain), more = sampleColumns(probed);
-  ASSERT_EQ(more.size(), cols.size() + 9);
+  ASSERT_EQ(more.size(), cols.size() + 11);
   EXPECT_TRUE(std::equal(cols.begin(), cols.end(), more.begin()));
   EXPECT_EQ(more[cols.size()], "rigid_turn_deg");
   EXPECT_EQ(more[cols.size() + 2], "diss_medium_nw");
+  EXPECT_EQ(more[cols.size() + 9], "cells_surface");
   ASSERT_EQ(a.size(), b.size());
   for (Sample& x : b) x.values.resize(cols.size());
   EXPECT_EQ(bits(physicsColumns(a)), bits(physicsColumns(b)));
   EXPECT_EQ(sa.steps, sb.steps);
-  ASSERT_EQ(sa.final_values.size(), sb.final_values.size());
+  // The probes' final values and curves come after the run's own.
+  ASSERT_EQ(sa.final_values.size() + 6, sb.final_values.size());
+  EXPECT_TRUE(sa.curves.empty());
+  EXPECT_EQ(sb.curves.size(), 6u);
+  EXPECT_EQ(sa.msrd, sb.msrd);
   for (std::size_t i = 0; i < sa.final_values.size(); ++i)
     EXPECT_EQ(std::memcmp(&sa.final_values[i].second, &sb.final_values[i].second, sizeof(double)),
               0)
@@ -282,12 +289,18 @@ TEST(Probes, OnlyWhereTheSceneReadsThem) {
   SceneSpec s = cellSpec(1.0, 80);
   s.observe.rigid_motion = true;
   s.observe.dissipation = true;
+  s.observe.msrd_by_depth = true;
   EXPECT_EQ(probeColumns(s).size(), 7u);  // the dissipation's alone
   EXPECT_FALSE(findField("observe.rigid_motion")->readBy(SceneKind::Cell));
   EXPECT_FALSE(findField("observe.rigid_motion")->readBy(SceneKind::Doublet));
   EXPECT_TRUE(findField("observe.rigid_motion")->readBy(SceneKind::Fusion));
+  for (SceneKind k : {SceneKind::Cell, SceneKind::Doublet, SceneKind::Spheroid})
+    EXPECT_FALSE(findField("observe.msrd_by_depth")->readBy(k));  // the MSRD is a fusion's
+  EXPECT_TRUE(findField("observe.msrd_by_depth")->readBy(SceneKind::Fusion));
   s.scene = SceneKind::Spheroid;
   EXPECT_EQ(probeColumns(s).size(), 9u);
+  s.scene = SceneKind::Fusion;
+  EXPECT_EQ(probeColumns(s).size(), 11u);
 }
 
 // The keys change neither the preparation nor, while off, the fingerprint; on, they are in it:
@@ -297,9 +310,11 @@ TEST(Probes, KeysLeaveThePreparationAloneAndSeparateCheckpoints) {
   SceneSpec probed = plain;
   probed.observe.rigid_motion = true;
   probed.observe.dissipation = true;
+  probed.observe.msrd_by_depth = true;
   EXPECT_EQ(spheroidPrepSpec(probed, 3, 11), spheroidPrepSpec(plain, 3, 11));
   EXPECT_EQ(specFingerprint(plain).find("observe"), std::string::npos);
   EXPECT_NE(specFingerprint(probed).find("observe.rigid_motion=1"), std::string::npos);
+  EXPECT_NE(specFingerprint(probed).find("observe.msrd_by_depth=1"), std::string::npos);
 
   SceneSpec d = resolve(doublet());
   std::string checkpoint;
@@ -318,4 +333,201 @@ TEST(Probes, KeysLeaveThePreparationAloneAndSeparateCheckpoints) {
   ASSERT_EQ(runScene(with, o).failure, FailureKind::Cancelled);
   EXPECT_THROW(runScene(d, RunObserver{}, &checkpoint), std::invalid_argument);
   EXPECT_TRUE(runScene(with, RunObserver{}, &checkpoint).ok());
+}
+
+// ---- observe.msrd_by_depth
+
+// Depth in the contact graph: a surface cell 0, then buried cells by their fewest contacts to it
+// (cell 3 through 7 rather than along the chain 1–2), a buried island with no way to the surface
+// (the deepest found + 1), an isolated surface cell; 0.05 itself is on the surface; with no
+// surface cell at all every cell is at 0 (bench/msrd_by_depth.py's `depths` throughout).
+TEST(Probes, ContactDepthsCountContactsFromTheSurface) {
+  const std::vector<double> free = {0.3, 0.01, 0, 0.049, 0, 0.02, 1, 0};
+  const std::vector<std::pair<int, int>> pairs = {{0, 1}, {1, 2}, {2, 3}, {4, 5}, {0, 7}, {3, 7}};
+  EXPECT_EQ(contactDepths(free, pairs), (std::vector<int>{0, 1, 2, 2, 3, 3, 0, 1}));
+  EXPECT_EQ(contactDepths({0.05, 0.0}, {{0, 1}}), (std::vector<int>{0, 1}));
+  EXPECT_EQ(contactDepths({0.0, 0.01}, {{0, 1}}), (std::vector<int>{0, 0}));
+  // At 0.5 the one surface cell touches no other: every buried cell has no way out, at 0 + 1.
+  EXPECT_EQ(contactDepths(free, pairs, 0.5), (std::vector<int>{1, 1, 1, 1, 1, 1, 0, 1}));
+  EXPECT_THROW(contactDepths({1.0}, {{0, 1}}), std::invalid_argument);
+}
+
+// The free fraction is the engine's own contact area against the cell's.
+TEST(Probes, FreeFractionIsTheShareOfTheSurfaceInNoContact) {
+  Geometry geo;
+  geo.cell_area = {10, 20, 8};
+  ContactList con;
+  EXPECT_EQ(freeFractions(geo, con), (std::vector<double>{1, 1, 1}));  // none detected
+  con.cell_contact_area = {2.5, 20, 0};
+  EXPECT_EQ(freeFractions(geo, con), (std::vector<double>{0.75, 0, 1}));
+}
+
+namespace {
+
+// MsrdTracker::Pooled's mean and count.
+void expectPooled(const MsrdTracker::Pooled& p, double mean, long pairs, const char* what) {
+  EXPECT_EQ(p.pairs, pairs) << what;
+  if (pairs == 0)
+    EXPECT_TRUE(std::isnan(p.mean())) << what;
+  else
+    EXPECT_DOUBLE_EQ(p.mean(), mean) << what;
+}
+
+}  // namespace
+
+// Cells 0–2 on the surface, 3–5 buried at depths 1, 2, 3. Cell 0 moves by d between samples, no
+// other cell moves: its pairs' relative vectors change by lag × d, all others' by nothing. Pairs
+// (0,1), (0,2) on the surface, (0,3), (2,3) mixed, (3,4), (4,5) buried; by the shallower cell's
+// depth the first four are layer 0, (3,4) layer 1, (4,5) layer 2+.
+TEST(Probes, MsrdByDepthSplitsAKnownMotion) {
+  const double d = 0.5;
+  const std::vector<double> free = {0.4, 0.2, 0.06, 0.04, 0, 0.01};
+  const std::vector<std::pair<int, int>> pairs = {{0, 1}, {0, 2}, {0, 3}, {2, 3}, {3, 4}, {4, 5}};
+  std::vector<Vec3> x0;
+  for (int c = 0; c < 6; ++c) x0.emplace_back(3.0 * c, 0.5 * c * c, -1.0 * c);
+  MsrdByDepth split;
+  const int n = 4;
+  for (int k = 0; k < n; ++k) {
+    std::vector<Vec3> x = x0;
+    x[0] += Vec3(k * d, 0, 0);
+    split.addSample(30.0 * k, x, pairs, free);
+  }
+  for (int lag = 1; lag < n; ++lag) {
+    SCOPED_TRACE(lag);
+    const double l2 = (lag * d) * (lag * d);
+    const long origins = n - lag;
+    const MsrdByDepth::Split s = split.pooled(lag);
+    expectPooled(s.burial[MsrdByDepth::kSurface], l2, 2 * origins, "surface");
+    expectPooled(s.burial[MsrdByDepth::kMixed], l2 / 2, 2 * origins, "mixed");
+    expectPooled(s.burial[MsrdByDepth::kBuried], 0, 2 * origins, "buried");
+    expectPooled(s.layer[MsrdByDepth::kLayer0], 3 * l2 / 4, 4 * origins, "layer 0");
+    expectPooled(s.layer[MsrdByDepth::kLayer1], 0, origins, "layer 1");
+    expectPooled(s.layer[MsrdByDepth::kLayer2Plus], 0, origins, "layer 2+");
+    EXPECT_DOUBLE_EQ(split.tracker().msrd(lag), l2 / 2);
+  }
+  // Its samples survive a checkpoint; malformed bytes, and a tracker without depths, do not.
+  MsrdByDepth restored;
+  restored.restore(split.save());
+  EXPECT_EQ(restored.pooled(2).layer[0].sum, split.pooled(2).layer[0].sum);
+  EXPECT_THROW(restored.restore("xx"), std::invalid_argument);
+  EXPECT_THROW(restored.restore(split.save() + "x"), std::invalid_argument);
+  MsrdTracker plain;
+  plain.addSample(0, x0, pairs);
+  EXPECT_THROW(restored.restore(plain.save()), std::invalid_argument);
+  EXPECT_THROW(plain.pooledByClass(0, 1, [](int, int) { return 0; }), std::invalid_argument);
+  EXPECT_THROW(split.addSample(200, x0, pairs, {0.5}), std::invalid_argument);
+}
+
+// A pair's class is its cells' at the origin: buried at the first sample only, cell 1's pair
+// with surface cell 0 is mixed from that origin and on the surface from the later ones.
+TEST(Probes, MsrdByDepthClassesAPairAtItsOrigin) {
+  const double d = 0.25;
+  MsrdByDepth split;
+  for (int k = 0; k < 3; ++k)
+    split.addSample(k, {Vec3::Zero(), Vec3(2 + k * d, 0, 0)}, {{0, 1}}, {0.5, k == 0 ? 0.01 : 0.5});
+  expectPooled(split.pooled(1).burial[MsrdByDepth::kMixed], d * d, 1, "mixed, lag 1");
+  expectPooled(split.pooled(1).burial[MsrdByDepth::kSurface], d * d, 1, "surface, lag 1");
+  expectPooled(split.pooled(2).burial[MsrdByDepth::kMixed], 4 * d * d, 1, "mixed, lag 2");
+  expectPooled(split.pooled(2).burial[MsrdByDepth::kSurface], 0, 0, "surface, lag 2");
+  // The classes' mixing times by the tracker's rule: r² = 2d² is crossed between lags 1 and 2.
+  std::vector<double> mixed(3);
+  for (int k = 0; k < 3; ++k) mixed[k] = split.pooled(k).burial[MsrdByDepth::kMixed].mean();
+  const MsrdTracker::Mixing m = split.tracker().mixingTime(std::sqrt(2) * d, mixed);
+  EXPECT_TRUE(m.reached);
+  EXPECT_DOUBLE_EQ(m.time_s, 1 + 1.0 / 3);
+}
+
+// A real fusion, sampled every step: every origin–pair of the MSRD falls in one class of each
+// split, so at every lag the classes hold the MSRD's pairs and it is their pair-weighted mean —
+// at the probe's threshold and at the median free fraction of t = 0, where so small an
+// aggregate has cells of every class.
+TEST(Probes, MsrdByDepthSplitsTheRunsOwnMsrd) {
+  const SceneSpec s = smallFusionSpec(5, 3, 4, 10, 1);
+  Simulation sim(s, buildFusionCells(s, nullptr));
+  std::vector<double> free0 = freeFractions(sim.geometry(), sim.contacts());
+  std::sort(free0.begin(), free0.end());
+  const double median = free0[free0.size() / 2];
+  ASSERT_LT(free0.front(), 1);  // in contact
+  MsrdTracker all;
+  std::vector<MsrdByDepth> splits{MsrdByDepth(), MsrdByDepth(median)};
+  auto sample = [&] {
+    const std::vector<double> free = freeFractions(sim.geometry(), sim.contacts());
+    for (double f : free) EXPECT_TRUE(f >= 0 && f <= 1) << f;
+    const auto pairs = contactingCellPairs(sim.cells(), sim.contacts());
+    all.addSample(sim.time(), sim.geometry().cell_centroid, pairs);
+    for (MsrdByDepth& sp : splits)
+      sp.addSample(sim.time(), sim.geometry().cell_centroid, pairs, free);
+  };
+  sample();
+  for (int k = 0; k < 16; ++k) {
+    ASSERT_TRUE(sim.step().ok());
+    sample();
+  }
+  std::array<long, 3> populated{};
+  for (std::size_t which = 0; which < splits.size(); ++which)
+    for (int lag = 1; lag < all.numSamples(); ++lag) {
+      SCOPED_TRACE(::testing::Message() << "split " << which << ", lag " << lag);
+      const MsrdTracker::Pooled every =
+          splits[which].tracker().pooledByClass(lag, 1, [](int, int) { return 0; })[0];
+      ASSERT_GT(every.pairs, 0);
+      EXPECT_EQ(every.mean(), all.msrd(lag));  // the same samples, the same sum
+      const MsrdByDepth::Split sp = splits[which].pooled(lag);
+      for (const auto* classes : {&sp.burial, &sp.layer}) {
+        double sum = 0;
+        long pairs = 0;
+        for (const MsrdTracker::Pooled& p : *classes) {
+          sum += p.pairs ? p.mean() * p.pairs : 0;
+          pairs += p.pairs;
+        }
+        EXPECT_EQ(pairs, every.pairs);
+        EXPECT_NEAR(sum / pairs, all.msrd(lag), 1e-12 * all.msrd(lag));
+      }
+      if (which == 1)
+        for (int c = 0; c < 3; ++c) populated[c] += sp.burial[c].pairs;
+    }
+  for (int c = 0; c < 3; ++c) EXPECT_GT(populated[c], 0) << "class " << c;
+}
+
+// Through runScene: the columns count the cells at every sample, and the run ends with the six
+// curves and the classes' mixing times. No cell of so small an aggregate is buried: the surface
+// pairs are all the pairs, and layer 0 too.
+TEST(Probes, MsrdByDepthEndsAFusionWithItsCurves) {
+  SceneSpec s = smallFusionSpec(5, 3, 4, 10, 1);
+  s.observe.msrd_by_depth = true;
+  Column c;
+  c.names = sampleColumns(s);
+  RunObserver obs;
+  obs.on_sample = [&](const Sample& x) { c.rows.push_back(x); };
+  const RunSummary sum = runScene(s, obs);
+  ASSERT_TRUE(sum.ok()) << sum.reason;
+  ASSERT_EQ(c.rows.size(), 11u);
+  for (std::size_t k = 0; k < c.rows.size(); ++k) {
+    EXPECT_EQ(c.at(k, "cells_surface"), 7);
+    EXPECT_EQ(c.at(k, "cells_buried"), 0);
+  }
+  std::vector<std::string> names;
+  for (const RunSummary::Curve& curve : sum.curves) names.push_back(curve.name);
+  ASSERT_EQ(names, (std::vector<std::string>{"msrd_surface", "msrd_mixed", "msrd_buried",
+                                             "msrd_layer0", "msrd_layer1", "msrd_layer2plus"}));
+  ASSERT_EQ(sum.msrd.size(), 10u);
+  for (int k : {0, 3}) {
+    const RunSummary::Curve& curve = sum.curves[k];
+    ASSERT_EQ(curve.x.size(), sum.msrd.size()) << curve.name;
+    for (std::size_t i = 0; i < sum.msrd.size(); ++i) {
+      EXPECT_EQ(curve.x[i], sum.msrd[i].first);
+      EXPECT_NEAR(curve.y[i], sum.msrd[i].second, 1e-12 * sum.msrd[i].second);
+    }
+  }
+  for (int k : {1, 2, 4, 5}) EXPECT_TRUE(sum.curves[k].x.empty()) << sum.curves[k].name;
+  auto value = [&](const std::string& name) {
+    for (const auto& [n, v] : sum.final_values)
+      if (n == name) return v;
+    ADD_FAILURE() << name;
+    return std::nan("");
+  };
+  EXPECT_EQ(value("mixing_time_surface_s"), value("mixing_time_s"));
+  EXPECT_EQ(value("mixing_surface_reached"), value("mixing_reached"));
+  for (const char* none : {"mixing_time_mixed_s", "mixing_time_buried_s"})
+    EXPECT_TRUE(std::isnan(value(none))) << none;
+  EXPECT_EQ(value("mixing_buried_reached"), 0);
 }

@@ -116,6 +116,22 @@ inline std::vector<std::vector<std::uint64_t>> bits(const std::vector<std::vecto
   return out;
 }
 
+// A summary's curves, the MSRD's and the probes' (RunSummary::curves), as name and bits of x
+// then y: what a reproducible run must repeat.
+inline std::vector<std::pair<std::string, std::vector<std::uint64_t>>> curveBits(
+    const RunSummary& s) {
+  std::vector<std::pair<std::string, std::vector<double>>> curves;
+  curves.emplace_back("msrd", std::vector<double>{});
+  for (const auto& [x, y] : s.msrd) curves.back().second.insert(curves.back().second.end(), {x, y});
+  for (const RunSummary::Curve& c : s.curves) {
+    curves.emplace_back(c.name, c.x);
+    curves.back().second.insert(curves.back().second.end(), c.y.begin(), c.y.end());
+  }
+  std::vector<std::pair<std::string, std::vector<std::uint64_t>>> out;
+  for (const auto& [name, v] : curves) out.emplace_back(name, bits({v}).front());
+  return out;
+}
+
 // A cell mesh written as OBJ (tests/engine/data/*.obj), with its radius from a "# radius_um R"
 // line.
 struct ObjCell {

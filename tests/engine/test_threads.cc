@@ -19,6 +19,7 @@
 
 using namespace activefoam;
 using activefoam::testing::cellSpec;
+using activefoam::testing::curveBits;
 using activefoam::testing::jiggle;
 using activefoam::testing::physicsColumns;
 using activefoam::testing::studiesStep;
@@ -104,6 +105,7 @@ void expectSameRuns(const SceneSpec& spec, Grain g) {
                             &other.summary.final_values[i].second, sizeof(double)),
                 0)
           << one.summary.final_values[i].first << ", " << n << " threads";
+    EXPECT_EQ(curveBits(one.summary), curveBits(other.summary)) << n << " threads";
   }
 }
 
@@ -304,11 +306,13 @@ TEST(Threads, Ros2MotileDoubletRunIsBitIdenticalForAnyThreadCount) {
   expectSameRuns(s, kFine);
 }
 
-// With the probes on: their columns too (the dissipation's products run the parallel kernels).
+// With the probes on: their columns too (the dissipation's products run the parallel kernels),
+// and the MSRD by depth's curves and final values.
 TEST(Threads, StudiesStepFusionRunIsBitIdenticalForAnyThreadCount) {
   SceneSpec s = studiesStep(fusion2x4());
   s.observe.rigid_motion = true;
   s.observe.dissipation = true;
+  s.observe.msrd_by_depth = true;
   expectSameRuns(s, kFine);
 }
 

@@ -114,6 +114,8 @@ const BadSpec kBad[] = {
     // A probe where its scene gives it no meaning: a doublet's two centroids fix no turn.
     {"scene = \"doublet\"\n[observe]\nrigid_motion = true\n", "observe.rigid_motion"},
     {"scene = \"cell\"\n[observe]\ndissipation = 1\n", "observe.dissipation"},
+    // The MSRD is a fusion's: a spheroid has no neighbours' MSRD to split.
+    {"scene = \"spheroid\"\n[observe]\nmsrd_by_depth = true\n", "observe.msrd_by_depth"},
     {"scene = \"cell\"\n[observ]\ndissipation = true\n", "observ"},
 };
 

@@ -2,6 +2,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include <gtest/gtest.h>
@@ -93,6 +94,36 @@ TEST(RunOutputFormat, SummaryJson) {
   EXPECT_EQ(j.at("ok"), false);
   EXPECT_EQ(j.at("failure"), "exception");
   EXPECT_EQ(j.at("reason"), "engine error: boom");
+  EXPECT_FALSE(j.contains("curves"));
+}
+
+// The probes' curves go into summary.json by name beside the MSRD, and flattenSummary (foamd's
+// pool and Slurm tasks alike) brings every one back as the store keeps them: "msrd" first, then
+// the others; a curve without points stays a curve.
+TEST(RunOutputFormat, SummaryJsonCarriesTheProbesCurves) {
+  const SceneSpec s = resolve(SceneSpec{});
+  RunSummary sum;
+  sum.msrd = {{30, 0.5}, {60, 0.75}};
+  sum.curves = {{"msrd_surface", {30, 60}, {0.25, std::nan("")}}, {"msrd_buried", {}, {}}};
+  const nlohmann::json j = summaryToJson(sum, s, {});
+  EXPECT_EQ(j.at("msrd").at("lag_s"), nlohmann::json::parse("[30, 60]"));
+  EXPECT_EQ(j.at("curves").at("msrd_surface").at("x"), nlohmann::json::parse("[30, 60]"));
+  EXPECT_TRUE(j.at("curves").at("msrd_surface").at("y").at(1).is_null());
+  EXPECT_TRUE(j.at("curves").at("msrd_buried").at("x").empty());
+  const FlatResults flat = flattenSummary(nlohmann::json::parse(j.dump()));
+  ASSERT_EQ(flat.curves.size(), 3u);
+  EXPECT_EQ(flat.curves[0].name, "msrd");
+  EXPECT_EQ(flat.curves[0].y, (std::vector<double>{0.5, 0.75}));
+  std::map<std::string, FlatCurve> by_name;
+  for (const FlatCurve& c : flat.curves) by_name[c.name] = c;
+  EXPECT_EQ(by_name.at("msrd_surface").x, (std::vector<double>{30, 60}));
+  EXPECT_EQ(by_name.at("msrd_surface").y[0], 0.25);
+  EXPECT_TRUE(std::isnan(by_name.at("msrd_surface").y[1]));
+  EXPECT_TRUE(by_name.at("msrd_buried").x.empty() && by_name.at("msrd_buried").y.empty());
+  // A malformed entry is left out, the others kept.
+  nlohmann::json bad = j;
+  bad["curves"]["msrd_mixed"] = {{"x", {1, 2}}, {"y", {1}}};
+  EXPECT_EQ(flattenSummary(bad).curves.size(), 3u);
 }
 
 TEST_F(RunOutputTest, AtomicWriteReplacesWholeFiles) {

@@ -17,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <future>
+#include <map>
 #include <optional>
 #include <random>
 #include <set>
@@ -324,6 +325,43 @@ TEST_F(ServiceTest, ProbeColumnsReachTheJobsSamples) {
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_NE(st.error_message().find("observe.rigid_motion"), std::string::npos)
       << st.error_message();
+
+  // A probe's curves and final values reach GetResults by name, beside the run's MSRD: a fusion
+  // of 3 + 4 cells whose every cell is on the surface (so its surface pairs are all its pairs).
+  v1::SubmitJobRequest fr;
+  auto* f = fr.mutable_spec();
+  f->set_duration_s(4);
+  f->set_sample_every_s(1);
+  f->set_snapshot_every_s(0);
+  f->mutable_numerics()->set_triangles_per_cell(80);
+  f->mutable_numerics()->set_dt_s(0.2);  // within the limit of motile cells of 80 triangles
+  f->mutable_fusion()->set_n_cells_a(3);
+  f->mutable_fusion()->set_n_cells_b(4);
+  f->mutable_fusion()->set_prep_max_s(10);
+  f->mutable_fusion()->set_allow_uncompacted(true);
+  f->mutable_observe()->set_msrd_by_depth(true);
+  const std::string fid = submit(fr);
+  const v1::Job fjob = waitFor(fid, terminal, 120);
+  ASSERT_EQ(fjob.state(), v1::JOB_STATE_SUCCEEDED) << fjob.reason();
+  const v1::JobResults fres = results(fid);
+  std::map<std::string, const v1::Curve*> curves;
+  for (const v1::Curve& c : fres.curves()) curves[c.name()] = &c;
+  for (const char* name : {"msrd", "msrd_surface", "msrd_mixed", "msrd_buried", "msrd_layer0",
+                           "msrd_layer1", "msrd_layer2plus"})
+    EXPECT_TRUE(curves.count(name)) << name;
+  ASSERT_TRUE(curves.count("msrd") && curves.count("msrd_surface"));
+  const v1::Curve &all = *curves["msrd"], &surface = *curves["msrd_surface"];
+  ASSERT_GT(all.x_size(), 0);
+  ASSERT_EQ(surface.x_size(), all.x_size());
+  for (int k = 0; k < all.x_size(); ++k) {
+    EXPECT_EQ(surface.x(k), all.x(k));
+    EXPECT_NEAR(surface.y(k), all.y(k), 1e-12 * all.y(k));
+  }
+  EXPECT_EQ(curves["msrd_buried"]->x_size(), 0);
+  std::map<std::string, double> values;
+  for (const auto& r : fres.results()) values[r.name()] = r.value();
+  EXPECT_EQ(values.at("mixing_time_surface_s"), values.at("mixing_time_s"));
+  EXPECT_TRUE(std::isnan(values.at("mixing_time_buried_s")));
 }
 
 TEST_F(ServiceTest, CancelWhileRunning) {

@@ -77,9 +77,16 @@ TEST(Store, CurvesOfAFinishedRunComeBackWithItsResults) {
   const std::string id = s.submit(j).first;
   ASSERT_EQ(s.claimNext()->job.id(), id);
   const FlatCurve msrd{"msrd", {30, 60, 90.5}, {0.25, 1.0 / 3.0, std::nan("")}};
-  ASSERT_TRUE(s.finish(id, v1::JOB_STATE_SUCCEEDED, "", "", {{"x", 1.0}}, 90, 9, "", {msrd}));
+  // A probe's curves by their names, one with no points (a class that had no pairs).
+  const FlatCurve surface{"msrd_surface", {30}, {0.5}}, buried{"msrd_buried", {}, {}};
+  ASSERT_TRUE(s.finish(id, v1::JOB_STATE_SUCCEEDED, "", "", {{"x", 1.0}}, 90, 9, "",
+                       {msrd, surface, buried}));
   const v1::JobResults r = s.results(id, false);
-  ASSERT_EQ(r.curves_size(), 1);
+  ASSERT_EQ(r.curves_size(), 3);  // by name
+  EXPECT_EQ(r.curves(1).name(), "msrd_buried");
+  EXPECT_EQ(r.curves(1).x_size(), 0);
+  EXPECT_EQ(r.curves(2).name(), "msrd_surface");
+  EXPECT_EQ(r.curves(2).y(0), 0.5);
   EXPECT_EQ(r.curves(0).name(), "msrd");
   ASSERT_EQ(r.curves(0).x_size(), 3);
   ASSERT_EQ(r.curves(0).y_size(), 3);
@@ -91,11 +98,16 @@ TEST(Store, CurvesOfAFinishedRunComeBackWithItsResults) {
   fs::remove_all(db.parent_path());
 }
 
-// flattenSummary carries summary.json's MSRD curve (foam-run's, and a Slurm task's report).
+// flattenSummary carries summary.json's MSRD curve and the probes' (foam-run's, and a Slurm
+// task's report).
 TEST(Store, FlattenSummaryCarriesTheMsrdCurve) {
   const auto flat = flattenSummary(nlohmann::json::parse(
-      R"({"t_s": 60, "msrd": {"lag_s": [30, 60], "msrd_um2": [0.5, null]}})"));
-  ASSERT_EQ(flat.curves.size(), 1u);
+      R"({"t_s": 60, "msrd": {"lag_s": [30, 60], "msrd_um2": [0.5, null]},
+          "curves": {"msrd_layer1": {"x": [30], "y": [0.125]}}})"));
+  ASSERT_EQ(flat.curves.size(), 2u);
+  EXPECT_EQ(flat.curves[1].name, "msrd_layer1");
+  EXPECT_EQ(flat.curves[1].x, (std::vector<double>{30}));
+  EXPECT_EQ(flat.curves[1].y, (std::vector<double>{0.125}));
   EXPECT_EQ(flat.curves[0].name, "msrd");
   EXPECT_EQ(flat.curves[0].x, (std::vector<double>{30, 60}));
   EXPECT_EQ(flat.curves[0].y[0], 0.5);

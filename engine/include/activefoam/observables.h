@@ -2,6 +2,7 @@
 #pragma once
 
 #include <array>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -34,7 +35,8 @@ SphereFit fitSphere(const Eigen::Matrix3Xd& points);
 double doubletContactAngleDeg(const CellSet& cells, const ContactList& contacts);
 
 // ---------------------------------------------------------------------------------------------
-// Fusion observables (docs/model.md §8; implemented in observe/fusion_observables.cc).
+// Fusion observables (docs/model.md §8; implemented in observe/fusion_observables.cc, the
+// contacting pairs, MSRD and unique contacts in observe/msrd.cc).
 
 // Fusion angle of two spheroids (cells.label[c] = 0 or 1). Each spheroid's centroid is the
 // volume-weighted mean of its cells' volume centroids; the axis runs through the two centroids
@@ -94,13 +96,15 @@ class MsrdTracker {
   explicit MsrdTracker(int max_origins = 256) : max_origins_(max_origins) {}
 
   // Throws std::invalid_argument if the number of cells changes or time does not increase.
+  // `labels` (none, or one per cell) mark the cells at this sample for pooledByClass.
   void addSample(double t_s, std::vector<Vec3> centroids,
-                 std::vector<std::pair<int, int>> contact_pairs);
+                 std::vector<std::pair<int, int>> contact_pairs, std::vector<int> labels = {});
   // Convenience: geo.cell_centroid and contactingCellPairs(cells, contacts).
   void addSample(double t_s, const CellSet& cells, const Geometry& geo,
                  const ContactList& contacts);
 
   int numSamples() const { return static_cast<int>(t_.size()); }
+  const std::vector<int>& labels(int sample) const { return labels_.at(sample); }
   // Lag of k samples in seconds: k × the mean sampling interval.
   double lagTime(int k) const;
   // µm²; NaN where no origin–pair has that lag (lag ≥ numSamples(), or no contacts).
@@ -123,6 +127,20 @@ class MsrdTracker {
   };
   Mixing mixingTime(double r_um) const;
   Mixing mixingTimeLessRotation(double r_um) const;  // the same on msrdLessRotation
+  // The same rule on another curve over lags 0 … numSamples() − 1 (pooledByClass's means).
+  Mixing mixingTime(double r_um, const std::vector<double>& curve) const;
+
+  // msrd(lag) split by the class of each origin–pair: class_of(l_i, l_j) of its cells' labels
+  // at the origin (addSample's), in [0, classes). The classes' pairs are msrd(lag)'s and their
+  // sums add up to its sum (up to rounding): msrd(lag) is their pair-weighted mean. Throws
+  // std::invalid_argument where an origin has no labels or a class is out of range.
+  struct Pooled {
+    double sum = 0;  // µm²
+    long pairs = 0;
+    double mean() const;  // sum / pairs; NaN without pairs
+  };
+  using ClassOf = std::function<int(int label_i, int label_j)>;
+  std::vector<Pooled> pooledByClass(int lag, int classes, const ClassOf& class_of) const;
 
   // The tracker's samples as bytes (checkpoints) and back; restore throws std::invalid_argument
   // on malformed bytes.
@@ -137,12 +155,16 @@ class MsrdTracker {
     double sum = 0, angle = 0;
     long pairs = 0, origins = 0;
   };
-  LagSums lagSums(int lag, bool less_rotation) const;
+  // With `by_class`: each origin–pair's share also into (*by_class)[class_of(labels)].
+  LagSums lagSums(int lag, bool less_rotation, const ClassOf* class_of = nullptr,
+                  std::vector<Pooled>* by_class = nullptr) const;
   Mixing mixingOf(double r_um, bool less_rotation) const;
+  Mixing mixingOn(double r_um, const std::function<double(int)>& msrd_at) const;
   int max_origins_;
   std::vector<double> t_;
   std::vector<std::vector<Vec3>> x_;
   std::vector<std::vector<std::pair<int, int>>> pairs_;
+  std::vector<std::vector<int>> labels_;  // per sample: empty, or one per cell
 };
 
 // Normalized unique contacts: distinct cell pairs ever in contact / pairs in contact in the

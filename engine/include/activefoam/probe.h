@@ -1,15 +1,22 @@
 // Probes: what a study asks of a run beyond the scene's observables, each turned on by a key of
 // the spec's [observe] table (docs/scenes.md). A probe appends named columns to every sample
-// (sampleColumns(spec) lists them after the scene's). It reads the simulation and never changes
-// it, so the run's other columns keep their bits; what it remembers (the aggregate at t = 0)
-// travels in the run's checkpoints.
+// (sampleColumns(spec) lists them after the scene's) and may end the run with curves and final
+// values of its own (RunSummary::curves, final_values). It reads the simulation and never
+// changes it, so the run's other columns keep their bits; what it remembers (the aggregate at
+// t = 0, the samples its curves are pooled from) travels in the run's checkpoints.
 #pragma once
 
+#include <array>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "activefoam/contacts.h"
+#include "activefoam/geometry.h"
 #include "activefoam/mesh.h"
+#include "activefoam/observables.h"
+#include "activefoam/run.h"
 #include "activefoam/spec.h"
 #include "activefoam/time_scheme.h"
 
@@ -34,6 +41,9 @@ class Probe {
   // malformed bytes.
   virtual std::string save() const { return {}; }
   virtual void restore(const std::string& /*bytes*/) {}
+  // At the end of the run, however it ended (the summary's own MSRD likewise): its curves, after
+  // those already in `summary.curves`, and its final values.
+  virtual void finish(RunSummary& /*summary*/) const {}
 };
 
 // The probes a resolved spec asks for that its scene reads (SpecField::scenes: front ends refuse
@@ -70,5 +80,50 @@ struct Dissipation {
 Dissipation dissipation(const StartSolve& s);
 // vᵀΓ_term v, Γ_term made by the term alone from `ctx`.
 double frictionPower(const ForceTerm& term, const StepContext& ctx, const Eigen::VectorXd& v);
+
+// observe.msrd_by_depth: the MSRD of neighbours (MsrdTracker: pairs in contact at the origin,
+// pooled over origins) split by where the pair's cells are in the aggregate at the origin.
+// A cell's free fraction is the share of its surface in contact with no other cell,
+// 1 − S_c,l / S_l (ContactList::cell_contact_area: each triangle's contact area, capped at the
+// triangle's own, summed over the cell); below kBuriedBelow the cell is buried.
+constexpr double kBuriedBelow = 0.05;
+// One per cell; 1 (all free) where the contacts have no areas (none detected).
+std::vector<double> freeFractions(const Geometry& geo, const ContactList& contacts);
+// Each cell's depth in the contact graph of `pairs` (cells i, j in contact): 0 on the surface
+// (not buried), then the distance (in contacts) from the nearest surface cell: 1 buried next to
+// a surface cell, 2 buried with buried neighbours only, and so on. Cells with no path to the
+// surface take the largest depth found + 1 (all 0 where no cell is on the surface).
+std::vector<int> contactDepths(const std::vector<double>& free_fraction,
+                               const std::vector<std::pair<int, int>>& pairs,
+                               double buried_below = kBuriedBelow);
+
+class MsrdByDepth {
+ public:
+  explicit MsrdByDepth(double buried_below = kBuriedBelow) : buried_below_(buried_below) {}
+  // A sample as MsrdTracker::addSample's (and throwing as it does), with the cells' free
+  // fractions (one per cell) from which each cell's burial and depth at this sample are kept.
+  void addSample(double t_s, std::vector<Vec3> centroids, std::vector<std::pair<int, int>> pairs,
+                 const std::vector<double>& free_fraction);
+
+  // The pair classes: by the two cells' burial (both on the surface, one of each, both
+  // buried), and by the depth of the pair's shallower cell (contactDepths; 0: a surface cell in
+  // the pair, 1, 2 or more: neither cell touches a surface cell).
+  enum Burial { kSurface, kMixed, kBuried };
+  enum Layer { kLayer0, kLayer1, kLayer2Plus };
+  // The pooled sums at a lag (in samples) of each class. Each split's classes hold every
+  // origin–pair of tracker().msrd(lag) once.
+  struct Split {
+    std::array<MsrdTracker::Pooled, 3> burial, layer;
+  };
+  Split pooled(int lag) const;
+  const MsrdTracker& tracker() const { return tracker_; }
+
+  std::string save() const { return tracker_.save(); }
+  void restore(const std::string& bytes);  // throws std::invalid_argument on malformed bytes
+
+ private:
+  double buried_below_;
+  MsrdTracker tracker_;
+};
 
 }  // namespace activefoam

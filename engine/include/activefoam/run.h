@@ -73,6 +73,14 @@ struct RunSummary {
   std::string outcome_why;
   std::vector<std::pair<std::string, FitResult>> fits;
   std::vector<std::pair<double, double>> msrd;
+  // More curves the run ends with, by name, in a stable order: those of the probes the spec's
+  // [observe] table asks for (probe.h), e.g. msrd_surface. Their final values are in
+  // final_values.
+  struct Curve {
+    std::string name;
+    std::vector<double> x, y;  // aligned
+  };
+  std::vector<Curve> curves;
   bool ok() const { return failure == FailureKind::None; }
 };
 

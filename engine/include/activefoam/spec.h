@@ -154,11 +154,13 @@ struct AccuracyTarget {
 };
 
 // The [observe] table: probes, measurements a run adds to its samples as columns of their own
-// (probe.h). A probe reads the state and never changes it: the run's other columns keep their bits,
-// and the spheroids' preparation ignores these keys.
+// and, some, to its summary as curves and final values (probe.h). A probe reads the state and never
+// changes it: the run's other columns keep their bits, and the spheroids' preparation ignores these
+// keys.
 struct ObserveParams {
-  bool rigid_motion = false;  // the aggregate's rigid turn and drift since t = 0
-  bool dissipation = false;   // the power each friction term dissipates, and the forces' power
+  bool rigid_motion = false;   // the aggregate's rigid turn and drift since t = 0
+  bool dissipation = false;    // the power each friction term dissipates, and the forces' power
+  bool msrd_by_depth = false;  // the MSRD split by the cells' depth in the aggregate (fusion)
 
   friend bool operator==(const ObserveParams&, const ObserveParams&) = default;
 };

@@ -1,5 +1,7 @@
 #include "activefoam/probe.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -73,6 +75,76 @@ class DissipationProbe : public Probe {
   bool seen_ = false;
 };
 
+// Every sample's cells, classified, and at the end the MSRD split by class with its mixing times
+// by MsrdTracker's rule: capped at the run's length where not reached (…_reached 0), NaN for a
+// class that never had a pair.
+class MsrdByDepthProbe : public Probe {
+ public:
+  explicit MsrdByDepthProbe(double r_um) : r_um_(r_um) {}
+  std::vector<std::string> columns() const override { return {"cells_surface", "cells_buried"}; }
+  void sample(const Simulation& sim, std::vector<double>& out) override {
+    const std::vector<double> free = freeFractions(sim.geometry(), sim.contacts());
+    const auto buried =
+        std::count_if(free.begin(), free.end(), [](double f) { return f < kBuriedBelow; });
+    split_.addSample(sim.time(), sim.geometry().cell_centroid,
+                     contactingCellPairs(sim.cells(), sim.contacts()), free);
+    out.push_back(static_cast<double>(free.size()) - static_cast<double>(buried));
+    out.push_back(static_cast<double>(buried));
+  }
+  std::string save() const override { return split_.save(); }
+  void restore(const std::string& data) override {
+    try {
+      split_.restore(data);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("checkpoint: malformed state of "
+                                              "observe.msrd_by_depth: ") +
+                                  e.what());
+    }
+  }
+  void finish(RunSummary& sum) const override {
+    const MsrdTracker& t = split_.tracker();
+    const int n = t.numSamples();
+    std::array<std::vector<double>, 6> curve;  // the burial classes', then the layers', by lag
+    std::array<long, 6> pairs{};
+    for (auto& c : curve) c.assign(static_cast<std::size_t>(n), kNaN);
+    for (int k = 0; k < n; ++k) {
+      const MsrdByDepth::Split s = split_.pooled(k);
+      for (int c = 0; c < 3; ++c) {
+        curve[c][k] = s.burial[c].mean();
+        curve[3 + c][k] = s.layer[c].mean();
+        if (k > 0) {
+          pairs[c] += s.burial[c].pairs;
+          pairs[3 + c] += s.layer[c].pairs;
+        }
+      }
+    }
+    static const char* const kName[6] = {"msrd_surface", "msrd_mixed",  "msrd_buried",
+                                         "msrd_layer0",  "msrd_layer1", "msrd_layer2plus"};
+    for (int c = 0; c < 6; ++c) {
+      RunSummary::Curve out{kName[c], {}, {}};
+      for (int k = 1; k < n; ++k)
+        if (std::isfinite(curve[c][k])) {
+          out.x.push_back(t.lagTime(k));
+          out.y.push_back(curve[c][k]);
+        }
+      sum.curves.push_back(std::move(out));
+    }
+    static const char* const kClass[3] = {"surface", "mixed", "buried"};
+    for (int c = 0; c < 3; ++c) {
+      const MsrdTracker::Mixing m = t.mixingTime(r_um_, curve[c]);
+      std::string time = "mixing_time_", reached = "mixing_";
+      time.append(kClass[c]).append("_s");
+      reached.append(kClass[c]).append("_reached");
+      sum.final_values.emplace_back(time, pairs[c] > 0 ? m.time_s : kNaN);
+      sum.final_values.emplace_back(reached, m.reached ? 1 : 0);
+    }
+  }
+
+ private:
+  double r_um_;  // the cells' mean radius: mixing at MSRD = r²
+  MsrdByDepth split_;
+};
+
 bool asked(const SceneSpec& spec, const char* key, bool on) {
   return on && findField(key)->readBy(spec.scene);
 }
@@ -136,6 +208,8 @@ std::vector<std::unique_ptr<Probe>> makeProbes(const SceneSpec& spec) {
     probes.push_back(std::make_unique<RigidMotionProbe>());
   if (asked(spec, "observe.dissipation", spec.observe.dissipation))
     probes.push_back(std::make_unique<DissipationProbe>());
+  if (asked(spec, "observe.msrd_by_depth", spec.observe.msrd_by_depth))
+    probes.push_back(std::make_unique<MsrdByDepthProbe>(spec.cells.radius_mean_um));
   return probes;
 }
 

@@ -394,6 +394,7 @@ RunSummary runScene(const SceneSpec& spec, const RunObserver& obs, const std::st
       if (std::isfinite(m)) sum.msrd.emplace_back(fs.msrd.lagTime(k), m);
     }
   }
+  for (const auto& p : probes) p->finish(sum);
   const PhaseTimes& pt = sim.phaseTimes();
   sum.phase_wall_s = {{"geometry", pt.geometry}, {"contacts", pt.contacts}, {"forces", pt.forces},
                       {"matrix", pt.matrix},     {"solve", pt.solve},       {"remesh", pt.remesh}};

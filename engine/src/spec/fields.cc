@@ -414,6 +414,16 @@ const std::vector<Entry>& entries() {
                  [](SceneSpec& s) -> Slot { return &s.observe.dissipation; }});
     since(t, false);
     prepAt(t, false);
+    t.push_back({boolean("observe.msrd_by_depth",
+                         "probe: the MSRD split by where the pair's cells are at the origin: "
+                         "sample columns cells_surface and cells_buried (free fraction of its "
+                         "surface below 0.05), curves msrd_surface, msrd_mixed, msrd_buried and "
+                         "msrd_layer0, msrd_layer1, msrd_layer2plus (the shallower cell's depth "
+                         "in the contact graph), and the classes' mixing times"),
+                 [](SceneSpec& s) -> Slot { return &s.observe.msrd_by_depth; }});
+    readBy(t, kFusionOnly);  // the MSRD is a fusion's
+    since(t, false);
+    prepAt(t, false);
     return t;
   }();
   return table;

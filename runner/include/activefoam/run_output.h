@@ -53,11 +53,12 @@ nlohmann::json summaryToJson(const RunSummary& summary, const SceneSpec& resolve
 // A run's results as foamd stores them, from its summary.json (summaryToJson): the final
 // values, the cost counters (t_s, steps, wall_s, cg_iters_mean, remesh_ops, steps_rejected,
 // dt_min_s), per fit "<model>_ok" and, when ok, "<model>_r2" and each parameter (fitResultName)
-// with "<name>_se"; null reads as NaN. One definition for the pool (its own summary) and the
+// with "<name>_se"; null reads as NaN; the curves: "msrd", then those under "curves" (the
+// probes', RunSummary::curves) by name. One definition for the pool (its own summary) and the
 // Slurm executor (a task's file), so the two cannot drift apart. Throws nlohmann::json's
 // exceptions on a summary that is not an object.
 struct FlatCurve {
-  std::string name;  // "msrd": x lag (s), y MSRD (µm²)
+  std::string name;  // "msrd": x lag (s), y MSRD (µm²); or a probe's (RunSummary::curves)
   std::vector<double> x, y;
 };
 struct FlatResults {
