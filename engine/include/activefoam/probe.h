@@ -126,4 +126,27 @@ class MsrdByDepth {
   MsrdTracker tracker_;
 };
 
+// observe.shape: the cells' shape at their own scale. Taubin smoothing (λ then μ, `passes`
+// times) on each cell's edges removes ripples of a few edges without the shrinkage of plain
+// Laplacian smoothing; the shape index is scale-free, so what shrinkage is left does not bias
+// it, and the raw index less the smoothed one is the vertex-scale roughness's share.
+constexpr double kTaubinLambda = 0.5, kTaubinMu = -0.53;
+CellSet taubinSmoothed(const CellSet& cells, const Topology& topo, int passes = 4);
+// √(largest / smallest eigenvalue) of cell c's second moment of its surface about its centroid,
+// Σ_i S_i (x_i − x_c)(x_i − x_c)ᵀ over its vertices: 1 for a sphere.
+double surfaceElongation(const CellSet& cells, const Geometry& geo, int c);
+// The least-squares line y ≈ intercept + slope x and Pearson's r; NaN where it has no meaning
+// (fewer than two distinct x; r where all y are equal).
+struct LineFit {
+  double slope, intercept, r;
+};
+LineFit lineFit(const std::vector<double>& x, const std::vector<double>& y);
+// Each cell's shape index S/V^{2/3} (raw and smoothed), elongation and contact fraction
+// 1 − freeFractions (its surface in contact with another cell).
+struct CellShapes {
+  std::vector<double> shape_index, shape_index_smoothed, elongation, contact_fraction;
+};
+CellShapes cellShapes(const CellSet& cells, const Geometry& geo, const ContactList& contacts,
+                      const Topology& topo);
+
 }  // namespace activefoam

@@ -75,6 +75,32 @@ class DissipationProbe : public Probe {
   bool seen_ = false;
 };
 
+// The cells' shape at each sample; the mesh's edges are rebuilt where it was remeshed.
+class ShapeProbe : public Probe {
+ public:
+  std::vector<std::string> columns() const override {
+    return {"shape_index_smoothed_mean",  "elongation_mean",
+            "contact_fraction_mean",      "shape_on_contact_slope",
+            "shape_on_contact_intercept", "shape_on_contact_r"};
+  }
+  void sample(const Simulation& sim, std::vector<double>& out) override {
+    updateTopology(sim.cells(), topo_);
+    const CellShapes c = cellShapes(sim.cells(), sim.geometry(), sim.contacts(), topo_);
+    const auto mean = [](const std::vector<double>& x) {
+      double sum = 0;
+      for (double v : x) sum += v;
+      return x.empty() ? kNaN : sum / static_cast<double>(x.size());
+    };
+    const LineFit fit = lineFit(c.contact_fraction, c.shape_index);
+    for (double v : {mean(c.shape_index_smoothed), mean(c.elongation), mean(c.contact_fraction),
+                     fit.slope, fit.intercept, fit.r})
+      out.push_back(v);
+  }
+
+ private:
+  Topology topo_;
+};
+
 // Every sample's cells, classified, and at the end the MSRD split by class with its mixing times
 // by MsrdTracker's rule: capped at the run's length where not reached (…_reached 0), NaN for a
 // class that never had a pair.
@@ -210,6 +236,8 @@ std::vector<std::unique_ptr<Probe>> makeProbes(const SceneSpec& spec) {
     probes.push_back(std::make_unique<DissipationProbe>());
   if (asked(spec, "observe.msrd_by_depth", spec.observe.msrd_by_depth))
     probes.push_back(std::make_unique<MsrdByDepthProbe>(spec.cells.radius_mean_um));
+  if (asked(spec, "observe.shape", spec.observe.shape))
+    probes.push_back(std::make_unique<ShapeProbe>());
   return probes;
 }
 

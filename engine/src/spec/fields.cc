@@ -424,6 +424,17 @@ const std::vector<Entry>& entries() {
     readBy(t, kFusionOnly);  // the MSRD is a fusion's
     since(t, false);
     prepAt(t, false);
+    t.push_back({boolean("observe.shape",
+                         "probe: sample columns of the cells' shape: the shape index of each "
+                         "cell's mesh after Taubin smoothing (shape_index_smoothed_mean), the "
+                         "elongation (elongation_mean), the contact fraction of its surface "
+                         "(contact_fraction_mean) and the regression of the shape index on the "
+                         "contact fraction over the cells (shape_on_contact_slope, _intercept, "
+                         "_r)"),
+                 [](SceneSpec& s) -> Slot { return &s.observe.shape; }});
+    readBy(t, scenes(SceneKind::Spheroid) | kFusionOnly);  // the cells of an aggregate
+    since(t, false);
+    prepAt(t, false);
     return t;
   }();
   return table;
