@@ -158,7 +158,7 @@ TEST(Checkpoint, StudiesStepFusionResumesWithTheSameSamples) {
         << whole.final_values[i].first;
   }
   // The aggregate turned and moved, and the probes measured it after the resume as well.
-  const std::size_t turn = sampleColumns(s).size() - 17;
+  const std::size_t turn = sampleColumns(s).size() - 24;
   EXPECT_GT(straight.back().values[turn], 0);
   EXPECT_GT(second.back().values[turn + 1], 0);
 }

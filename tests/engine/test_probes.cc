@@ -265,12 +265,13 @@ TEST(Probes, ChangeNoBitOfTheRun) {
   const RunSummary sa = runScene(plain, oa), sb = runScene(probed, ob);
   ASSERT_TRUE(sa.ok() && sb.ok());
   const std::vector<std::string> cols = sampleColumns(plain), more = sampleColumns(probed);
-  ASSERT_EQ(more.size(), cols.size() + 17);
+  ASSERT_EQ(more.size(), cols.size() + 24);
   EXPECT_TRUE(std::equal(cols.begin(), cols.end(), more.begin()));
   EXPECT_EQ(more[cols.size()], "rigid_turn_deg");
   EXPECT_EQ(more[cols.size() + 2], "diss_medium_nw");
-  EXPECT_EQ(more[cols.size() + 9], "cells_surface");
-  EXPECT_EQ(more[cols.size() + 11], "shape_index_smoothed_mean");
+  EXPECT_EQ(more[cols.size() + 9], "diss_medium_affine_nw");
+  EXPECT_EQ(more[cols.size() + 16], "cells_surface");
+  EXPECT_EQ(more[cols.size() + 18], "shape_index_smoothed_mean");
   ASSERT_EQ(a.size(), b.size());
   for (Sample& x : b) x.values.resize(cols.size());
   EXPECT_EQ(bits(physicsColumns(a)), bits(physicsColumns(b)));
@@ -293,7 +294,7 @@ TEST(Probes, OnlyWhereTheSceneReadsThem) {
   s.observe.dissipation = true;
   s.observe.msrd_by_depth = true;
   s.observe.shape = true;
-  EXPECT_EQ(probeColumns(s).size(), 7u);  // the dissipation's alone
+  EXPECT_EQ(probeColumns(s).size(), 14u);  // the dissipation's alone
   EXPECT_FALSE(findField("observe.rigid_motion")->readBy(SceneKind::Cell));
   EXPECT_FALSE(findField("observe.rigid_motion")->readBy(SceneKind::Doublet));
   EXPECT_TRUE(findField("observe.rigid_motion")->readBy(SceneKind::Fusion));
@@ -305,9 +306,9 @@ TEST(Probes, OnlyWhereTheSceneReadsThem) {
   }
   EXPECT_TRUE(findField("observe.shape")->readBy(SceneKind::Spheroid));
   s.scene = SceneKind::Spheroid;
-  EXPECT_EQ(probeColumns(s).size(), 15u);
+  EXPECT_EQ(probeColumns(s).size(), 22u);
   s.scene = SceneKind::Fusion;
-  EXPECT_EQ(probeColumns(s).size(), 17u);
+  EXPECT_EQ(probeColumns(s).size(), 24u);
 }
 
 // The keys change neither the preparation nor, while off, the fingerprint; on, they are in it:

@@ -144,3 +144,69 @@ TEST(ProbesCells, ShapeProbeSummarisesTheCells) {
   EXPECT_EQ(out[4], fit.intercept);
   EXPECT_EQ(out[5], fit.r);
 }
+
+// ---- observe.dissipation at the cells' scale
+
+// Each cell moving as a + B (x − p): the field is its own affine part, so every term dissipates
+// on the affine part what it does on all of it; the cells' speeds are their translations'. What
+// is left after taking the affine part has none; a uniform translation has no jitter.
+TEST(ProbesCells, AffinePartOfACellScaleMotion) {
+  const SceneSpec s = fiveCells();
+  Simulation sim(s);
+  const CellSet& cells = sim.cells();
+  const int nv = cells.numVertices(), nc = cells.numCells();
+  Rng rng(5, 2);
+  auto random = [&] { return 2 * rng.uniform() - 1; };
+  std::vector<Vec3> a(nc);
+  std::vector<Eigen::Matrix3d> b(nc);
+  for (int c = 0; c < nc; ++c) {
+    a[c] = Vec3(random(), random(), random());
+    for (int k = 0; k < 9; ++k) b[c](k / 3, k % 3) = 0.05 * random();
+  }
+  Eigen::VectorXd v(3 * nv), noise(3 * nv);
+  for (int i = 0; i < nv; ++i) {
+    const int c = cells.vertex_cell[i];
+    v.segment<3>(3 * i) = a[c] + b[c] * (cells.x.col(i) - Vec3(1, 2, 3));
+    for (int k = 0; k < 3; ++k) noise(3 * i + k) = random();
+  }
+  EXPECT_LT((affinePart(cells, sim.geometry(), v) - v).norm(), 1e-10 * v.norm());
+
+  Topology topo;
+  updateTopology(cells, topo);
+  const StepContext ctx{cells, sim.geometry(), topo, 0.5, 0.0, &sim.contacts(), 0.0};
+  ForceTerms terms;
+  terms.push_back(std::make_unique<MediumDrag>(s.cells));
+  terms.push_back(std::make_unique<CortexViscosity>(s.cells));
+  terms.push_back(std::make_unique<ContactFriction>(s.cells));
+  FrictionOperator op;
+  const Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, nv);
+  const Dissipation all = dissipation({ctx, f, v, terms, op});
+  const CellScaleDissipation cell = cellScaleDissipation({ctx, f, v, terms, op});
+  ASSERT_GT(all.friction_t, 0);
+  EXPECT_NEAR(cell.medium_affine, all.medium, 1e-9 * all.medium);
+  EXPECT_NEAR(cell.cortex_affine, all.cortex, 1e-9 * all.cortex);
+  EXPECT_NEAR(cell.friction_t_affine, all.friction_t, 1e-9 * all.friction_t);
+  EXPECT_NEAR(cell.friction_n_affine, all.friction_n, 1e-9 * all.friction_n);
+  EXPECT_GT(cell.cortex_jitter, 0);  // a linear field is not its ring's mean at a curved shell
+
+  const Eigen::VectorXd rest = noise - affinePart(cells, sim.geometry(), noise);
+  EXPECT_LT(affinePart(cells, sim.geometry(), rest).norm(), 1e-10 * rest.norm());
+
+  Eigen::VectorXd move(3 * nv), same(3 * nv);
+  double v2 = 0;
+  for (int c = 0; c < nc; ++c) v2 += a[c].squaredNorm() / nc;
+  for (int i = 0; i < nv; ++i) {
+    move.segment<3>(3 * i) = a[cells.vertex_cell[i]];
+    same.segment<3>(3 * i) = a[0];
+  }
+  const CellSpeeds speeds = cellSpeeds(cells, sim.geometry(), &sim.contacts(), move);
+  EXPECT_NEAR(speeds.rms_um_min, 60 * std::sqrt(v2), 1e-12 * speeds.rms_um_min);
+  EXPECT_GT(speeds.relative_rms_um_min, 0);
+  EXPECT_NEAR(cellSpeeds(cells, sim.geometry(), &sim.contacts(), same).relative_rms_um_min, 0,
+              1e-12);
+  EXPECT_TRUE(std::isnan(cellSpeeds(cells, sim.geometry(), nullptr, same).relative_rms_um_min));
+  EXPECT_LT(ringJitter(topo, same).norm(), 1e-12 * same.norm());
+  const CellScaleDissipation moved = cellScaleDissipation({ctx, f, move, terms, op});
+  EXPECT_LT(moved.cortex_jitter, 1e-12 * all.cortex);
+  EXPECT_NEAR(moved.speeds.rms_um_min, speeds.rms_um_min, 1e-12 * speeds.rms_um_min);
+}

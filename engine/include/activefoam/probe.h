@@ -78,8 +78,35 @@ struct Dissipation {
   double active = 0;  // vᵀF_active, ActiveMigration's forces alone
 };
 Dissipation dissipation(const StartSolve& s);
-// vᵀΓ_term v, Γ_term made by the term alone from `ctx`.
+// Γ_term v and vᵀΓ_term v, Γ_term made by the term alone from `ctx`.
+Eigen::VectorXd frictionForce(const ForceTerm& term, const StepContext& ctx,
+                              const Eigen::VectorXd& v);
 double frictionPower(const ForceTerm& term, const StepContext& ctx, const Eigen::VectorXd& v);
+
+// observe.dissipation at the cells' scale. Each cell's affine part of v: the least-squares fit
+// v_i ≈ a + B (x_i − x̄) over its vertices, weighted by their areas (translation, rotation and
+// uniform strain: the motion of whole cells); what the terms dissipate on it against on all of
+// v says whether the power moves and reshapes cells or ripples their shells.
+Eigen::VectorXd affinePart(const CellSet& cells, const Geometry& geo, const Eigen::VectorXd& v);
+// v less its one-ring mean (the mean over the vertex's edge neighbours): a field smooth over a
+// few edges leaves little here, jitter from vertex to vertex most of itself.
+Eigen::VectorXd ringJitter(const Topology& topo, const Eigen::VectorXd& v);
+// The RMS over cells of their centroids' velocity (each cell's area-weighted mean of v), and of
+// each one's relative to the mean of its contacting neighbours' (over the cells that have one;
+// NaN where none has), µm/min.
+struct CellSpeeds {
+  double rms_um_min = 0, relative_rms_um_min = 0;
+};
+CellSpeeds cellSpeeds(const CellSet& cells, const Geometry& geo, const ContactList* contacts,
+                      const Eigen::VectorXd& v);
+// vᵀΓ_term v of the affine part of v (the contact friction's parts ∥ and ⊥), the cortex's of
+// ringJitter(v), nW, and the cells' speeds, of one solve.
+struct CellScaleDissipation {
+  double medium_affine = 0, cortex_affine = 0, friction_t_affine = 0, friction_n_affine = 0;
+  double cortex_jitter = 0;
+  CellSpeeds speeds;
+};
+CellScaleDissipation cellScaleDissipation(const StartSolve& s);
 
 // observe.msrd_by_depth: the MSRD of neighbours (MsrdTracker: pairs in contact at the origin,
 // pooled over origins) split by where the pair's cells are in the aggregate at the origin.

@@ -55,23 +55,40 @@ class RigidMotionProbe : public Probe {
 class DissipationProbe : public Probe {
  public:
   std::vector<std::string> columns() const override {
-    return {"diss_medium_nw",  "diss_cortex_nw",  "diss_friction_t_nw", "diss_friction_n_nw",
-            "diss_springs_nw", "power_forces_nw", "power_active_nw"};
+    return {"diss_medium_nw",
+            "diss_cortex_nw",
+            "diss_friction_t_nw",
+            "diss_friction_n_nw",
+            "diss_springs_nw",
+            "power_forces_nw",
+            "power_active_nw",
+            "diss_medium_affine_nw",
+            "diss_cortex_affine_nw",
+            "diss_friction_t_affine_nw",
+            "diss_friction_n_affine_nw",
+            "diss_cortex_jitter_nw",
+            "speed_rms_um_min",
+            "speed_relative_rms_um_min"};
   }
   bool readsSolve() const override { return true; }
   void solved(const StartSolve& s) override {
     last_ = dissipation(s);
+    cells_ = cellScaleDissipation(s);
     seen_ = true;
   }
   void sample(const Simulation& /*sim*/, std::vector<double>& out) override {
     const Dissipation& d = last_;
-    for (double v : {d.medium, d.cortex, d.friction_t, d.friction_n, d.springs, d.forces, d.active})
+    const CellScaleDissipation& c = cells_;
+    for (double v : {d.medium, d.cortex, d.friction_t, d.friction_n, d.springs, d.forces, d.active,
+                     c.medium_affine, c.cortex_affine, c.friction_t_affine, c.friction_n_affine,
+                     c.cortex_jitter, c.speeds.rms_um_min, c.speeds.relative_rms_um_min})
       out.push_back(seen_ ? v : kNaN);
     seen_ = false;  // each sample its own step's
   }
 
  private:
   Dissipation last_;
+  CellScaleDissipation cells_;
   bool seen_ = false;
 };
 
@@ -179,13 +196,18 @@ bool asked(const SceneSpec& spec, const char* key, bool on) {
 
 // A fresh operator each time: FrictionOperator keys its couplings by the term's address, and the
 // parts of the contact friction are temporaries.
-double frictionPower(const ForceTerm& term, const StepContext& ctx, const Eigen::VectorXd& v) {
+Eigen::VectorXd frictionForce(const ForceTerm& term, const StepContext& ctx,
+                              const Eigen::VectorXd& v) {
   FrictionOperator op;
   op.reset(ctx.cells.numVertices(), ctx.cells.topology_version);
   term.addFriction(ctx, op);
   Eigen::VectorXd y(v.size());
   op.apply(v.data(), y.data());
-  return v.dot(y);
+  return y;
+}
+
+double frictionPower(const ForceTerm& term, const StepContext& ctx, const Eigen::VectorXd& v) {
+  return v.dot(frictionForce(term, ctx, v));
 }
 
 RigidMotion rigidMotion(const std::vector<Vec3>& from, const std::vector<Vec3>& to) {

@@ -409,8 +409,11 @@ const std::vector<Entry>& entries() {
     t.push_back({boolean("observe.dissipation",
                          "probe: sample columns of the power (nW) each friction term dissipates "
                          "in the step that ends at the sample, vᵀΓ_term v (medium, cortex, "
-                         "contact friction ∥ and ⊥, the contact springs' implicit part), and the "
-                         "power vᵀF of the forces and of the active ones"),
+                         "contact friction ∥ and ⊥, the contact springs' implicit part), the "
+                         "power vᵀF of the forces and of the active ones, the terms' dissipation "
+                         "of each cell's affine part of v and the cortex's of its one-ring "
+                         "jitter, and the RMS speed of the cells' centroids, absolute and "
+                         "relative to their contacting neighbours' (µm/min)"),
                  [](SceneSpec& s) -> Slot { return &s.observe.dissipation; }});
     since(t, false);
     prepAt(t, false);
