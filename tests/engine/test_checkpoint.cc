@@ -119,7 +119,8 @@ TEST(Checkpoint, StudiesStepFusionResumesWithTheSameSamples) {
   s.observe.dissipation = true;
   s.observe.msrd_by_depth = true;
   s.observe.shape = true;
-  ASSERT_EQ(sampleColumns(s).back(), "shape_on_contact_r");
+  s.observe.torque = true;
+  ASSERT_EQ(sampleColumns(s).back(), "torque_share_springs");
 
   std::vector<Sample> straight, first, second;
   RunObserver o1;
@@ -158,7 +159,7 @@ TEST(Checkpoint, StudiesStepFusionResumesWithTheSameSamples) {
         << whole.final_values[i].first;
   }
   // The aggregate turned and moved, and the probes measured it after the resume as well.
-  const std::size_t turn = sampleColumns(s).size() - 24;
+  const std::size_t turn = sampleColumns(s).size() - 32;
   EXPECT_GT(straight.back().values[turn], 0);
   EXPECT_GT(second.back().values[turn + 1], 0);
 }

@@ -258,6 +258,7 @@ TEST(Probes, ChangeNoBitOfTheRun) {
   probed.observe.dissipation = true;
   probed.observe.msrd_by_depth = true;
   probed.observe.shape = true;
+  probed.observe.torque = true;
   std::vector<Sample> a, b;
   RunObserver oa, ob;
   oa.on_sample = [&](const Sample& x) { a.push_back(x); };
@@ -265,13 +266,14 @@ TEST(Probes, ChangeNoBitOfTheRun) {
   const RunSummary sa = runScene(plain, oa), sb = runScene(probed, ob);
   ASSERT_TRUE(sa.ok() && sb.ok());
   const std::vector<std::string> cols = sampleColumns(plain), more = sampleColumns(probed);
-  ASSERT_EQ(more.size(), cols.size() + 24);
+  ASSERT_EQ(more.size(), cols.size() + 32);
   EXPECT_TRUE(std::equal(cols.begin(), cols.end(), more.begin()));
   EXPECT_EQ(more[cols.size()], "rigid_turn_deg");
   EXPECT_EQ(more[cols.size() + 2], "diss_medium_nw");
   EXPECT_EQ(more[cols.size() + 9], "diss_medium_affine_nw");
   EXPECT_EQ(more[cols.size() + 16], "cells_surface");
   EXPECT_EQ(more[cols.size() + 18], "shape_index_smoothed_mean");
+  EXPECT_EQ(more[cols.size() + 24], "net_force_nn");
   ASSERT_EQ(a.size(), b.size());
   for (Sample& x : b) x.values.resize(cols.size());
   EXPECT_EQ(bits(physicsColumns(a)), bits(physicsColumns(b)));
@@ -294,6 +296,7 @@ TEST(Probes, OnlyWhereTheSceneReadsThem) {
   s.observe.dissipation = true;
   s.observe.msrd_by_depth = true;
   s.observe.shape = true;
+  s.observe.torque = true;
   EXPECT_EQ(probeColumns(s).size(), 14u);  // the dissipation's alone
   EXPECT_FALSE(findField("observe.rigid_motion")->readBy(SceneKind::Cell));
   EXPECT_FALSE(findField("observe.rigid_motion")->readBy(SceneKind::Doublet));
@@ -303,12 +306,15 @@ TEST(Probes, OnlyWhereTheSceneReadsThem) {
   EXPECT_TRUE(findField("observe.msrd_by_depth")->readBy(SceneKind::Fusion));
   for (SceneKind k : {SceneKind::Cell, SceneKind::Doublet}) {
     EXPECT_FALSE(findField("observe.shape")->readBy(k));  // an aggregate's cells
+    EXPECT_FALSE(findField("observe.torque")->readBy(k));
   }
   EXPECT_TRUE(findField("observe.shape")->readBy(SceneKind::Spheroid));
+  EXPECT_FALSE(findField("observe.torque")->readBy(SceneKind::Spheroid));
+  EXPECT_TRUE(findField("observe.torque")->readBy(SceneKind::Fusion));
   s.scene = SceneKind::Spheroid;
   EXPECT_EQ(probeColumns(s).size(), 22u);
   s.scene = SceneKind::Fusion;
-  EXPECT_EQ(probeColumns(s).size(), 24u);
+  EXPECT_EQ(probeColumns(s).size(), 32u);
 }
 
 // The keys change neither the preparation nor, while off, the fingerprint; on, they are in it:
@@ -320,11 +326,13 @@ TEST(Probes, KeysLeaveThePreparationAloneAndSeparateCheckpoints) {
   probed.observe.dissipation = true;
   probed.observe.msrd_by_depth = true;
   probed.observe.shape = true;
+  probed.observe.torque = true;
   EXPECT_EQ(spheroidPrepSpec(probed, 3, 11), spheroidPrepSpec(plain, 3, 11));
   EXPECT_EQ(specFingerprint(plain).find("observe"), std::string::npos);
   EXPECT_NE(specFingerprint(probed).find("observe.rigid_motion=1"), std::string::npos);
   EXPECT_NE(specFingerprint(probed).find("observe.msrd_by_depth=1"), std::string::npos);
   EXPECT_NE(specFingerprint(probed).find("observe.shape=1"), std::string::npos);
+  EXPECT_NE(specFingerprint(probed).find("observe.torque=1"), std::string::npos);
 
   SceneSpec d = resolve(doublet());
   std::string checkpoint;

@@ -210,3 +210,49 @@ TEST(ProbesCells, AffinePartOfACellScaleMotion) {
   EXPECT_LT(moved.cortex_jitter, 1e-12 * all.cortex);
   EXPECT_NEAR(moved.speeds.rms_um_min, speeds.rms_um_min, 1e-12 * speeds.rms_um_min);
 }
+
+// ---- observe.torque
+
+// A rigid motion V + ω × (x − p) is its own rigid part: ω, and the velocity of the centroid.
+TEST(ProbesCells, RigidPartOfARigidMotion) {
+  Simulation sim(fiveCells());
+  const CellSet& cells = sim.cells();
+  const Vec3 velocity(0.3, -0.1, 0.2), spin(-0.02, 0.05, 0.01), pivot(4, -2, 1);
+  Eigen::VectorXd v(3 * cells.numVertices());
+  for (int i = 0; i < cells.numVertices(); ++i)
+    v.segment<3>(3 * i) = velocity + spin.cross(Vec3(cells.x.col(i)) - pivot);
+  const RigidPart r = rigidPart(cells, sim.geometry(), v);
+  EXPECT_LT((r.spin - spin).norm(), 1e-12);
+  EXPECT_LT((r.velocity - (velocity + spin.cross(r.centroid - pivot))).norm(), 1e-12);
+}
+
+// A passive fusion's forces are the cells' own and their pairs': no net force or torque. Solved
+// tightly, the torques of the friction terms on v balance: their shares along the medium's sum
+// to 1, the springs' among them where Γ carries the springs.
+TEST(ProbesCells, PassiveFusionTorquesBalance) {
+  SceneSpec s = smallFusionSpec(5, 3, 4, 4, 1);
+  s.cells.p_a = 0;
+  s.numerics.integrator = IntegratorKind::ContactImplicitConsistent;
+  s.numerics.cg_tol = 1e-10;
+  s = resolve(s);
+  Simulation sim(s);
+  int seen = 0;
+  sim.onStartSolve([&](const StartSolve& solve) {
+    const BodyTorques b = bodyTorques(solve);
+    const RigidPart r = rigidPart(solve.ctx.cells, solve.ctx.geo, solve.v);
+    double force = 0, torque = 0;
+    for (int i = 0; i < solve.ctx.cells.numVertices(); ++i) {
+      force += solve.f.col(i).norm();
+      torque += (Vec3(solve.ctx.cells.x.col(i)) - r.centroid).norm() * solve.f.col(i).norm();
+    }
+    EXPECT_LT(b.net_force_nn, 1e-10 * force);
+    EXPECT_LT(b.net_torque_nnum, 1e-10 * torque);
+    EXPECT_GT(b.torque_medium_nnum, 0);
+    EXPECT_NEAR(b.share_cortex + b.share_friction + b.share_springs, 1.0, 1e-6);
+    EXPECT_NE(b.share_springs, 0);
+    EXPECT_NEAR(b.rigid_spin_deg_h, 3600 * r.spin.norm() * 180 / M_PI, 1e-12);
+    ++seen;
+  });
+  for (int k = 0; k < 4; ++k) ASSERT_TRUE(sim.step().ok());
+  EXPECT_GE(seen, 4);
+}

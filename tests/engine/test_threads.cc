@@ -314,6 +314,7 @@ TEST(Threads, StudiesStepFusionRunIsBitIdenticalForAnyThreadCount) {
   s.observe.dissipation = true;
   s.observe.msrd_by_depth = true;
   s.observe.shape = true;
+  s.observe.torque = true;
   expectSameRuns(s, kFine);
 }
 

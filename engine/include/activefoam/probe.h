@@ -108,6 +108,24 @@ struct CellScaleDissipation {
 };
 CellScaleDissipation cellScaleDissipation(const StartSolve& s);
 
+// observe.torque: the aggregate as a body in one solve. Its rigid part of v, the least-squares
+// V + ω × (x − x̄) weighted by the vertices' areas (x̄ their area-weighted mean).
+struct RigidPart {
+  Vec3 centroid = Vec3::Zero(), velocity = Vec3::Zero(), spin = Vec3::Zero();  // µm, µm/s, rad/s
+};
+RigidPart rigidPart(const CellSet& cells, const Geometry& geo, const Eigen::VectorXd& v);
+// The forces F's net force and torque about x̄ (the terms are balanced: both vanish but for the
+// active forces), the rigid part's speed and spin, the torque τ_m = Σ (x_i − x̄) × (Γ_m v)_i of
+// medium drag on v, and the cortex's, contact friction's (∥ + ⊥) and contact springs' implicit
+// part's as shares along it, −τ_term · τ̂_m / |τ_m| (> 0: the term drives the turn the medium
+// resists). Γ v = F, so the shares sum to 1 less F's torque along τ̂_m / |τ_m|, up to the
+// solve's residual; NaN where τ_m = 0.
+struct BodyTorques {
+  double net_force_nn = 0, net_torque_nnum = 0, rigid_speed_um_h = 0, rigid_spin_deg_h = 0;
+  double torque_medium_nnum = 0, share_cortex = 0, share_friction = 0, share_springs = 0;
+};
+BodyTorques bodyTorques(const StartSolve& s);
+
 // observe.msrd_by_depth: the MSRD of neighbours (MsrdTracker: pairs in contact at the origin,
 // pooled over origins) split by where the pair's cells are in the aggregate at the origin.
 // A cell's free fraction is the share of its surface in contact with no other cell,

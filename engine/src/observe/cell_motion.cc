@@ -1,5 +1,6 @@
-// The motion of one velocity solve taken apart (probe.h): each cell's affine part, the
-// vertex-scale jitter and the cells' speeds (observe.dissipation).
+// The motion of one velocity solve taken apart (probe.h): each cell's affine part and the
+// vertex-scale jitter (observe.dissipation), the cells' speeds, and the aggregate as a body
+// with the torques its friction terms exert (observe.torque).
 #include <cmath>
 #include <limits>
 #include <set>
@@ -27,6 +28,16 @@ std::vector<Vec3> cellVelocities(const CellSet& cells, const Geometry& geo,
   }
   for (int c = 0; c < nc; ++c) vm[c] /= w[c];
   return vm;
+}
+
+// The torque about `about` of a term's friction forces on v, Σ (x_i − about) × (Γ_term v)_i.
+Vec3 frictionTorque(const ForceTerm& term, const StepContext& ctx, const Eigen::VectorXd& v,
+                    const Vec3& about) {
+  const Eigen::VectorXd y = frictionForce(term, ctx, v);
+  Vec3 t = Vec3::Zero();
+  for (int i = 0; i < ctx.cells.numVertices(); ++i)
+    t += (Vec3(ctx.cells.x.col(i)) - about).cross(Vec3(y.segment<3>(3 * i)));
+  return t;
 }
 
 }  // namespace
@@ -127,6 +138,71 @@ CellScaleDissipation cellScaleDissipation(const StartSolve& s) {
   }
   d.speeds = cellSpeeds(ctx.cells, ctx.geo, ctx.contacts, s.v);
   return d;
+}
+
+RigidPart rigidPart(const CellSet& cells, const Geometry& geo, const Eigen::VectorXd& v) {
+  RigidPart r;
+  double wsum = 0;
+  const int nv = cells.numVertices();
+  for (int i = 0; i < nv; ++i) {
+    const double w = geo.vertex_area[i];
+    r.centroid += w * cells.x.col(i);
+    r.velocity += w * v.segment<3>(3 * i);
+    wsum += w;
+  }
+  r.centroid /= wsum;
+  r.velocity /= wsum;
+  Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
+  Vec3 ang = Vec3::Zero();
+  for (int i = 0; i < nv; ++i) {
+    const double w = geo.vertex_area[i];
+    const Vec3 rx = cells.x.col(i) - r.centroid;
+    inertia += w * (rx.squaredNorm() * Eigen::Matrix3d::Identity() - rx * rx.transpose());
+    ang += w * rx.cross(Vec3(v.segment<3>(3 * i)) - r.velocity);
+  }
+  r.spin = inertia.ldlt().solve(ang);
+  return r;
+}
+
+BodyTorques bodyTorques(const StartSolve& s) {
+  BodyTorques b;
+  const StepContext& ctx = s.ctx;
+  const RigidPart rigid = rigidPart(ctx.cells, ctx.geo, s.v);
+  Vec3 force = Vec3::Zero(), torque = Vec3::Zero();
+  for (int i = 0; i < ctx.cells.numVertices(); ++i) {
+    force += s.f.col(i);
+    torque += (Vec3(ctx.cells.x.col(i)) - rigid.centroid).cross(Vec3(s.f.col(i)));
+  }
+  b.net_force_nn = force.norm();
+  b.net_torque_nnum = torque.norm();
+  b.rigid_speed_um_h = 3600 * rigid.velocity.norm();
+  b.rigid_spin_deg_h = 3600 * rigid.spin.norm() * 180 / M_PI;
+  Vec3 medium = Vec3::Zero(), cortex = Vec3::Zero(), friction = Vec3::Zero(),
+       springs = Vec3::Zero();
+  for (const auto& term : s.terms) {
+    const ForceTerm& t = *term;
+    if (dynamic_cast<const MediumDrag*>(&t)) {
+      medium += frictionTorque(t, ctx, s.v, rigid.centroid);
+    } else if (dynamic_cast<const CortexViscosity*>(&t)) {
+      cortex += frictionTorque(t, ctx, s.v, rigid.centroid);
+    } else if (const auto* cf = dynamic_cast<const ContactFriction*>(&t)) {
+      using Part = ContactFriction::Part;
+      friction += frictionTorque(cf->part(Part::Tangential), ctx, s.v, rigid.centroid) +
+                  frictionTorque(cf->part(Part::Normal), ctx, s.v, rigid.centroid);
+      if (ctx.contact_stiffness_dt > 0)
+        springs += frictionTorque(cf->part(Part::Springs), ctx, s.v, rigid.centroid);
+    }
+  }
+  b.torque_medium_nnum = medium.norm();
+  if (b.torque_medium_nnum > 0) {
+    const Vec3 axis = medium / b.torque_medium_nnum;
+    b.share_cortex = -cortex.dot(axis) / b.torque_medium_nnum;
+    b.share_friction = -friction.dot(axis) / b.torque_medium_nnum;
+    b.share_springs = -springs.dot(axis) / b.torque_medium_nnum;
+  } else {
+    b.share_cortex = b.share_friction = b.share_springs = kNaN;
+  }
+  return b;
 }
 
 }  // namespace activefoam

@@ -118,6 +118,32 @@ class ShapeProbe : public Probe {
   Topology topo_;
 };
 
+// The last solve shown, as the dissipation's.
+class TorqueProbe : public Probe {
+ public:
+  std::vector<std::string> columns() const override {
+    return {"net_force_nn",          "net_torque_nnum",     "rigid_speed_um_h",
+            "rigid_spin_deg_h",      "torque_medium_nnum",  "torque_share_cortex",
+            "torque_share_friction", "torque_share_springs"};
+  }
+  bool readsSolve() const override { return true; }
+  void solved(const StartSolve& s) override {
+    last_ = bodyTorques(s);
+    seen_ = true;
+  }
+  void sample(const Simulation& /*sim*/, std::vector<double>& out) override {
+    const BodyTorques& b = last_;
+    for (double v : {b.net_force_nn, b.net_torque_nnum, b.rigid_speed_um_h, b.rigid_spin_deg_h,
+                     b.torque_medium_nnum, b.share_cortex, b.share_friction, b.share_springs})
+      out.push_back(seen_ ? v : kNaN);
+    seen_ = false;
+  }
+
+ private:
+  BodyTorques last_;
+  bool seen_ = false;
+};
+
 // Every sample's cells, classified, and at the end the MSRD split by class with its mixing times
 // by MsrdTracker's rule: capped at the run's length where not reached (…_reached 0), NaN for a
 // class that never had a pair.
@@ -260,6 +286,8 @@ std::vector<std::unique_ptr<Probe>> makeProbes(const SceneSpec& spec) {
     probes.push_back(std::make_unique<MsrdByDepthProbe>(spec.cells.radius_mean_um));
   if (asked(spec, "observe.shape", spec.observe.shape))
     probes.push_back(std::make_unique<ShapeProbe>());
+  if (asked(spec, "observe.torque", spec.observe.torque))
+    probes.push_back(std::make_unique<TorqueProbe>());
   return probes;
 }
 

@@ -438,6 +438,16 @@ const std::vector<Entry>& entries() {
     readBy(t, scenes(SceneKind::Spheroid) | kFusionOnly);  // the cells of an aggregate
     since(t, false);
     prepAt(t, false);
+    t.push_back({boolean("observe.torque",
+                         "probe: sample columns of the aggregate as a body in the step that ends "
+                         "at the sample: the forces' net force and torque, the rigid part of the "
+                         "solved velocity (rigid_speed_um_h, rigid_spin_deg_h), the torque the "
+                         "medium exerts on it and the shares of the cortex, contact friction "
+                         "and contact springs in it"),
+                 [](SceneSpec& s) -> Slot { return &s.observe.torque; }});
+    readBy(t, kFusionOnly);  // an aggregate that turns
+    since(t, false);
+    prepAt(t, false);
     return t;
   }();
   return table;
