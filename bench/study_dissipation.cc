@@ -168,63 +168,30 @@ int main(int argc, char** argv) {
       for (int i = 0; i < nv; ++i) pa += v.segment<3>(3 * i).dot(fa.col(i));
       msrd.addSample(plain.t, c0, g0, con0);
       history.add(c0, con0);
-      // Each cell's affine part of v (translation, rotation, uniform strain: the least-squares
-      // fit v_i ≈ a + B (x_i − x̄) weighted by nodal area): the motion at the cell's scale. What
-      // the terms dissipate on it against on the rest says whether the power goes into moving and
-      // reshaping whole cells or into finer ripples of their shells.
+      // Each cell's affine part of v (translation, rotation, uniform strain; affinePart): the
+      // motion at the cell's scale. What the terms dissipate on it against on the rest says
+      // whether the power goes into moving and reshaping whole cells or into finer ripples of
+      // their shells.
       const int nc = c0.numCells();
-      Eigen::VectorXd v_aff(3 * nv), v_move(3 * nv);
+      const Eigen::VectorXd v_aff = affinePart(c0, g0, v);
+      Eigen::VectorXd v_move(3 * nv);
       {
-        std::vector<Vec3> xm(nc, Vec3::Zero()), vm(nc, Vec3::Zero());
+        std::vector<Vec3> vm(nc, Vec3::Zero());
         std::vector<double> sw(nc, 0.0);
         for (int i = 0; i < nv; ++i) {
-          const int c = c0.vertex_cell[i];
-          const double w = g0.vertex_area[i];
-          xm[c] += w * c0.x.col(i);
-          vm[c] += w * v.segment<3>(3 * i);
-          sw[c] += w;
+          vm[c0.vertex_cell[i]] += g0.vertex_area[i] * v.segment<3>(3 * i);
+          sw[c0.vertex_cell[i]] += g0.vertex_area[i];
         }
-        std::vector<Eigen::Matrix3d> xx(nc, Eigen::Matrix3d::Zero()),
-            vx(nc, Eigen::Matrix3d::Zero());
-        for (int c = 0; c < nc; ++c) {
-          xm[c] /= sw[c];
-          vm[c] /= sw[c];
-        }
-        for (int i = 0; i < nv; ++i) {
-          const int c = c0.vertex_cell[i];
-          const double w = g0.vertex_area[i];
-          const Vec3 dx = c0.x.col(i) - xm[c];
-          xx[c] += w * dx * dx.transpose();
-          vx[c] += w * (v.segment<3>(3 * i) - vm[c]) * dx.transpose();
-        }
-        std::vector<Eigen::Matrix3d> b(nc);
-        for (int c = 0; c < nc; ++c) b[c] = vx[c] * xx[c].inverse();
-        for (int i = 0; i < nv; ++i) {
-          const int c = c0.vertex_cell[i];
-          v_aff.segment<3>(3 * i) = vm[c] + b[c] * (c0.x.col(i) - xm[c]);
-          v_move.segment<3>(3 * i) = vm[c];
-        }
+        for (int i = 0; i < nv; ++i)
+          v_move.segment<3>(3 * i) = vm[c0.vertex_cell[i]] / sw[c0.vertex_cell[i]];
       }
       // Each cell's translation alone: what carries cells apart (the MSRD's motion).
       const double pm_m = frictionPower(medium, plain, v_move),
                    pt_m = frictionPower(fric_t, plain, v_move),
                    pn_m = frictionPower(fric_n, plain, v_move);
       const Eigen::VectorXd v_rest = v - v_aff;
-      // The vertex-scale part: v less its one-ring mean. A field smooth over a few edges leaves
-      // little here; jitter from vertex to vertex (a discretisation's noise) leaves most of itself.
-      Eigen::VectorXd v_ring = v;
-      {
-        Eigen::VectorXd sum = Eigen::VectorXd::Zero(3 * nv);
-        std::vector<int> count(nv, 0);
-        for (const Edge& e : topo.edges) {
-          sum.segment<3>(3 * e.i) += v.segment<3>(3 * e.j);
-          sum.segment<3>(3 * e.j) += v.segment<3>(3 * e.i);
-          ++count[e.i];
-          ++count[e.j];
-        }
-        for (int i = 0; i < nv; ++i)
-          if (count[i]) v_ring.segment<3>(3 * i) -= sum.segment<3>(3 * i) / count[i];
-      }
+      // The vertex-scale part: v less its one-ring mean (ringJitter).
+      const Eigen::VectorXd v_ring = ringJitter(topo, v);
       const double pc_ring = frictionPower(cortex, plain, v_ring);
       const double pm_a = frictionPower(medium, plain, v_aff),
                    pc_a = frictionPower(cortex, plain, v_aff);

@@ -118,7 +118,9 @@ TEST(Checkpoint, StudiesStepFusionResumesWithTheSameSamples) {
   s.observe.rigid_motion = true;
   s.observe.dissipation = true;
   s.observe.msrd_by_depth = true;
-  ASSERT_EQ(sampleColumns(s).back(), "cells_buried");
+  s.observe.shape = true;
+  s.observe.torque = true;
+  ASSERT_EQ(sampleColumns(s).back(), "torque_share_springs");
 
   std::vector<Sample> straight, first, second;
   RunObserver o1;
@@ -157,7 +159,7 @@ TEST(Checkpoint, StudiesStepFusionResumesWithTheSameSamples) {
         << whole.final_values[i].first;
   }
   // The aggregate turned and moved, and the probes measured it after the resume as well.
-  const std::size_t turn = sampleColumns(s).size() - 11;
+  const std::size_t turn = sampleColumns(s).size() - 32;
   EXPECT_GT(straight.back().values[turn], 0);
   EXPECT_GT(second.back().values[turn + 1], 0);
 }

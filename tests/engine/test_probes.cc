@@ -249,7 +249,7 @@ TEST(Probes, SmallFusionTermsSumToThePowerOfTheForces) {
   }
 }
 
-// Probes read and never write: a fusion with both has every other column's bits and the same
+// Probes read and never write: a fusion with all of them has every other column's bits and the same
 // summary; the probes' columns come last, in the key table's order.
 TEST(Probes, ChangeNoBitOfTheRun) {
   const SceneSpec plain = smallFusionSpec(11, 3, 4, 6, 1);
@@ -257,6 +257,8 @@ TEST(Probes, ChangeNoBitOfTheRun) {
   probed.observe.rigid_motion = true;
   probed.observe.dissipation = true;
   probed.observe.msrd_by_depth = true;
+  probed.observe.shape = true;
+  probed.observe.torque = true;
   std::vector<Sample> a, b;
   RunObserver oa, ob;
   oa.on_sample = [&](const Sample& x) { a.push_back(x); };
@@ -264,11 +266,14 @@ TEST(Probes, ChangeNoBitOfTheRun) {
   const RunSummary sa = runScene(plain, oa), sb = runScene(probed, ob);
   ASSERT_TRUE(sa.ok() && sb.ok());
   const std::vector<std::string> cols = sampleColumns(plain), more = sampleColumns(probed);
-  ASSERT_EQ(more.size(), cols.size() + 11);
+  ASSERT_EQ(more.size(), cols.size() + 32);
   EXPECT_TRUE(std::equal(cols.begin(), cols.end(), more.begin()));
   EXPECT_EQ(more[cols.size()], "rigid_turn_deg");
   EXPECT_EQ(more[cols.size() + 2], "diss_medium_nw");
-  EXPECT_EQ(more[cols.size() + 9], "cells_surface");
+  EXPECT_EQ(more[cols.size() + 9], "diss_medium_affine_nw");
+  EXPECT_EQ(more[cols.size() + 16], "cells_surface");
+  EXPECT_EQ(more[cols.size() + 18], "shape_index_smoothed_mean");
+  EXPECT_EQ(more[cols.size() + 24], "net_force_nn");
   ASSERT_EQ(a.size(), b.size());
   for (Sample& x : b) x.values.resize(cols.size());
   EXPECT_EQ(bits(physicsColumns(a)), bits(physicsColumns(b)));
@@ -290,17 +295,26 @@ TEST(Probes, OnlyWhereTheSceneReadsThem) {
   s.observe.rigid_motion = true;
   s.observe.dissipation = true;
   s.observe.msrd_by_depth = true;
-  EXPECT_EQ(probeColumns(s).size(), 7u);  // the dissipation's alone
+  s.observe.shape = true;
+  s.observe.torque = true;
+  EXPECT_EQ(probeColumns(s).size(), 14u);  // the dissipation's alone
   EXPECT_FALSE(findField("observe.rigid_motion")->readBy(SceneKind::Cell));
   EXPECT_FALSE(findField("observe.rigid_motion")->readBy(SceneKind::Doublet));
   EXPECT_TRUE(findField("observe.rigid_motion")->readBy(SceneKind::Fusion));
   for (SceneKind k : {SceneKind::Cell, SceneKind::Doublet, SceneKind::Spheroid})
     EXPECT_FALSE(findField("observe.msrd_by_depth")->readBy(k));  // the MSRD is a fusion's
   EXPECT_TRUE(findField("observe.msrd_by_depth")->readBy(SceneKind::Fusion));
+  for (SceneKind k : {SceneKind::Cell, SceneKind::Doublet}) {
+    EXPECT_FALSE(findField("observe.shape")->readBy(k));  // an aggregate's cells
+    EXPECT_FALSE(findField("observe.torque")->readBy(k));
+  }
+  EXPECT_TRUE(findField("observe.shape")->readBy(SceneKind::Spheroid));
+  EXPECT_FALSE(findField("observe.torque")->readBy(SceneKind::Spheroid));
+  EXPECT_TRUE(findField("observe.torque")->readBy(SceneKind::Fusion));
   s.scene = SceneKind::Spheroid;
-  EXPECT_EQ(probeColumns(s).size(), 9u);
+  EXPECT_EQ(probeColumns(s).size(), 22u);
   s.scene = SceneKind::Fusion;
-  EXPECT_EQ(probeColumns(s).size(), 11u);
+  EXPECT_EQ(probeColumns(s).size(), 32u);
 }
 
 // The keys change neither the preparation nor, while off, the fingerprint; on, they are in it:
@@ -311,10 +325,14 @@ TEST(Probes, KeysLeaveThePreparationAloneAndSeparateCheckpoints) {
   probed.observe.rigid_motion = true;
   probed.observe.dissipation = true;
   probed.observe.msrd_by_depth = true;
+  probed.observe.shape = true;
+  probed.observe.torque = true;
   EXPECT_EQ(spheroidPrepSpec(probed, 3, 11), spheroidPrepSpec(plain, 3, 11));
   EXPECT_EQ(specFingerprint(plain).find("observe"), std::string::npos);
   EXPECT_NE(specFingerprint(probed).find("observe.rigid_motion=1"), std::string::npos);
   EXPECT_NE(specFingerprint(probed).find("observe.msrd_by_depth=1"), std::string::npos);
+  EXPECT_NE(specFingerprint(probed).find("observe.shape=1"), std::string::npos);
+  EXPECT_NE(specFingerprint(probed).find("observe.torque=1"), std::string::npos);
 
   SceneSpec d = resolve(doublet());
   std::string checkpoint;

@@ -313,6 +313,8 @@ TEST(Threads, StudiesStepFusionRunIsBitIdenticalForAnyThreadCount) {
   s.observe.rigid_motion = true;
   s.observe.dissipation = true;
   s.observe.msrd_by_depth = true;
+  s.observe.shape = true;
+  s.observe.torque = true;
   expectSameRuns(s, kFine);
 }
 

@@ -116,6 +116,9 @@ const BadSpec kBad[] = {
     {"scene = \"cell\"\n[observe]\ndissipation = 1\n", "observe.dissipation"},
     // The MSRD is a fusion's: a spheroid has no neighbours' MSRD to split.
     {"scene = \"spheroid\"\n[observe]\nmsrd_by_depth = true\n", "observe.msrd_by_depth"},
+    // The cells of an aggregate (spheroid, fusion); the turn of two fused ones.
+    {"scene = \"doublet\"\n[observe]\nshape = true\n", "observe.shape"},
+    {"scene = \"spheroid\"\n[observe]\ntorque = true\n", "observe.torque"},
     {"scene = \"cell\"\n[observ]\ndissipation = true\n", "observ"},
 };
 

@@ -78,8 +78,53 @@ struct Dissipation {
   double active = 0;  // vᵀF_active, ActiveMigration's forces alone
 };
 Dissipation dissipation(const StartSolve& s);
-// vᵀΓ_term v, Γ_term made by the term alone from `ctx`.
+// Γ_term v and vᵀΓ_term v, Γ_term made by the term alone from `ctx`.
+Eigen::VectorXd frictionForce(const ForceTerm& term, const StepContext& ctx,
+                              const Eigen::VectorXd& v);
 double frictionPower(const ForceTerm& term, const StepContext& ctx, const Eigen::VectorXd& v);
+
+// observe.dissipation at the cells' scale. Each cell's affine part of v: the least-squares fit
+// v_i ≈ a + B (x_i − x̄) over its vertices, weighted by their areas (translation, rotation and
+// uniform strain: the motion of whole cells); what the terms dissipate on it against on all of
+// v says whether the power moves and reshapes cells or ripples their shells.
+Eigen::VectorXd affinePart(const CellSet& cells, const Geometry& geo, const Eigen::VectorXd& v);
+// v less its one-ring mean (the mean over the vertex's edge neighbours): a field smooth over a
+// few edges leaves little here, jitter from vertex to vertex most of itself.
+Eigen::VectorXd ringJitter(const Topology& topo, const Eigen::VectorXd& v);
+// The RMS over cells of their centroids' velocity (each cell's area-weighted mean of v), and of
+// each one's relative to the mean of its contacting neighbours' (over the cells that have one;
+// NaN where none has), µm/min.
+struct CellSpeeds {
+  double rms_um_min = 0, relative_rms_um_min = 0;
+};
+CellSpeeds cellSpeeds(const CellSet& cells, const Geometry& geo, const ContactList* contacts,
+                      const Eigen::VectorXd& v);
+// vᵀΓ_term v of the affine part of v (the contact friction's parts ∥ and ⊥), the cortex's of
+// ringJitter(v), nW, and the cells' speeds, of one solve.
+struct CellScaleDissipation {
+  double medium_affine = 0, cortex_affine = 0, friction_t_affine = 0, friction_n_affine = 0;
+  double cortex_jitter = 0;
+  CellSpeeds speeds;
+};
+CellScaleDissipation cellScaleDissipation(const StartSolve& s);
+
+// observe.torque: the aggregate as a body in one solve. Its rigid part of v, the least-squares
+// V + ω × (x − x̄) weighted by the vertices' areas (x̄ their area-weighted mean).
+struct RigidPart {
+  Vec3 centroid = Vec3::Zero(), velocity = Vec3::Zero(), spin = Vec3::Zero();  // µm, µm/s, rad/s
+};
+RigidPart rigidPart(const CellSet& cells, const Geometry& geo, const Eigen::VectorXd& v);
+// The forces F's net force and torque about x̄ (the terms are balanced: both vanish but for the
+// active forces), the rigid part's speed and spin, the torque τ_m = Σ (x_i − x̄) × (Γ_m v)_i of
+// medium drag on v, and the cortex's, contact friction's (∥ + ⊥) and contact springs' implicit
+// part's as shares along it, −τ_term · τ̂_m / |τ_m| (> 0: the term drives the turn the medium
+// resists). Γ v = F, so the shares sum to 1 less F's torque along τ̂_m / |τ_m|, up to the
+// solve's residual; NaN where τ_m = 0.
+struct BodyTorques {
+  double net_force_nn = 0, net_torque_nnum = 0, rigid_speed_um_h = 0, rigid_spin_deg_h = 0;
+  double torque_medium_nnum = 0, share_cortex = 0, share_friction = 0, share_springs = 0;
+};
+BodyTorques bodyTorques(const StartSolve& s);
 
 // observe.msrd_by_depth: the MSRD of neighbours (MsrdTracker: pairs in contact at the origin,
 // pooled over origins) split by where the pair's cells are in the aggregate at the origin.
@@ -125,5 +170,28 @@ class MsrdByDepth {
   double buried_below_;
   MsrdTracker tracker_;
 };
+
+// observe.shape: the cells' shape at their own scale. Taubin smoothing (λ then μ, `passes`
+// times) on each cell's edges removes ripples of a few edges without the shrinkage of plain
+// Laplacian smoothing; the shape index is scale-free, so what shrinkage is left does not bias
+// it, and the raw index less the smoothed one is the vertex-scale roughness's share.
+constexpr double kTaubinLambda = 0.5, kTaubinMu = -0.53;
+CellSet taubinSmoothed(const CellSet& cells, const Topology& topo, int passes = 4);
+// √(largest / smallest eigenvalue) of cell c's second moment of its surface about its centroid,
+// Σ_i S_i (x_i − x_c)(x_i − x_c)ᵀ over its vertices: 1 for a sphere.
+double surfaceElongation(const CellSet& cells, const Geometry& geo, int c);
+// The least-squares line y ≈ intercept + slope x and Pearson's r; NaN where it has no meaning
+// (fewer than two distinct x; r where all y are equal).
+struct LineFit {
+  double slope, intercept, r;
+};
+LineFit lineFit(const std::vector<double>& x, const std::vector<double>& y);
+// Each cell's shape index S/V^{2/3} (raw and smoothed), elongation and contact fraction
+// 1 − freeFractions (its surface in contact with another cell).
+struct CellShapes {
+  std::vector<double> shape_index, shape_index_smoothed, elongation, contact_fraction;
+};
+CellShapes cellShapes(const CellSet& cells, const Geometry& geo, const ContactList& contacts,
+                      const Topology& topo);
 
 }  // namespace activefoam

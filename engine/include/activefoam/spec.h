@@ -161,6 +161,8 @@ struct ObserveParams {
   bool rigid_motion = false;   // the aggregate's rigid turn and drift since t = 0
   bool dissipation = false;    // the power each friction term dissipates, and the forces' power
   bool msrd_by_depth = false;  // the MSRD split by the cells' depth in the aggregate (fusion)
+  bool shape = false;          // the cells' smoothed shape index, elongation and contact fraction
+  bool torque = false;         // the aggregate as a body: net torque, rigid spin, torques (fusion)
 
   friend bool operator==(const ObserveParams&, const ObserveParams&) = default;
 };

@@ -55,23 +55,92 @@ class RigidMotionProbe : public Probe {
 class DissipationProbe : public Probe {
  public:
   std::vector<std::string> columns() const override {
-    return {"diss_medium_nw",  "diss_cortex_nw",  "diss_friction_t_nw", "diss_friction_n_nw",
-            "diss_springs_nw", "power_forces_nw", "power_active_nw"};
+    return {"diss_medium_nw",
+            "diss_cortex_nw",
+            "diss_friction_t_nw",
+            "diss_friction_n_nw",
+            "diss_springs_nw",
+            "power_forces_nw",
+            "power_active_nw",
+            "diss_medium_affine_nw",
+            "diss_cortex_affine_nw",
+            "diss_friction_t_affine_nw",
+            "diss_friction_n_affine_nw",
+            "diss_cortex_jitter_nw",
+            "speed_rms_um_min",
+            "speed_relative_rms_um_min"};
   }
   bool readsSolve() const override { return true; }
   void solved(const StartSolve& s) override {
     last_ = dissipation(s);
+    cells_ = cellScaleDissipation(s);
     seen_ = true;
   }
   void sample(const Simulation& /*sim*/, std::vector<double>& out) override {
     const Dissipation& d = last_;
-    for (double v : {d.medium, d.cortex, d.friction_t, d.friction_n, d.springs, d.forces, d.active})
+    const CellScaleDissipation& c = cells_;
+    for (double v : {d.medium, d.cortex, d.friction_t, d.friction_n, d.springs, d.forces, d.active,
+                     c.medium_affine, c.cortex_affine, c.friction_t_affine, c.friction_n_affine,
+                     c.cortex_jitter, c.speeds.rms_um_min, c.speeds.relative_rms_um_min})
       out.push_back(seen_ ? v : kNaN);
     seen_ = false;  // each sample its own step's
   }
 
  private:
   Dissipation last_;
+  CellScaleDissipation cells_;
+  bool seen_ = false;
+};
+
+// The cells' shape at each sample; the mesh's edges are rebuilt where it was remeshed.
+class ShapeProbe : public Probe {
+ public:
+  std::vector<std::string> columns() const override {
+    return {"shape_index_smoothed_mean",  "elongation_mean",
+            "contact_fraction_mean",      "shape_on_contact_slope",
+            "shape_on_contact_intercept", "shape_on_contact_r"};
+  }
+  void sample(const Simulation& sim, std::vector<double>& out) override {
+    updateTopology(sim.cells(), topo_);
+    const CellShapes c = cellShapes(sim.cells(), sim.geometry(), sim.contacts(), topo_);
+    const auto mean = [](const std::vector<double>& x) {
+      double sum = 0;
+      for (double v : x) sum += v;
+      return x.empty() ? kNaN : sum / static_cast<double>(x.size());
+    };
+    const LineFit fit = lineFit(c.contact_fraction, c.shape_index);
+    for (double v : {mean(c.shape_index_smoothed), mean(c.elongation), mean(c.contact_fraction),
+                     fit.slope, fit.intercept, fit.r})
+      out.push_back(v);
+  }
+
+ private:
+  Topology topo_;
+};
+
+// The last solve shown, as the dissipation's.
+class TorqueProbe : public Probe {
+ public:
+  std::vector<std::string> columns() const override {
+    return {"net_force_nn",          "net_torque_nnum",     "rigid_speed_um_h",
+            "rigid_spin_deg_h",      "torque_medium_nnum",  "torque_share_cortex",
+            "torque_share_friction", "torque_share_springs"};
+  }
+  bool readsSolve() const override { return true; }
+  void solved(const StartSolve& s) override {
+    last_ = bodyTorques(s);
+    seen_ = true;
+  }
+  void sample(const Simulation& /*sim*/, std::vector<double>& out) override {
+    const BodyTorques& b = last_;
+    for (double v : {b.net_force_nn, b.net_torque_nnum, b.rigid_speed_um_h, b.rigid_spin_deg_h,
+                     b.torque_medium_nnum, b.share_cortex, b.share_friction, b.share_springs})
+      out.push_back(seen_ ? v : kNaN);
+    seen_ = false;
+  }
+
+ private:
+  BodyTorques last_;
   bool seen_ = false;
 };
 
@@ -153,13 +222,18 @@ bool asked(const SceneSpec& spec, const char* key, bool on) {
 
 // A fresh operator each time: FrictionOperator keys its couplings by the term's address, and the
 // parts of the contact friction are temporaries.
-double frictionPower(const ForceTerm& term, const StepContext& ctx, const Eigen::VectorXd& v) {
+Eigen::VectorXd frictionForce(const ForceTerm& term, const StepContext& ctx,
+                              const Eigen::VectorXd& v) {
   FrictionOperator op;
   op.reset(ctx.cells.numVertices(), ctx.cells.topology_version);
   term.addFriction(ctx, op);
   Eigen::VectorXd y(v.size());
   op.apply(v.data(), y.data());
-  return v.dot(y);
+  return y;
+}
+
+double frictionPower(const ForceTerm& term, const StepContext& ctx, const Eigen::VectorXd& v) {
+  return v.dot(frictionForce(term, ctx, v));
 }
 
 RigidMotion rigidMotion(const std::vector<Vec3>& from, const std::vector<Vec3>& to) {
@@ -210,6 +284,10 @@ std::vector<std::unique_ptr<Probe>> makeProbes(const SceneSpec& spec) {
     probes.push_back(std::make_unique<DissipationProbe>());
   if (asked(spec, "observe.msrd_by_depth", spec.observe.msrd_by_depth))
     probes.push_back(std::make_unique<MsrdByDepthProbe>(spec.cells.radius_mean_um));
+  if (asked(spec, "observe.shape", spec.observe.shape))
+    probes.push_back(std::make_unique<ShapeProbe>());
+  if (asked(spec, "observe.torque", spec.observe.torque))
+    probes.push_back(std::make_unique<TorqueProbe>());
   return probes;
 }
 

@@ -409,8 +409,11 @@ const std::vector<Entry>& entries() {
     t.push_back({boolean("observe.dissipation",
                          "probe: sample columns of the power (nW) each friction term dissipates "
                          "in the step that ends at the sample, vᵀΓ_term v (medium, cortex, "
-                         "contact friction ∥ and ⊥, the contact springs' implicit part), and the "
-                         "power vᵀF of the forces and of the active ones"),
+                         "contact friction ∥ and ⊥, the contact springs' implicit part), the "
+                         "power vᵀF of the forces and of the active ones, the terms' dissipation "
+                         "of each cell's affine part of v and the cortex's of its one-ring "
+                         "jitter, and the RMS speed of the cells' centroids, absolute and "
+                         "relative to their contacting neighbours' (µm/min)"),
                  [](SceneSpec& s) -> Slot { return &s.observe.dissipation; }});
     since(t, false);
     prepAt(t, false);
@@ -422,6 +425,27 @@ const std::vector<Entry>& entries() {
                          "in the contact graph), and the classes' mixing times"),
                  [](SceneSpec& s) -> Slot { return &s.observe.msrd_by_depth; }});
     readBy(t, kFusionOnly);  // the MSRD is a fusion's
+    since(t, false);
+    prepAt(t, false);
+    t.push_back({boolean("observe.shape",
+                         "probe: sample columns of the cells' shape: the shape index of each "
+                         "cell's mesh after Taubin smoothing (shape_index_smoothed_mean), the "
+                         "elongation (elongation_mean), the contact fraction of its surface "
+                         "(contact_fraction_mean) and the regression of the shape index on the "
+                         "contact fraction over the cells (shape_on_contact_slope, _intercept, "
+                         "_r)"),
+                 [](SceneSpec& s) -> Slot { return &s.observe.shape; }});
+    readBy(t, scenes(SceneKind::Spheroid) | kFusionOnly);  // the cells of an aggregate
+    since(t, false);
+    prepAt(t, false);
+    t.push_back({boolean("observe.torque",
+                         "probe: sample columns of the aggregate as a body in the step that ends "
+                         "at the sample: the forces' net force and torque, the rigid part of the "
+                         "solved velocity (rigid_speed_um_h, rigid_spin_deg_h), the torque the "
+                         "medium exerts on it and the shares of the cortex, contact friction "
+                         "and contact springs in it"),
+                 [](SceneSpec& s) -> Slot { return &s.observe.torque; }});
+    readBy(t, kFusionOnly);  // an aggregate that turns
     since(t, false);
     prepAt(t, false);
     return t;
