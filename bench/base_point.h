@@ -1,5 +1,5 @@
-// The reduced base point's fusion as the study drivers start it (study_dt_motion,
-// study_dissipation, study_shape): the supplement's Table 1/2 parameters with p_a r/2γ = 0.33,
+// The reduced base point's fusion as the study drivers start it (study_dissipation,
+// study_shape): the supplement's Table 1/2 parameters with p_a r/2γ = 0.33,
 // 320 triangles a cell, then foam-run's key=value settings; and its aggregate, prepared once into
 // a cache. And the configurations study_dissipation and study_shape run from it.
 #pragma once
