@@ -326,7 +326,7 @@ TEST_F(FoamRun, ProbeColumnsReachSamplesCsv) {
   EXPECT_TRUE(parsed.spec->observe.dissipation);
   const std::vector<std::string> cols = sampleColumns(*parsed.spec);
   const std::vector<std::string> scene = sampleColumns(specOf(SceneKind::Cell));
-  ASSERT_EQ(cols.size(), scene.size() + 7);
+  ASSERT_EQ(cols.size(), scene.size() + 14);  // the dissipation probe's 14 columns
   const auto csv = lines(readFile(out / "samples.csv"));
   ASSERT_EQ(csv.size(), 7u);
   EXPECT_EQ(csv[0], csvLine(cols));
