@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """The dissipation by term from foam-run output folders whose spec asks for the probe
 (`[observe] dissipation = true`, docs/scenes.md): per run, the median share of the power each
-friction term dissipates (medians over the samples, as bench/dissipation_table.py takes them:
+friction term dissipates (and, where the probe gives each cell's affine part, the contact
+friction's share of the dissipation at the cells' scale) (medians over the samples, as bench/dissipation_table.py takes them:
 a contact snapping now and then spikes the springs' part for one sample) and of the active
 forces' power in the forces', and, with `rigid_motion`, the aggregate's turn and drift at the
 end.
@@ -21,6 +22,9 @@ import pandas as pd
 TERMS = ["diss_medium_nw", "diss_cortex_nw", "diss_friction_t_nw", "diss_friction_n_nw",
          "diss_springs_nw"]
 LABELS = ["medium", "cortex", "friction ∥", "friction ⊥", "springs (implicit)"]
+# Each cell's affine part of v (motion at the cells' scale), where the probe has them.
+AFFINE = ["diss_medium_affine_nw", "diss_cortex_affine_nw", "diss_friction_t_affine_nw",
+          "diss_friction_n_affine_nw"]
 
 
 def read_run(folder):
@@ -49,6 +53,10 @@ def table(runs):
             row[f"{name} %"] = f"{100 * share[t]:.0f}" if len(d) else "—"
         active = (d["power_active_nw"] / d["power_forces_nw"]).median() if len(d) else float("nan")
         row["active / forces %"] = f"{100 * active:.0f}" if len(d) else "—"
+        if all(c in d.columns for c in AFFINE) and len(d):
+            aff = d[AFFINE]
+            fric = (aff[AFFINE[2]] + aff[AFFINE[3]]).div(aff.sum(axis=1)).median()
+            row["friction's share at the cells' scale %"] = f"{100 * fric:.0f}"
         if "rigid_turn_deg" in d.columns and len(d):
             row["turn (°)"] = f"{d['rigid_turn_deg'].iloc[-1]:.3g}"
             row["drift (µm)"] = f"{d['rigid_drift_um'].iloc[-1]:.3g}"

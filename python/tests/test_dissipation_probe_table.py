@@ -66,3 +66,16 @@ def test_a_run_without_the_probe_is_refused_naming_the_key(tmp_path):
     (path / "spec.json").write_text("{}")
     with pytest.raises(ValueError, match="dissipation = true"):
         pt.read_run(path)
+
+
+def test_friction_share_at_the_cells_scale_reads_the_affine_columns(tmp_path):
+    f = run_folder(tmp_path / "affine", [0.2] * 5)
+    d = pd.read_csv(f / "samples.csv")
+    # medium 3, cortex 1, friction ∥ 4, ⊥ 2 nW at the cells' scale: friction 6 of 10.
+    for c, v in zip(pt.AFFINE, [3.0, 1.0, 4.0, 2.0]):
+        d[c] = v
+    d.to_csv(f / "samples.csv", index=False)
+    text, _ = pt.table([("affine", *pt.read_run(f))])
+    header, _, row = text.splitlines()[:3]
+    col = header.strip("| ").split(" | ").index("friction's share at the cells' scale %")
+    assert row.strip("| ").split(" | ")[col] == "60"
