@@ -140,6 +140,7 @@ void printKeys() {
     if (f.since_unset) notes += "before it existed: unset; ";
     if (f.prep == SpecField::Prep::Fixed)
       notes += "spheroid preparation: " + (f.prep_value ? specText(*f.prep_value) : "unset") + "; ";
+    if (f.prep == SpecField::Prep::Kept) notes += "[prepare] may give the preparation its own; ";
     if (f.scenes != 0xF) {
       std::string list;
       for (SceneKind k :
@@ -149,6 +150,8 @@ void printKeys() {
     }
     if (!notes.empty()) std::cout << "    (" << notes.substr(0, notes.size() - 2) << ")\n";
   }
+  std::cout << "\n[prepare] (fusion): values the spheroids' preparation runs with instead of the "
+               "run's,\n    e.g. [prepare.cells] l_eta_reduced = 0.5 (docs/scenes.md)\n";
 }
 
 std::string formatDuration(double s) {

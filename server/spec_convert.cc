@@ -71,6 +71,30 @@ void applyMessage(const pb::Message& m, const std::string& prefix, SceneSpec& sp
   }
 }
 
+// Sets field `name` of `m` to a key's value; nothing where `m` has no such field.
+void setProtoField(pb::Message* m, const std::string& name, const SpecValue& value) {
+  const pb::FieldDescriptor* f = m->GetDescriptor()->FindFieldByName(name);
+  if (!f) return;
+  const pb::Reflection* r = m->GetReflection();
+  std::visit(
+      [&](const auto& v) {
+        using T = std::decay_t<decltype(v)>;
+        if constexpr (std::is_same_v<T, double>) {
+          if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_DOUBLE) r->SetDouble(m, f, v);
+        } else if constexpr (std::is_same_v<T, std::int64_t>) {
+          if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_INT64) r->SetInt64(m, f, v);
+          if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_UINT64)
+            r->SetUInt64(m, f, static_cast<std::uint64_t>(v));
+        } else if constexpr (std::is_same_v<T, bool>) {
+          if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_BOOL) r->SetBool(m, f, v);
+        } else if constexpr (std::is_same_v<T, std::string>) {
+          if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_ENUM)
+            if (const auto* ev = enumFromChoice(f->enum_type(), v)) r->SetEnum(m, f, ev);
+        }
+      },
+      value);
+}
+
 }  // namespace
 
 std::vector<SpecError> applyTyped(const v1::SceneSpec& typed, SceneSpec& spec, bool& scene_given) {
@@ -112,6 +136,10 @@ std::vector<SpecError> applyTyped(const v1::SceneSpec& typed, SceneSpec& spec, b
   if (typed.has_numerics()) applyMessage(typed.numerics(), "numerics.", spec, errors);
   if (typed.has_accuracy()) applyMessage(typed.accuracy(), "accuracy.", spec, errors);
   if (typed.has_observe()) applyMessage(typed.observe(), "observe.", spec, errors);
+  if (typed.prepare().has_cells())
+    applyMessage(typed.prepare().cells(), "prepare.cells.", spec, errors);
+  if (typed.prepare().has_numerics())
+    applyMessage(typed.prepare().numerics(), "prepare.numerics.", spec, errors);
   if (scene_msg) applyMessage(*scene_msg, "scene.", spec, errors);
   return errors;
 }
@@ -234,26 +262,15 @@ v1::SceneSpec toProto(const SceneSpec& spec) {
       else
         m = scene_msg;
     }
-    const pb::FieldDescriptor* f = m->GetDescriptor()->FindFieldByName(name);
-    if (!f) continue;  // a [scene] key of another scene
-    const pb::Reflection* r = m->GetReflection();
-    std::visit(
-        [&](const auto& v) {
-          using T = std::decay_t<decltype(v)>;
-          if constexpr (std::is_same_v<T, double>) {
-            if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_DOUBLE) r->SetDouble(m, f, v);
-          } else if constexpr (std::is_same_v<T, std::int64_t>) {
-            if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_INT64) r->SetInt64(m, f, v);
-            if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_UINT64)
-              r->SetUInt64(m, f, static_cast<std::uint64_t>(v));
-          } else if constexpr (std::is_same_v<T, bool>) {
-            if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_BOOL) r->SetBool(m, f, v);
-          } else if constexpr (std::is_same_v<T, std::string>) {
-            if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_ENUM)
-              if (const auto* ev = enumFromChoice(f->enum_type(), v)) r->SetEnum(m, f, ev);
-          }
-        },
-        *value);
+    setProtoField(m, name, *value);  // none for a [scene] key of another scene
+  }
+  for (const auto& [key, value] : spec.prepare) {
+    const auto dot = key.find('.');
+    const std::string table = key.substr(0, dot);
+    pb::Message* m = table == "cells"
+                         ? static_cast<pb::Message*>(out.mutable_prepare()->mutable_cells())
+                         : out.mutable_prepare()->mutable_numerics();
+    setProtoField(m, key.substr(dot + 1), value);
   }
   return out;
 }

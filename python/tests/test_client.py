@@ -1,6 +1,7 @@
 """The Python client against a real foamd: jobs, samples, results, export, sweeps and their
 summary over seeds, and errors mapped to Python exceptions."""
 
+import json
 import math
 import os
 
@@ -122,6 +123,22 @@ def test_sweep_results_and_summary_over_seeds(client):
     again = client.sweep_of(sw.id)  # the swept keys from the server
     pd.testing.assert_frame_equal(again.results(metrics=["aspect_ratio"]),
                                   sw.results(metrics=["aspect_ratio"]))
+
+
+def test_a_prepare_table_in_a_dict_is_the_specs_prepare_table(client):
+    # The spheroids prepared at an L_eta/r of their own: nested or dotted, the same spec, whose
+    # preparation runs at what a plain run at that L_eta/r has; a key it cannot hold is refused.
+    nested = {"scene": "fusion", "cells": {"l_eta_reduced": 2},
+              "prepare": {"cells": {"l_eta_reduced": 0.5}}}
+    dotted = {"scene": "fusion", "cells.l_eta_reduced": 2,
+              "prepare": {"cells.l_eta_reduced": 0.5}}
+    plain = {"scene": "fusion", "cells": {"l_eta_reduced": 0.5}}
+    a, b, c = (json.loads(client.resolve(s).spec_json) for s in (nested, dotted, plain))
+    assert a == b
+    assert a["prepare"]["cells"]["xi"] == c["cells"]["xi"] != a["cells"]["xi"]
+    assert "prepare" not in c
+    with pytest.raises(ValueError, match=r"prepare\.numerics\.cg_tol"):
+        client.resolve({"scene": "fusion", "prepare": {"numerics": {"cg_tol": 1e-4}}})
 
 
 def test_errors_are_python_exceptions_with_the_servers_message(client, tmp_path):

@@ -209,3 +209,24 @@ def test_check_refuses_a_key_no_spec_has(tmp_path):
               "numerics.remesh_rescue"):
         assert k in keys, k
     assert "cells.bogus" not in keys and "cells" not in keys
+
+
+def test_a_studys_spec_and_grids_take_the_prepare_table(tmp_path):
+    # A controlled experiment: one aggregate prepared at the base point, every point run from it.
+    # A [spec.prepare.cells] table and a dotted key in [spec] are one key foamd reads; a grid may
+    # sweep one too; a misspelt one is named with the closest key.
+    from activefoam.client import _spec_fields
+    head = '[study]\nname = "s"\nseeds = [1]\n[spec]\nscene = "fusion"\n'
+    grid = '[[grid]]\n"cells.l_eta_reduced" = [0.5, 2]\n'
+    for rest in ('"prepare.cells.l_eta_reduced" = 0.5\n' + grid,
+                 grid + '[spec.prepare.cells]\nl_eta_reduced = 0.5\n'):
+        study = st.load(_file(tmp_path, head + rest))
+        runs = study.runs()
+        settings = [_spec_fields({}, study.settings(r))["settings"] for r in runs]
+        assert ["prepare.cells.l_eta_reduced=0.5" in s for s in settings] == [True, True]
+        assert [f"cells.l_eta_reduced={v}" in s for s, v in zip(settings, (0.5, 2))] == [True] * 2
+    study = st.load(_file(tmp_path, head + '[[grid]]\n"prepare.cells.k_contact" = [50.0, 71.1]\n'))
+    assert study.swept_keys() == ["prepare.cells.k_contact"]
+    with pytest.raises(st.StudyError, match=r"spec\.prepare\.cells\.gama: unknown spec key "
+                                            r"\(did you mean 'prepare\.cells\.gamma'\?\)"):
+        st.load(_file(tmp_path, head + '"prepare.cells.gama" = 1.0\n' + grid))

@@ -33,9 +33,18 @@ std::string join(std::string_view prefix, std::string_view key) {
   return prefix.empty() ? std::string(key) : std::string(prefix) + "." + std::string(key);
 }
 
+// "prepare.<key>": a key of the [prepare] table, whose tables are the spec's (setField takes it).
+constexpr std::string_view kPrepare = "prepare";
+bool isPrepareKey(std::string_view key) {
+  return key.size() > kPrepare.size() && key.compare(0, kPrepare.size(), kPrepare) == 0 &&
+         key[kPrepare.size()] == '.';
+}
+
 // A table of keys: "cells", "numerics", "scene", "accuracy", "observe" (every key "<group>.<leaf>"
-// lives in one).
+// lives in one), and "prepare" with those within it.
 bool isGroup(std::string_view key) {
+  if (key == kPrepare) return true;
+  if (isPrepareKey(key)) key.remove_prefix(kPrepare.size() + 1);
   for (const SpecField& f : specFields())
     if (f.key.size() > key.size() && f.key.compare(0, key.size(), key) == 0 &&
         f.key[key.size()] == '.')
@@ -51,9 +60,9 @@ std::string expected(const SpecField& f) {
 
 SpecError unknownTable(const std::string& key) {
   std::string msg = "unknown table '" + key + "'";
-  for (std::string_view g : {"cells", "numerics", "scene", "accuracy", "observe"})
+  for (std::string_view g : {"cells", "numerics", "scene", "accuracy", "observe", "prepare"})
     if (editDistance(g, key) <= 2) msg += " (did you mean [" + std::string(g) + "]?)";
-  msg += "; the tables are [cells], [numerics], [scene], [accuracy], [observe]";
+  msg += "; the tables are [cells], [numerics], [scene], [accuracy], [observe], [prepare]";
   return {key, msg};
 }
 
@@ -75,6 +84,16 @@ class Walker {
       : spec_(spec), result_(result), record_(record) {}
 
   void leaf(const std::string& key, const SpecValue& value) {
+    if (isPrepareKey(key)) {
+      // `"cells.xi" = …` in [prepare] and `xi = …` in [prepare.cells] are one key.
+      if (std::find(result_.keys.begin(), result_.keys.end(), key) != result_.keys.end())
+        error(key, "given twice in [prepare] (as a dotted key and in a table): give it once");
+      else if (auto e = setField(spec_, key, value))
+        result_.errors.push_back(*e);
+      else
+        result_.keys.push_back(key);
+      return;
+    }
     const SpecField* f = findField(key);
     // A record's labels only name the values it holds (a retired preset's among them).
     if (f && record_ && f->label) return;
@@ -104,7 +123,9 @@ class Walker {
 
   void null(const std::string& key) {
     const SpecField* f = findField(key);
-    if (!f) {
+    if (isPrepareKey(key)) {  // the run's value, as without it
+      if (auto e = clearField(spec_, key)) result_.errors.push_back(*e);
+    } else if (!f) {
       error(key, "unknown key '" + key + "'" + suggestion(key));
     } else if (!f->optional) {
       error(key, "expected " + expected(*f) + ", got null");
@@ -117,7 +138,9 @@ class Walker {
 
   // A node that is neither a table nor a scalar (array, date, ...): `what` names it.
   void other(const std::string& key, const std::string& what) {
-    if (const SpecField* f = findField(key))
+    if (isPrepareKey(key) && !isGroup(key))
+      error(key, "expected a number, string or boolean, got " + what);
+    else if (const SpecField* f = findField(key))
       error(key, "expected " + expected(*f) + ", got " + what);
     else if (isGroup(key))
       error(key, "expected a table, got " + what);
@@ -606,7 +629,8 @@ std::optional<SpecError> applySetting(SceneSpec& spec, std::string_view kv) {
   const std::string_view key = trim(eq == std::string_view::npos ? kv : kv.substr(0, eq));
   if (eq == std::string_view::npos || key.empty())
     return SpecError{std::string(kv), "expected key=value, e.g. numerics.dt_s=0.05"};
-  const SpecField* f = findField(key);
+  const SpecField* f =
+      findField(isPrepareKey(key) ? key.substr(kPrepare.size() + 1) : key);  // its value's type
   return setField(spec, key, settingValue(f, kv.substr(eq + 1)));
 }
 
@@ -703,6 +727,13 @@ nlohmann::json specToJson(const SceneSpec& spec) {
       j[f.key] = value;
     else
       j[f.key.substr(0, dot)][f.key.substr(dot + 1)] = value;
+  }
+  // Only where there is one: a spec without [prepare] is written as before.
+  for (const auto& [key, v] : spec.prepare) {
+    nlohmann::json value;
+    std::visit([&](const auto& x) { value = x; }, v);
+    const auto dot = key.find('.');
+    j["prepare"][key.substr(0, dot)][key.substr(dot + 1)] = value;
   }
   return j;
 }

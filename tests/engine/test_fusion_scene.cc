@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -180,6 +181,60 @@ TEST(SpheroidCache, ReusesPreparationsByKeyAndIgnoresDamagedFiles) {
   EXPECT_FALSE(redone.from_cache);
   EXPECT_EQ(redone.cells.x, first.cells.x);  // deterministic in its seed
   EXPECT_TRUE(cache.load(prep).has_value());
+}
+
+// [prepare]: a controlled experiment prepares one aggregate at the base point and runs each
+// configuration from it. Two runs differing in their own L_η/r but not in the preparation's start
+// from the same cells bit for bit, the second loading what the first prepared; without [prepare]
+// their preparations differ. The run keeps its own ξ, ξ⊥ and ξ∥.
+TEST(FusionScene, PrepareValuesGiveRunsDifferingInTheirOwnValuesTheSameAggregates) {
+  TempDir dir;
+  const SpheroidCache cache(dir.path.string());
+  auto fusion = [](double l_eta, std::optional<double> prep_l_eta) {
+    SceneSpec s = activefoam::testing::smallFusionBase();
+    s.cells.l_eta_reduced = l_eta;
+    if (prep_l_eta) {
+      EXPECT_EQ(setField(s, "prepare.cells.l_eta_reduced", *prep_l_eta), std::nullopt);
+    }
+    EXPECT_TRUE(validate(s).empty());
+    return resolve(s);
+  };
+  const SceneSpec a = fusion(2, 0.5), b = fusion(1, 0.5), base = fusion(0.5, std::nullopt);
+  ASSERT_GT(a.cells.p_a, 0);  // motile: the friction shapes the relaxation
+  EXPECT_NE(a.cells.xi, b.cells.xi);
+  EXPECT_EQ(a.cells.xi_normal, a.cells.xi);
+  EXPECT_EQ(a.cells.xi_tangential, a.cells.xi);
+  for (const char* key : {"cells.xi", "cells.xi_normal", "cells.xi_tangential"}) {
+    EXPECT_EQ(getField(a, std::string("prepare.") + key), getField(base, key)) << key;
+    EXPECT_EQ(getField(b, std::string("prepare.") + key), getField(base, key)) << key;
+  }
+  EXPECT_EQ(a.prepare.size(), 3u);  // only what differs from the run
+  EXPECT_EQ(spheroidPrepSpec(a, 3, 11), spheroidPrepSpec(base, 3, 11));
+  EXPECT_EQ(spheroidPrepSpec(b, 3, 11), spheroidPrepSpec(base, 3, 11));
+  EXPECT_NE(specFingerprint(a), specFingerprint(fusion(2, std::nullopt)));
+
+  std::vector<PreparedSpheroid> info_a, info_b;
+  const CellSet cells_a = buildFusionCells(a, &cache, {}, &info_a);
+  const CellSet cells_b = buildFusionCells(b, &cache, {}, &info_b);
+  for (int k = 0; k < 2; ++k) {
+    EXPECT_FALSE(info_a[k].from_cache) << k;
+    EXPECT_TRUE(info_b[k].from_cache) << k;  // loaded, not prepared again
+    EXPECT_EQ(info_b[k].key, info_a[k].key);
+  }
+  EXPECT_EQ(cells_a.x, cells_b.x);
+  EXPECT_EQ(cells_a.tri, cells_b.tri);
+  EXPECT_EQ(cells_a.polarity, cells_b.polarity);
+  EXPECT_EQ(cells_a.pi_integral, cells_b.pi_integral);
+
+  // Without [prepare] each run prepares at its own ξ: other aggregates.
+  std::vector<PreparedSpheroid> own_a, own_b;
+  const CellSet plain_a = buildFusionCells(fusion(2, std::nullopt), &cache, {}, &own_a);
+  const CellSet plain_b = buildFusionCells(fusion(1, std::nullopt), &cache, {}, &own_b);
+  EXPECT_FALSE(own_a[0].from_cache);
+  EXPECT_NE(own_a[0].key, info_a[0].key);
+  EXPECT_NE(own_a[0].key, own_b[0].key);
+  ASSERT_EQ(plain_a.x.cols(), plain_b.x.cols());
+  EXPECT_NE(plain_a.x, plain_b.x);
 }
 
 // A spheroid still compacting would fuse while it shrinks: unless the spec allows

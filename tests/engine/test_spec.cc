@@ -856,5 +856,125 @@ TEST(SpecFields, RemeshingOnTheSurfaceIsTheDefaultAndTheEarlierRemeshingKeepsIts
   EXPECT_NE(error->message.find("true or false"), std::string::npos) << error->message;
 }
 
+// [prepare]: only keys the preparation takes from the run (Prep::Kept), each in its own range;
+// every other key is refused saying why, the spec unchanged.
+TEST(SpecPrepare, TheTableTakesOnlyKeptKeysWithinTheirRanges) {
+  SceneSpec s;
+  ASSERT_EQ(setField(s, "prepare.cells.l_eta_reduced", std::int64_t{1}), std::nullopt);
+  EXPECT_EQ(getField(s, "prepare.cells.l_eta_reduced"), SpecValue(1.0));  // stored as the key's
+  EXPECT_EQ(getField(s, "prepare.cells.gamma"), std::nullopt);
+  const SceneSpec before = s;
+  auto refused = [&](const char* key, const SpecValue& v, std::vector<std::string> words) {
+    const auto e = setField(s, key, v);
+    ASSERT_TRUE(e.has_value()) << key;
+    EXPECT_EQ(e->field, key);
+    for (const std::string& w : words)
+      EXPECT_NE(e->message.find(w), std::string::npos) << key << ": " << e->message;
+    EXPECT_EQ(s, before) << key;
+  };
+  refused("prepare.cells.gama", 1.0,
+          {"unknown key 'cells.gama' in [prepare]", "prepare.cells.gamma"});
+  refused("prepare.numerics.cg_tol", 1e-4,
+          {"runs at 0.001 whatever the run's", "share aggregates"});
+  refused("prepare.observe.dissipation", true, {"runs at false"});
+  refused("prepare.seed", std::int64_t{3}, {"sets it itself"});
+  refused("prepare.numerics.dt_s", 0.1, {"sets it itself", "scene.prep_dt_s"});
+  refused("prepare.numerics.triangles_per_cell", std::int64_t{1280},
+          {"the run's cells are the prepared ones", "give it in [numerics]"});
+  refused("prepare.cells.radius_mean_um", 9.0, {"radii and meshes", "give it in [cells]"});
+  refused("prepare.scene.prep_dt_s", 0.25, {"only the preparation reads it; give it in [scene]"});
+  refused("prepare.cells.alpha", 1.5, {"1.5 is outside the allowed range [0, 1)"});
+  refused("prepare.cells.alpha", std::string("x"), {"expected a number"});
+  // The key table decides: every Kept key is taken at its default, every other refused.
+  for (const SpecField& f : specFields()) {
+    SceneSpec t;
+    const auto v = getField(resolve(t), f.key);
+    if (!v) continue;
+    const auto e = setField(t, "prepare." + f.key, *v);
+    EXPECT_EQ(e.has_value(), f.prep != SpecField::Prep::Kept) << f.key;
+  }
+  ASSERT_EQ(clearField(s, "prepare.cells.l_eta_reduced"), std::nullopt);
+  EXPECT_TRUE(s.prepare.empty());
+}
+
+// Where nothing is prepared it is refused; what its values derive must be in range too.
+TEST(SpecPrepare, ValidateRefusesItWithoutAPreparationAndChecksWhatItDerives) {
+  SceneSpec d;
+  d.scene = SceneKind::Doublet;
+  ASSERT_EQ(setField(d, "prepare.cells.alpha", 0.5), std::nullopt);
+  auto e = validate(d);
+  ASSERT_EQ(e.size(), 1u) << joined(e);
+  EXPECT_EQ(e[0].field, "prepare.cells.alpha");
+  EXPECT_NE(e[0].message.find("only the fusion scene prepares spheroids"), std::string::npos)
+      << e[0].message;
+  d.scene = SceneKind::Fusion;
+  EXPECT_TRUE(validate(d).empty()) << joined(validate(d));
+
+  SceneSpec f;  // ξ = η/(0.001 r)² = 6.3e4 kPa·s/µm, beyond cells.xi's 1e4
+  ASSERT_EQ(setField(f, "prepare.cells.l_eta_reduced", 1e-3), std::nullopt);
+  e = validate(f);
+  ASSERT_EQ(e.size(), 1u) << joined(e);
+  EXPECT_EQ(e[0].field, "prepare.cells.l_eta_reduced");
+  EXPECT_NE(e[0].message.find("gives cells.xi"), std::string::npos) << e[0].message;
+
+  SceneSpec filled;  // a table filled by hand with a key it cannot hold
+  filled.prepare["numerics.cg_tol"] = 1e-4;
+  EXPECT_TRUE(hasErrorFor(validate(filled), "prepare.numerics.cg_tol"));
+
+  // Weak adhesion asks a long preparation of the preparation's α, not the run's.
+  SceneSpec weak;
+  ASSERT_EQ(setField(weak, "prepare.cells.alpha", 0.9), std::nullopt);
+  const auto w = silentlyWrong(weak);
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_NE(w[0].message.find("prepare.cells.alpha = 0.9"), std::string::npos) << w[0].message;
+  weak.cells.alpha = 0.9;
+  ASSERT_EQ(setField(weak, "prepare.cells.alpha", 0.5), std::nullopt);
+  EXPECT_TRUE(silentlyWrong(weak).empty());
+}
+
+// resolve() applies the preparation's values as the run's would be applied: its own L_η/r gives
+// it its own ξ, ξ⊥ and ξ∥, its own γ its τ_K and τ_r; the run keeps its own; what is left is what
+// differs, so that a [prepare] at the run's values is no [prepare] at all.
+TEST(SpecPrepare, ResolveDerivesThePreparationsValuesAndTheRunKeepsItsOwn) {
+  SceneSpec s;
+  s.cells.l_eta_reduced = 2;
+  ASSERT_EQ(setField(s, "prepare.cells.l_eta_reduced", 0.5), std::nullopt);
+  ASSERT_EQ(setField(s, "prepare.cells.gamma", 1.0), std::nullopt);
+  const SceneSpec r = resolve(s);
+  const double r_um = s.cells.radius_mean_um;
+  auto xi = [&](double l, double eta) { return eta / (l * r_um * l * r_um); };
+  EXPECT_DOUBLE_EQ(r.cells.xi, xi(2, s.cells.eta));
+  EXPECT_EQ(*r.cells.xi_normal, r.cells.xi);
+  EXPECT_EQ(*r.cells.tau_k_s, defaultTauKS(s.cells));
+  const SceneSpec p = withPrepareValues(r);
+  EXPECT_TRUE(p.prepare.empty());
+  EXPECT_DOUBLE_EQ(p.cells.xi, xi(0.5, s.cells.eta));
+  EXPECT_EQ(*p.cells.xi_normal, p.cells.xi);
+  EXPECT_EQ(*p.cells.xi_tangential, p.cells.xi);
+  EXPECT_EQ(p.cells.gamma, 1.0);
+  CellParams stiff = s.cells;
+  stiff.gamma = 1;
+  EXPECT_EQ(*p.cells.tau_k_s, defaultTauKS(stiff));
+  EXPECT_EQ(*p.numerics.remesh_every_s, defaultRemeshEveryS(stiff));
+  EXPECT_FALSE(r.prepare.count("cells.l_eta_reduced"));  // resolved into what it gives
+  EXPECT_EQ(resolve(r), r);
+  // The run's values again: no table, the fingerprint of a spec without one.
+  SceneSpec same = s;
+  same.prepare.clear();
+  const SceneSpec plain = resolve(same);
+  ASSERT_EQ(setField(same, "prepare.cells.l_eta_reduced", 2.0), std::nullopt);
+  EXPECT_TRUE(resolve(same).prepare.empty());
+  EXPECT_EQ(specFingerprint(resolve(same)), specFingerprint(plain));
+  // Without a table the fingerprint holds no trace of one; with one it adds its values after
+  // every key's, which keep theirs.
+  EXPECT_EQ(specFingerprint(plain).find("prepare"), std::string::npos);
+  SceneSpec run = s;
+  run.prepare.clear();
+  const std::string without = specFingerprint(resolve(run));
+  const std::string with = specFingerprint(r);
+  EXPECT_EQ(with.substr(0, without.size()), without);
+  EXPECT_NE(with.find("prepare.cells.xi="), std::string::npos) << with;
+}
+
 }  // namespace
 }  // namespace activefoam

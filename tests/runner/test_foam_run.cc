@@ -224,6 +224,16 @@ TEST_F(FoamRun, HelpVersionKeys) {
                        law),
             std::string::npos)
       << r.out.substr(law, 400);
+  // Which keys [prepare] takes: those the preparation otherwise takes from the run.
+  const auto xi = r.out.find("cells.xi = ");
+  ASSERT_NE(xi, std::string::npos);
+  EXPECT_NE(r.out.substr(xi, r.out.find("cells.xi_normal", xi) - xi).find("[prepare] may give"),
+            std::string::npos)
+      << r.out.substr(xi, 400);
+  const auto dt = r.out.find("numerics.dt_s = ");
+  EXPECT_EQ(r.out.substr(dt, r.out.find("numerics.integrator", dt) - dt).find("[prepare]"),
+            std::string::npos);
+  EXPECT_NE(r.out.find("[prepare] (fusion)"), std::string::npos);
 }
 
 TEST_F(FoamRun, RefusesANonEmptyOutputDir) {

@@ -417,4 +417,65 @@ TEST(SpecIo, UnreadableTomlValuesNameTheirKey) {
             std::string::npos)
       << r.errors[0].str();
 }
+
+// [prepare] in every spelling TOML and JSON allow is the same table; written back only where a
+// spec has one, it round-trips through spec.json; --set reaches it by its dotted key; its errors
+// name the key as the document wrote it.
+TEST(SpecIo, ThePrepareTableInEverySpellingAndBack) {
+  const std::string head = "scene = \"fusion\"\n[cells]\nl_eta_reduced = 2\n";
+  std::vector<SceneSpec> specs;
+  for (const std::string& text : {head + "[prepare]\n\"cells.l_eta_reduced\" = 0.5\n",
+                                  head + "[prepare]\ncells.l_eta_reduced = 0.5\n",
+                                  head + "[prepare.cells]\nl_eta_reduced = 0.5\n",
+                                  std::string(R"({"scene": "fusion", "cells": {"l_eta_reduced": 2},
+                       "prepare": {"cells": {"l_eta_reduced": 0.5}}})"),
+                                  std::string(R"({"scene": "fusion", "cells": {"l_eta_reduced": 2},
+                       "prepare": {"cells.l_eta_reduced": 0.5}})")}) {
+    const auto r = parseSpecText(text);
+    ASSERT_TRUE(r.ok()) << text << "\n" << joined(r.errors);
+    EXPECT_TRUE(validate(*r.spec).empty()) << joined(validate(*r.spec));
+    specs.push_back(*r.spec);
+  }
+  for (const SceneSpec& s : specs) EXPECT_EQ(s, specs[0]);
+  EXPECT_EQ(specs[0].prepare.at("cells.l_eta_reduced"), SpecValue(0.5));
+  EXPECT_EQ(specs[0].cells.l_eta_reduced, 2.0);
+  const auto settings = applySettings(
+      SceneSpec{}, {"scene=fusion", "cells.l_eta_reduced=2", "prepare.cells.l_eta_reduced=0.5"});
+  ASSERT_TRUE(settings.ok()) << joined(settings.errors);
+  EXPECT_EQ(*settings.spec, specs[0]);
+
+  // TOML → spec → JSON → spec, unresolved and resolved (what foam-run and foamd write).
+  for (const SceneSpec& s : {specs[0], resolve(specs[0])}) {
+    const nlohmann::json j = specToJson(s);
+    ASSERT_TRUE(j.contains("prepare")) << j.dump();
+    const auto back = parseSpecText(j.dump(2));
+    ASSERT_TRUE(back.ok()) << joined(back.errors);
+    EXPECT_EQ(*back.spec, s);
+    EXPECT_EQ(specToJson(*back.spec), j);
+  }
+  const nlohmann::json r = specToJson(resolve(specs[0]));
+  EXPECT_FALSE(r["prepare"]["cells"].contains("l_eta_reduced"));  // resolved into ξ, ξ⊥, ξ∥
+  EXPECT_GT(r["prepare"]["cells"]["xi"].get<double>(), r["cells"]["xi"].get<double>());
+  EXPECT_FALSE(specToJson(resolve(SceneSpec{})).contains("prepare"));  // written as before
+
+  const std::pair<const char*, const char*> bad[] = {
+      {"[prepare.cells]\ngama = 1\n", "prepare.cells.gama"},
+      {"[prepare.numerics]\ncg_tol = 1e-4\n", "prepare.numerics.cg_tol"},
+      {"[prepare]\n\"cells.alpha\" = 2\n", "prepare.cells.alpha"},
+      {"[prepare]\ncells.alpha = [0.5]\n", "prepare.cells.alpha"},
+      {"[prepare.bogus]\nx = 1\n", "prepare.bogus"},
+      {"[prepare]\ncells = 1\n", "prepare.cells"},
+      {"[prepare]\n\"cells.xi\" = 1\n[prepare.cells]\nxi = 2\n", "prepare.cells.xi"}};
+  for (const auto& [table, key] : bad) {
+    const auto e = problems("scene = \"fusion\"\n" + std::string(table));
+    ASSERT_EQ(e.size(), 1u) << table << joined(e);
+    EXPECT_EQ(e[0].field, key) << table;
+  }
+  const auto doublet = problems("scene = \"doublet\"\n[prepare.cells]\nalpha = 0.5\n");
+  ASSERT_EQ(doublet.size(), 1u) << joined(doublet);
+  EXPECT_EQ(doublet[0].field, "prepare.cells.alpha");
+  EXPECT_NE(doublet[0].message.find("only the fusion scene"), std::string::npos);
+  EXPECT_NE(problems("scene = \"fusion\"\n[prepar]\n")[0].message.find("did you mean [prepare]"),
+            std::string::npos);
+}
 }  // namespace activefoam

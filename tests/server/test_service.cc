@@ -736,6 +736,23 @@ TEST_F(ServiceTest, ResolveSpecAnswersWhatASubmitStoresAndCreatesNoJob) {
   const grpc::Status st2 = stub_->ResolveSpec(c2.get(), old, &resp);
   ASSERT_TRUE(st2.ok()) << st2.error_message();
   EXPECT_EQ(nlohmann::json::parse(resp.spec_json())["numerics"]["contact_law"], "supplement");
+
+  // A fusion prepared at values of its own: the record stored and served holds them, resolved.
+  v1::SubmitJobRequest fusion;
+  fusion.mutable_spec()->mutable_fusion();
+  fusion.add_settings("cells.l_eta_reduced=2");
+  fusion.add_settings("prepare.cells.l_eta_reduced=0.5");
+  v1::ResolveSpecRequest fq;
+  *fq.mutable_settings() = fusion.settings();
+  *fq.mutable_spec() = fusion.spec();
+  auto c3 = ctx();
+  const grpc::Status st3 = stub_->ResolveSpec(c3.get(), fq, &resp);
+  ASSERT_TRUE(st3.ok()) << st3.error_message();
+  const nlohmann::json prepared = nlohmann::json::parse(resp.spec_json());
+  EXPECT_GT(prepared["prepare"]["cells"]["xi"], prepared["cells"]["xi"]);
+  const v1::Job fj = get(submit(fusion));
+  EXPECT_EQ(nlohmann::json::parse(fj.spec_json()), prepared);
+  EXPECT_EQ(nlohmann::json::parse(fj.resolved_spec_json()), prepared);
 }
 
 TEST_F(ServiceTest, TokenAuth) {

@@ -38,7 +38,9 @@ TEST(SpecConvert, EveryProtoFieldIsAKeyAndEveryKeyHasAField) {
   leaves(v1::SceneSpec::descriptor(), "", proto);
   std::set<std::string> keys;
   for (const SpecField& f : specFields()) keys.insert(f.key);
-  for (const std::string& k : proto) {
+  for (const std::string& field : proto) {
+    // [prepare] holds the [cells] and [numerics] messages again.
+    const std::string k = field.rfind("prepare.", 0) == 0 ? field.substr(8) : field;
     if (keys.count(k)) continue;
     // A field without a key is a retired key's, still read from earlier clients and records.
     SceneSpec s;
@@ -51,6 +53,11 @@ TEST(SpecConvert, EveryProtoFieldIsAKeyAndEveryKeyHasAField) {
     EXPECT_TRUE(retired.has_value() && !*retired) << "proto field without key: " << k;
   }
   for (const std::string& k : keys) EXPECT_TRUE(proto.count(k)) << "key without proto field: " << k;
+  for (const SpecField& f : specFields()) {
+    if (f.prep == SpecField::Prep::Kept) {
+      EXPECT_TRUE(proto.count("prepare." + f.key)) << f.key;
+    }
+  }
 }
 
 TEST(SpecConvert, TypedFieldsReachTheEngineSpec) {
@@ -232,6 +239,52 @@ TEST(SpecConvert, ThePolarityFromThePreparationTravelsAndIsTheFusionsOnly) {
   r = convertSpec(v1::SceneSpec{}, "", {"scene=doublet", "scene.polarity_from_preparation=false"});
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.errors[0].field, "scene.polarity_from_preparation");
+}
+
+// [prepare] (field 24) travels typed, as text and as settings alike; the stored record and the
+// record served back keep it; keys it cannot hold and scenes without a preparation are refused
+// naming the key.
+TEST(SpecConvert, ThePrepareTableTravelsAndIsTheFusionsOnly) {
+  v1::SceneSpec typed;
+  typed.mutable_fusion();
+  typed.mutable_cells()->set_l_eta_reduced(2);
+  typed.mutable_prepare()->mutable_cells()->set_l_eta_reduced(0.5);
+  const ConvertResult r = convertSpec(typed);
+  ASSERT_TRUE(r.ok()) << errorText(r.errors);
+  SceneSpec want;
+  want.cells.l_eta_reduced = 2;
+  ASSERT_EQ(setField(want, "prepare.cells.l_eta_reduced", 0.5), std::nullopt);
+  EXPECT_EQ(*r.spec, resolve(want));
+  EXPECT_EQ(r.spec->prepare.count("cells.xi"), 1u);
+  for (const ConvertResult& same :
+       {convertSpec(v1::SceneSpec{},
+                    "scene = \"fusion\"\n[cells]\nl_eta_reduced = 2\n"
+                    "[prepare.cells]\nl_eta_reduced = 0.5\n"),
+        convertSpec(v1::SceneSpec{}, "",
+                    {"scene=fusion", "cells.l_eta_reduced=2", "prepare.cells.l_eta_reduced=0.5"}),
+        convertSpec(toProto(*r.spec))}) {
+    ASSERT_TRUE(same.ok()) << errorText(same.errors);
+    EXPECT_EQ(*same.spec, *r.spec);
+  }
+  const std::string record = specToJson(*r.spec).dump();
+  const SpecParseResult read = readRecord(record);
+  ASSERT_TRUE(read.ok()) << errorText(read.errors);
+  EXPECT_EQ(*read.spec, *r.spec);
+  EXPECT_EQ(nlohmann::json::parse(resolvedRecordJson(record))["prepare"],
+            nlohmann::json::parse(record)["prepare"]);
+
+  v1::SceneSpec fixed = typed;
+  fixed.mutable_prepare()->mutable_numerics()->set_cg_tol(1e-4);
+  ConvertResult bad = convertSpec(fixed);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.errors[0].field, "prepare.numerics.cg_tol");
+  v1::SceneSpec doublet;
+  doublet.mutable_doublet();
+  doublet.mutable_prepare()->mutable_cells()->set_alpha(0.5);
+  bad = convertSpec(doublet);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.errors[0].field, "prepare.cells.alpha");
+  EXPECT_NE(bad.errors[0].message.find("only the fusion scene"), std::string::npos);
 }
 
 // numerics.remesh_repair (proto field 27) reaches the engine from the typed message and from

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -167,6 +168,8 @@ struct ObserveParams {
   friend bool operator==(const ObserveParams&, const ObserveParams&) = default;
 };
 
+using SpecValue = std::variant<double, std::int64_t, std::string, bool>;
+
 struct SceneSpec {
   SceneKind scene = SceneKind::Fusion;
   std::uint64_t seed = 1;
@@ -178,14 +181,18 @@ struct SceneSpec {
   SceneParams scene_params;  // the [scene] table
   AccuracyTarget accuracy;   // the [accuracy] table
   ObserveParams observe;     // the [observe] table
+  // The [prepare] table (fusion): values the spheroids' preparation runs with instead of the
+  // run's, by key ("cells.l_eta_reduced"), for keys the key table marks Prep::Kept; keys
+  // "prepare.<key>" of setField. resolve() leaves in it the preparation's resolved values that
+  // differ from the run's (a reduced key becomes what it derives), so that an empty table is
+  // exactly a spec without one.
+  std::map<std::string, SpecValue> prepare;
 
   // Exact, field by field (doubles compared by value): what a round trip must keep.
   friend bool operator==(const SceneSpec&, const SceneSpec&) = default;
 };
 
 // ---- the key table -------------------------------------------------------------------------
-
-using SpecValue = std::variant<double, std::int64_t, std::string, bool>;
 
 enum class FieldType { Real, Integer, Choice, Boolean };
 
@@ -210,13 +217,16 @@ struct SpecField {
   // - `prep`: how the spheroids' preparation treats the key (spheroidPrepSpec). Kept: it runs
   //   with the run's value (the key shapes the aggregates). Fixed: with `prep_value` (unset for
   //   an optional key when empty), so that runs differing only in it start from the same
-  //   aggregates. Own: the preparation sets it itself (its duration, Δt, scene).
+  //   aggregates. Own: the preparation sets it itself (its duration, Δt, scene). Shared: as
+  //   Kept, and the run cannot differ from its preparation in it (the run's cells are the
+  //   prepared ones, with their radii and meshes; scene.prep_* are the preparation's own). Only
+  //   a Kept key may be given another value for the preparation in [prepare].
   // - `scenes`: which scenes read it (bit 1 << SceneKind); a spec that sets it for another scene
   //   is told so.
   bool label = false;
   std::optional<SpecValue> before;
   bool since_unset = false;
-  enum class Prep { Kept, Fixed, Own } prep = Prep::Kept;
+  enum class Prep { Kept, Fixed, Own, Shared } prep = Prep::Kept;
   std::optional<SpecValue> prep_value;
   unsigned scenes = 0xF;
   std::string range() const;  // "(0, 10]" or "one of cell|doublet|..." for messages
@@ -247,7 +257,9 @@ struct SpecError {
 
 // Sets one key. Integers are accepted for Real keys; reals with no fractional part for Integer
 // keys; strings for Choice keys. Fails (with the key named) on an unknown key, a wrong type,
-// a non-finite number or a value outside the key's range.
+// a non-finite number or a value outside the key's range. "prepare.<key>" sets the key's value in
+// [prepare] (and fails, saying why, for a key that is not Prep::Kept); clearField and getField
+// take such keys too.
 std::optional<SpecError> setField(SceneSpec& spec, std::string_view key, const SpecValue& value);
 
 // Unsets an optional key (its derived default applies again). Fails on an unknown key or a key
@@ -258,12 +270,16 @@ std::optional<SpecError> clearField(SceneSpec& spec, std::string_view key);
 // Real keys give double, Integer keys std::int64_t, Choice keys std::string.
 std::optional<SpecValue> getField(const SceneSpec& spec, std::string_view key);
 
+// `spec` with its [prepare] values in place of the run's, and no [prepare] table: the spec the
+// spheroids' preparation starts from (spheroidPrepSpec), resolved where `spec` is.
+SceneSpec withPrepareValues(const SceneSpec& spec);
+
 // Every range and cross-field rule. Empty when the spec can run.
 std::vector<SpecError> validate(const SceneSpec& spec);
 
 // Fills derived defaults (τ_K, τ_r, ξ⊥/ξ∥), applies reduced parameters and turns an accuracy
-// target into its preset, so the result states exactly what runs. Idempotent. Call validate()
-// first.
+// target into its preset, so the result states exactly what runs; [prepare] keeps the
+// preparation's resolved values that differ from the run's. Idempotent. Call validate() first.
 SceneSpec resolve(const SceneSpec& spec);
 
 // Settings the stability study measured to fail (docs/study/stability-map.md,
@@ -275,10 +291,10 @@ SceneSpec resolve(const SceneSpec& spec);
 // warns.
 std::vector<SpecError> measuredUnstable(const SceneSpec& spec);
 
-// Every key's value in table order, as text: two specs with the same fingerprint run
-// identically (checkpoints and the spheroid cache compare it). Labels are left out, and so is a
-// key at its `before` value (numerics.dt_min_s at its default Δt/64): a run of today's engine
-// at the settings of an earlier one keeps that one's checkpoints and prepared spheroids.
+// Every key's value in table order, then the [prepare] values, as text: two specs with the same
+// fingerprint run identically (checkpoints and the spheroid cache compare it). Labels are left out,
+// and so is a key at its `before` value (numerics.dt_min_s at its default Δt/64): a run of today's
+// engine at the settings of an earlier one keeps that one's checkpoints and prepared spheroids.
 std::string specFingerprint(const SceneSpec& spec);
 
 // A spec whose every key that has a `before` value holds it, the others their defaults: the base

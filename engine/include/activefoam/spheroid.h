@@ -29,11 +29,12 @@ struct PreparedSpheroid {
 };
 
 // The relaxation run that prepares one spheroid of `spec` (a spheroid or fusion spec): scene
-// spheroid with n_cells cells and the given seed, the spec's cell parameters and mesh settings,
-// at scene.prep_dt_s, for at most scene.prep_max_s; every key the table marks Fixed
-// (SpecField::prep: the solver, the contact law, the repairs, failure limits, fusion-only keys)
-// at the preparation's value, so that it does not change the cache key; the mesh settings do.
-// buildFusionCells may loosen the volume limit (see there).
+// spheroid with n_cells cells and the given seed, the spec's cell parameters and mesh settings
+// (or the values its [prepare] table gives instead), at scene.prep_dt_s, for at most
+// scene.prep_max_s; every key the table marks Fixed (SpecField::prep: the solver, the contact
+// law, the repairs, failure limits, fusion-only keys) at the preparation's value, so that it does
+// not change the cache key; the mesh settings do. buildFusionCells may loosen the volume limit
+// (see there).
 SceneSpec spheroidPrepSpec(const SceneSpec& spec, std::int64_t n_cells, std::uint64_t seed);
 
 // The seeds of a fusion spec's spheroids A (0) and B (1): derived from its seed.

@@ -110,8 +110,9 @@ SceneSpec spheroidPrepSpec(const SceneSpec& spec, std::int64_t n_cells, std::uin
   // A prepared spheroid is an initial condition: runs that differ only in their solver settings,
   // failure limits, contact law, repairs or fusion-only keys start from the same aggregates. The
   // key table says which keys the preparation fixes and at what (SpecField::prep); the mesh
-  // settings and the cells' parameters shape the aggregates and stay.
-  SceneSpec p = spec;
+  // settings and the cells' parameters shape the aggregates and stay, at the run's values or
+  // those [prepare] gives instead.
+  SceneSpec p = withPrepareValues(spec);
   p.numerics.pinned.bits = ~0u;  // the preset's name changes no value here
   for (const SpecField& f : specFields()) {
     if (f.prep != SpecField::Prep::Fixed) continue;

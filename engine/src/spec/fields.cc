@@ -75,6 +75,9 @@ void prepAt(std::vector<Entry>& t, std::optional<SpecValue> value) {
 void prepOwn(std::vector<Entry>& t) {
   t.back().field.prep = SpecField::Prep::Own;
 }
+void prepShared(std::vector<Entry>& t) {
+  t.back().field.prep = SpecField::Prep::Shared;
+}
 void readBy(std::vector<Entry>& t, unsigned scenes) {
   t.back().field.scenes = scenes;
 }
@@ -132,9 +135,11 @@ const std::vector<Entry>& entries() {
     t.push_back(
         {real("cells.radius_mean_um", kOpen, 0.1, 1000, kClosed, "µm", "mean cell radius r"),
          [](SceneSpec& s) -> Slot { return &s.cells.radius_mean_um; }});
+    prepShared(t);
     t.push_back({real("cells.radius_gamma_k", kClosed, 0, 1e6, kClosed, "",
                       "shape k of the Gamma law of cell radii (θ = r/k); 0 = all cells radius r"),
                  [](SceneSpec& s) -> Slot { return &s.cells.radius_gamma_k; }, gammaShapeRule});
+    prepShared(t);
     t.push_back({real("cells.gamma", kOpen, 0, 100, kClosed, "nN/µm", "cortex tension γ"),
                  [](SceneSpec& s) -> Slot { return &s.cells.gamma; }});
     t.push_back({real("cells.eta", kOpen, 0, 1e4, kClosed, "nN·s/µm",
@@ -236,6 +241,7 @@ const std::vector<Entry>& entries() {
                          "initial triangles per cell (icosphere with 1, 2 or 3 subdivisions)",
                          {"80", "320", "1280"}),
                  [](SceneSpec& s) -> Slot { return &s.numerics.triangles_per_cell; }});
+    prepShared(t);
     t.push_back({real("numerics.remesh_every_s", kClosed, 0, 1e7, kClosed, "s",
                       "remeshing interval τ_r; default 5 τ_shell; 0 disables remeshing", true),
                  [](SceneSpec& s) -> Slot { return &s.numerics.remesh_every_s; }});
@@ -350,21 +356,25 @@ const std::vector<Entry>& entries() {
                       "cells), always with the contact-implicit integrator"),
                  [](SceneSpec& s) -> Slot { return &s.scene_params.prep_dt_s; }});
     readBy(t, kFusionOnly);
+    prepShared(t);
     t.push_back({real("scene.prep_max_s", kClosed, 0, 1e5, kClosed, "s",
                       "fusion: longest relaxation of a spheroid's packed cells; 0 = none"),
                  [](SceneSpec& s) -> Slot { return &s.scene_params.prep_max_s; }});
     readBy(t, kFusionOnly);
+    prepShared(t);
     t.push_back({real("scene.prep_min_s", kClosed, 0, 1e5, kClosed, "s",
                       "fusion: shortest relaxation of a spheroid (compaction is not declared "
                       "before it); weak adhesion (cells.alpha >= 0.8) needs 300/(1 - alpha) s"),
                  [](SceneSpec& s) -> Slot { return &s.scene_params.prep_min_s; }});
     readBy(t, kFusionOnly);
     since(t, 0.0);
+    prepShared(t);
     t.push_back({real("scene.compact_rate_per_s", kOpen, 0, 1, kClosed, "1/s",
                       "fusion: a spheroid is prepared (compact) when its radius of "
                       "gyration changes by less than this (relative, per second) over 60 s"),
                  [](SceneSpec& s) -> Slot { return &s.scene_params.compact_rate_per_s; }});
     readBy(t, kFusionOnly);
+    prepShared(t);
     t.push_back({boolean("scene.allow_uncompacted",
                          "fusion: fuse spheroids that are not compact after scene.prep_max_s "
                          "as they are; false: the job fails with preparation-failed"),

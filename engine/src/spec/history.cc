@@ -23,6 +23,12 @@ std::string specFingerprint(const SceneSpec& spec) {
     if (const auto v = getField(spec, f.key)) std::visit([&](const auto& x) { os << x; }, *v);
     os << ';';
   }
+  // Absent without a [prepare] table: the fingerprints of specs without one stay as they were.
+  for (const auto& [key, value] : spec.prepare) {
+    os << "prepare." << key << '=';
+    std::visit([&](const auto& x) { os << x; }, value);
+    os << ';';
+  }
   return os.str();
 }
 

@@ -40,6 +40,37 @@ SpecError unknownKey(std::string_view key) {
   return {std::string(key), msg};
 }
 
+// "prepare.<key>": the key's value in [prepare] (SceneSpec::prepare).
+constexpr std::string_view kPrepare = "prepare.";
+bool isPrepareKey(std::string_view key) {
+  return key.substr(0, kPrepare.size()) == kPrepare;
+}
+
+// Why [prepare] cannot hold the key; empty when it can.
+std::string notPreparable(const SpecField& f) {
+  const std::string marked = " (foam-run --keys marks the keys it takes)";
+  switch (f.prep) {
+    case SpecField::Prep::Kept:
+      return {};
+    case SpecField::Prep::Own:
+      return "[prepare] cannot set it: the preparation sets it itself (a spheroid of the "
+             "[scene] table's cells, its seed drawn from the run's, its step and length "
+             "scene.prep_dt_s and scene.prep_max_s)" +
+             marked;
+    case SpecField::Prep::Fixed:
+      return "[prepare] cannot set it: the preparation runs at " +
+             (f.prep_value ? describe(*f.prep_value) : std::string("its default")) +
+             " whatever the run's, so that runs differing in it share aggregates" + marked;
+    case SpecField::Prep::Shared:
+      if (!f.readBy(SceneKind::Spheroid))
+        return "[prepare] cannot set it: only the preparation reads it; give it in [scene]";
+      return "[prepare] cannot set it: the run's cells are the prepared ones, with their radii "
+             "and meshes, so the run and its preparation have one value; give it in [" +
+             f.key.substr(0, f.key.find('.')) + "]";
+  }
+  return {};
+}
+
 std::string_view lastSegment(std::string_view key) {
   const auto dot = key.rfind('.');
   return dot == std::string_view::npos ? key : key.substr(dot + 1);
@@ -184,9 +215,30 @@ std::optional<SpecError> setFieldValue(SceneSpec& spec, std::string_view key,
   return std::nullopt;
 }
 
+// A key of [prepare]: range-checked as the run's, stored as getField reads it.
+std::optional<SpecError> setPrepare(SceneSpec& spec, std::string_view key, const SpecValue& value) {
+  const std::string_view inner = key.substr(kPrepare.size());
+  auto fail = [&](std::string msg) {
+    return std::optional<SpecError>(SpecError{std::string(key), std::move(msg)});
+  };
+  const Entry* e = findEntry(inner);
+  if (!e) {
+    std::string msg = "unknown key '" + std::string(inner) + "' in [prepare]";
+    if (const std::string s = suggestKey(inner); !s.empty())
+      msg += " (did you mean 'prepare." + s + "'?)";
+    return fail(msg);
+  }
+  if (std::string why = notPreparable(e->field); !why.empty()) return fail(why);
+  SceneSpec scratch;
+  if (auto error = setFieldValue(scratch, inner, value)) return fail(error->message);
+  spec.prepare[e->field.key] = *getField(scratch, e->field.key);
+  return std::nullopt;
+}
+
 }  // namespace
 
 std::optional<SpecError> setField(SceneSpec& spec, std::string_view key, const SpecValue& value) {
+  if (isPrepareKey(key)) return setPrepare(spec, key, value);
   if (!findEntry(key))
     if (auto retired = setRetiredField(spec, key, value)) return *retired;
   if (key == "numerics.preset" && value == SpecValue(std::string("draft")))
@@ -201,6 +253,12 @@ std::optional<SpecError> setField(SceneSpec& spec, std::string_view key, const S
 }
 
 std::optional<SpecError> clearField(SceneSpec& spec, std::string_view key) {
+  if (isPrepareKey(key)) {
+    const Entry* e = findEntry(key.substr(kPrepare.size()));
+    if (!e) return unknownKey(key);
+    spec.prepare.erase(e->field.key);  // the preparation runs with the run's value again
+    return std::nullopt;
+  }
   const Entry* e = findEntry(key);
   if (!e) return unknownKey(key);
   Slot slot = e->slot(spec);
@@ -213,6 +271,12 @@ std::optional<SpecError> clearField(SceneSpec& spec, std::string_view key) {
 }
 
 std::optional<SpecValue> getField(const SceneSpec& spec, std::string_view key) {
+  if (isPrepareKey(key)) {
+    const Entry* e = findEntry(key.substr(kPrepare.size()));
+    const auto it = e ? spec.prepare.find(e->field.key) : spec.prepare.end();
+    if (it == spec.prepare.end()) return std::nullopt;
+    return it->second;
+  }
   const Entry* e = findEntry(key);
   if (!e) return std::nullopt;
   // The slot functions take a mutable spec; nothing is written through them here.

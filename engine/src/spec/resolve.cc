@@ -40,12 +40,30 @@ SceneSpec resolveUnchecked(const SceneSpec& spec) {
   if (!r.numerics.dt_min_s) r.numerics.dt_min_s = defaultDtMinS(r.numerics.dt_s);
   if (!c.xi_normal) c.xi_normal = c.xi;
   if (!c.xi_tangential) c.xi_tangential = c.xi;
+  // The preparation's values resolve as the run's would (an L_η/r of its own derives its ξ, ξ⊥
+  // and ξ∥; a γ of its own its τ_K): what is left are those that differ from the run's.
+  if (!spec.prepare.empty()) {
+    const SceneSpec prep = resolveUnchecked(withPrepareValues(spec));
+    r.prepare.clear();
+    for (const Entry& e : entries()) {
+      if (e.field.prep != SpecField::Prep::Kept) continue;
+      const std::optional<SpecValue> v = getField(prep, e.field.key);
+      if (v && v != getField(r, e.field.key)) r.prepare[e.field.key] = *v;
+    }
+  }
   return r;
 }
 
 }  // namespace spec_internal
 
 // ---- resolve and derived quantities ------------------------------------------------------------
+
+SceneSpec withPrepareValues(const SceneSpec& spec) {
+  SceneSpec p = spec;
+  p.prepare.clear();
+  for (const auto& [key, value] : spec.prepare) (void)setField(p, key, value);  // validate()d
+  return p;
+}
 
 SceneSpec resolve(const SceneSpec& spec) {
   return spec_internal::resolveUnchecked(spec);

@@ -209,6 +209,22 @@ std::vector<SpecError> validate(const SceneSpec& spec) {
       derived("numerics.remesh_every_s", "numerics.remesh_every_s", *r.numerics.remesh_every_s,
               "unset, and its default 5 τ_shell");
   }
+
+  // [prepare]: keys the preparation may run at values of its own (setField's check, for a table
+  // filled otherwise), on a scene that prepares spheroids; and the preparation's spec passes the
+  // rules the run's does (the values its keys derive included).
+  for (const auto& [key, value] : spec.prepare) {
+    SceneSpec scratch;
+    const std::string name = "prepare." + key;
+    if (auto e = setField(scratch, name, value))
+      error(name, e->message);
+    else if (spec.scene != SceneKind::Fusion)
+      error(name, "only the fusion scene prepares spheroids, and this spec's scene is " +
+                      std::string(toString(spec.scene)) + ": remove [prepare]");
+  }
+  if (!spec.prepare.empty() && errors.empty())
+    for (const SpecError& e : validate(withPrepareValues(spec)))
+      error("prepare." + e.field, e.message);
   return errors;
 }
 
@@ -322,13 +338,17 @@ std::vector<SpecError> silentlyWrong(const SceneSpec& spec) {
   // so the compaction criterion alone would start the fusion from point contacts.
   const SceneParams& sp = r.scene_params;
   // allow_uncompacted does not lift it: it is about prep_max_s running out, not this.
-  if (spec.scene == SceneKind::Fusion && sp.prep_max_s > 0 && r.cells.alpha >= kWeakAdhesionAlpha) {
-    const double need = weakAdhesionPrepMinS(r.cells.alpha);
+  // The preparation's α: [prepare] may give one.
+  const double alpha = withPrepareValues(r).cells.alpha;
+  const std::string alpha_key =
+      r.prepare.count("cells.alpha") ? "prepare.cells.alpha" : "cells.alpha";
+  if (spec.scene == SceneKind::Fusion && sp.prep_max_s > 0 && alpha >= kWeakAdhesionAlpha) {
+    const double need = weakAdhesionPrepMinS(alpha);
     if (sp.prep_min_s < need)
       out.push_back(
           {"scene.prep_min_s",
-           formatNumber(sp.prep_min_s) +
-               " s lets a spheroid at cells.alpha = " + formatNumber(r.cells.alpha) +
+           formatNumber(sp.prep_min_s) + " s lets a spheroid at " + alpha_key + " = " +
+               formatNumber(alpha) +
                " count as compact before its junctions have opened (weak adhesion: the surface "
                "contact angle still rises long after the radius of gyration stands still; "
                "docs/validation.md); allowed: at least " +

@@ -145,16 +145,24 @@ def _unknown(keys, known, where: str) -> None:
 def spec_keys() -> frozenset:
     """Every key a spec may set, as foam-run --keys lists them (and the earlier switches foamd
     still reads): from the generated SceneSpec message, whose fields mirror the key table —
-    scene and scene.kind, the top-level numbers, cells.*, numerics.*, accuracy.*, observe.* and each
-    scene's [scene] keys."""
+    scene and scene.kind, the top-level numbers, cells.*, numerics.*, accuracy.*, observe.*, each
+    scene's [scene] keys, and prepare.cells.*, prepare.numerics.* (foamd names those of them the
+    preparation cannot take)."""
     from activefoam.v1 import scene_pb2
     keys = {"scene", "scene.kind"}
+
+    def table(prefix: str, message: Any) -> None:
+        for g in message.fields:
+            if g.message_type is None:
+                keys.add(f"{prefix}{g.name}")
+            else:
+                table(f"{prefix}{g.name}.", g.message_type)
+
     for f in scene_pb2.SceneSpec.DESCRIPTOR.fields:
         if f.message_type is None:
             keys.add(f.name)
             continue
-        table = "scene" if f.containing_oneof is not None else f.name
-        keys.update(f"{table}.{g.name}" for g in f.message_type.fields)
+        table("scene." if f.containing_oneof is not None else f"{f.name}.", f.message_type)
     return frozenset(keys)
 
 

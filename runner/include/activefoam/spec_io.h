@@ -1,5 +1,7 @@
 // Reading and writing scene specs (docs/model.md §9): TOML or JSON documents with the keys of
 // specFields(), nested tables [cells], [numerics], [scene], and `key=value` overrides (--set).
+// [prepare] holds keys of those tables again (`[prepare.cells]`, or `cells.xi = …` and
+// `"cells.xi" = …` in `[prepare]`: the keys "prepare.cells.xi" of setField).
 //
 // Every leaf goes through setField, so ranges and messages are the engine's. Parsing collects
 // every error (unknown keys and tables, wrong types, out-of-range values) instead of stopping at
@@ -78,6 +80,7 @@ SpecParseResult validateAndResolve(const SceneSpec& spec);
 
 // Every key, nested like the TOML ({"seed":…, "cells":{…}, "numerics":{…}, "scene":{"kind":…}}).
 // Unset optional keys are null (a resolved spec has none but the cleared reduced forms).
+// "prepare" ({"cells":{…}}) only where the spec has a [prepare] table.
 // parseSpecJson(specToJson(s)) gives back s exactly.
 nlohmann::json specToJson(const SceneSpec& spec);
 
