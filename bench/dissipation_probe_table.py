@@ -1,11 +1,12 @@
 #!/usr/bin/python3
 """The dissipation by term from foam-run output folders whose spec asks for the probe
-(`[observe] dissipation = true`, docs/scenes.md): per run, the median share of the power each
-friction term dissipates (and, where the probe gives each cell's affine part, the contact
-friction's share of the dissipation at the cells' scale) (medians over the samples, as bench/dissipation_table.py takes them:
-a contact snapping now and then spikes the springs' part for one sample) and of the active
-forces' power in the forces', and, with `rigid_motion`, the aggregate's turn and drift at the
-end.
+(`[observe] dissipation = true`, docs/scenes.md). Per run: the median share of the power each
+friction term dissipates (medians over the samples, as bench/dissipation_table.py takes them: a
+contact snapping now and then spikes the springs' part for one sample); where the probe gives
+each cell's affine part, the contact friction's share of the dissipation at the cells' scale; the
+active forces' share of the forces' power; for a finished fusion, its MSRD at the end (the pairs
+in contact at t = 0) and its mixing time from summary.json; and, with `rigid_motion`, the
+aggregate's turn and drift at the end.
 
     bench/dissipation_probe_table.py RUN_DIR [RUN_DIR …]
 
@@ -36,6 +37,9 @@ def read_run(folder):
         raise ValueError(f"{folder}: samples.csv lacks {', '.join(missing)} "
                          "(run the spec with [observe] dissipation = true)")
     spec = json.loads((folder / "spec.json").read_text())
+    summary = folder / "summary.json"
+    if summary.exists():  # a finished run: its MSRD curve and mixing time travel with the spec
+        spec = {**spec, "_summary": json.loads(summary.read_text())}
     return samples.dropna(subset=TERMS), spec
 
 
@@ -57,6 +61,12 @@ def table(runs):
             aff = d[AFFINE]
             fric = (aff[AFFINE[2]] + aff[AFFINE[3]]).div(aff.sum(axis=1)).median()
             row["friction's share at the cells' scale %"] = f"{100 * fric:.0f}"
+        summ = spec.get("_summary", {})
+        if summ.get("msrd", {}).get("msrd_um2"):
+            r = spec["cells"]["radius_mean_um"]
+            row["MSRD at the end / r²"] = f"{summ['msrd']['msrd_um2'][-1] / r**2:.3g}"
+            mix = summ.get("final_values", {}).get("mixing_time_s")
+            row["mixing (s)"] = f"{mix:.0f}" if mix is not None else "—"
         if "rigid_turn_deg" in d.columns and len(d):
             row["turn (°)"] = f"{d['rigid_turn_deg'].iloc[-1]:.3g}"
             row["drift (µm)"] = f"{d['rigid_drift_um'].iloc[-1]:.3g}"
