@@ -117,7 +117,8 @@ inline std::vector<std::vector<std::uint64_t>> bits(const std::vector<std::vecto
   std::vector<std::vector<std::uint64_t>> out;
   for (const auto& r : rows) {
     std::vector<std::uint64_t> b(r.size());
-    std::memcpy(b.data(), r.data(), sizeof(double) * r.size());
+    if (!r.empty())
+      std::memcpy(b.data(), r.data(), sizeof(double) * r.size());  // (empty: no data())
     out.push_back(std::move(b));
   }
   return out;
