@@ -32,6 +32,7 @@
 
 #include "activefoam/geometry.h"
 #include "activefoam/observables.h"
+#include "activefoam/probe.h"
 #include "activefoam/simulation.h"
 #include "activefoam/spec_io.h"
 #include "activefoam/spheroid.h"
@@ -40,33 +41,7 @@
 
 using namespace activefoam;
 
-namespace {
-
-// Taubin smoothing (λ = 0.5, μ = −0.53) on the mesh's edges: it removes vertex-scale ripples
-// without the shrinkage of plain Laplacian smoothing. The shape index is scale-free, so what
-// shrinkage is left does not bias it.
-CellSet smoothed(const CellSet& cells, const Topology& topo, int passes) {
-  CellSet out = cells;
-  const int nv = cells.numVertices();
-  Eigen::Matrix3Xd sum(3, nv);
-  std::vector<int> count(nv);
-  for (int p = 0; p < 2 * passes; ++p) {
-    const double f = (p % 2 == 0) ? 0.5 : -0.53;
-    sum.setZero();
-    std::fill(count.begin(), count.end(), 0);
-    for (const Edge& e : topo.edges) {
-      sum.col(e.i) += out.x.col(e.j);
-      sum.col(e.j) += out.x.col(e.i);
-      ++count[e.i];
-      ++count[e.j];
-    }
-    for (int i = 0; i < nv; ++i)
-      if (count[i]) out.x.col(i) += f * (sum.col(i) / count[i] - out.x.col(i));
-  }
-  return out;
-}
-
-}  // namespace
+namespace {}  // namespace
 
 int main(int argc, char** argv) {
   const auto driver = bench::configDriver(argc, argv, "study_shape");
@@ -109,7 +84,7 @@ int main(int argc, char** argv) {
       }
       Topology topo;
       updateTopology(c, topo);
-      const CellSet cs = smoothed(c, topo, 4);
+      const CellSet cs = taubinSmoothed(c, topo, 4);  // the observe.shape probe's
       Geometry gs;
       computeGeometry(cs, gs);
       double q_sum = 0, qs_sum = 0, el_sum = 0, fraction = 0;
