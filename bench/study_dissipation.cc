@@ -199,31 +199,11 @@ int main(int argc, char** argv) {
                    pn_a = frictionPower(fric_n, plain, v_aff);
       const double pc_r = frictionPower(cortex, plain, v_rest),
                    pt_r = frictionPower(fric_t, plain, v_rest);
-      // Centroid speeds, absolute and relative to the contacting neighbours' mean.
-      std::vector<Vec3> vc(nc, Vec3::Zero());
-      std::vector<double> area(nc, 0.0);
-      for (int i = 0; i < nv; ++i) {
-        const int c = c0.vertex_cell[i];
-        vc[c] += g0.vertex_area[i] * v.segment<3>(3 * i);
-        area[c] += g0.vertex_area[i];
-      }
-      for (int c = 0; c < nc; ++c) vc[c] /= area[c];
-      std::vector<std::set<int>> nb(nc);
-      for (const ContactPair& p : con0.pairs) {
-        const int a = c0.tri_cell[p.ta], b = c0.tri_cell[p.tb];
-        nb[a].insert(b);
-        nb[b].insert(a);
-      }
-      double v2 = 0, rel2 = 0;
-      int rel_n = 0;
-      for (int c = 0; c < nc; ++c) {
-        v2 += vc[c].squaredNorm();
-        if (nb[c].empty()) continue;
-        Vec3 mean = Vec3::Zero();
-        for (const int d : nb[c]) mean += vc[d];
-        rel2 += (vc[c] - mean / static_cast<double>(nb[c].size())).squaredNorm();
-        ++rel_n;
-      }
+      // Centroid speeds, absolute and relative to the contacting neighbours' mean (the
+      // dissipation probe's; this CSV has always printed 0 where no cell touches another).
+      const CellSpeeds speeds = cellSpeeds(c0, g0, &con0, v);
+      const double rel_speed =
+          std::isnan(speeds.relative_rms_um_min) ? 0.0 : speeds.relative_rms_um_min;
       // The aggregate as a body: net force and torque of f, the rigid part of v.
       Vec3 xbar = Vec3::Zero(), vbar = Vec3::Zero(), f_net = Vec3::Zero(), torque = Vec3::Zero();
       double wsum = 0;
@@ -285,10 +265,9 @@ int main(int argc, char** argv) {
           "6g,"
           "%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.1f,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n",
           config.label.c_str(), l_eta, s.cells.xi, plain.t, pm, pc, pt, pn, ps, pf, pa, pm_a, pc_a,
-          pt_a, pn_a, pc_r, pt_r, pc_ring, pm_m, pt_m, pn_m, 60 * std::sqrt(v2 / nc),
-          rel_n ? 60 * std::sqrt(rel2 / rel_n) : 0.0, msrd.msrd(k), history.normalized(), wall,
-          f_net.norm(), torque.norm(), 3600 * vbar.norm(), 3600 * omega.norm() * 180 / M_PI, drift,
-          turned, tq_m.norm(), tq_c, tq_f, tq_s);
+          pt_a, pn_a, pc_r, pt_r, pc_ring, pm_m, pt_m, pn_m, speeds.rms_um_min, rel_speed,
+          msrd.msrd(k), history.normalized(), wall, f_net.norm(), torque.norm(), 3600 * vbar.norm(),
+          3600 * omega.norm() * 180 / M_PI, drift, turned, tq_m.norm(), tq_c, tq_f, tq_s);
       std::fflush(stdout);
       ++k;
       return true;
