@@ -28,8 +28,6 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Eigenvalues>
-
 #include "activefoam/geometry.h"
 #include "activefoam/observables.h"
 #include "activefoam/probe.h"
@@ -90,16 +88,7 @@ int main(int argc, char** argv) {
       double q_sum = 0, qs_sum = 0, el_sum = 0, fraction = 0;
       for (int cell = 0; cell < nc; ++cell) {
         const double q = shapeIndex(g, cell), qs = shapeIndex(gs, cell);
-        Eigen::Matrix3d m = Eigen::Matrix3d::Zero();
-        double w = 0;
-        for (int i = c.cell_vertex_begin[cell]; i < c.cell_vertex_begin[cell + 1]; ++i) {
-          const Vec3 d = c.x.col(i) - g.cell_centroid[cell];
-          m += g.vertex_area[i] * d * d.transpose();
-          w += g.vertex_area[i];
-        }
-        const Eigen::Vector3d ev =
-            Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(m / w).eigenvalues();
-        const double el = std::sqrt(ev(2) / ev(0));
+        const double el = surfaceElongation(c, g, cell);  // the observe.shape probe's
         const double f = std::min(1.0, contact_area[cell] / g.cell_area[cell]);
         fraction += f;
         if (per_cell)
