@@ -1,5 +1,6 @@
-"""bench/activity_scaling.py: the exponents of A_π recovered from synthetic runs with known ones,
-the parameters read from each study's way of stating them, and what is left out."""
+"""docs/science/fig9-scaling/activity_scaling.py: the exponents of A_π recovered from synthetic
+runs with known ones, the parameters read from each study's way of stating them, and what is left
+out."""
 import importlib.util
 import json
 from pathlib import Path
@@ -8,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-_PATH = Path(__file__).resolve().parents[2] / "bench" / "activity_scaling.py"
+_PATH = Path(__file__).resolve().parents[2] / "docs/science/fig9-scaling/activity_scaling.py"
 _spec = importlib.util.spec_from_file_location("activity_scaling", _PATH)
 asc = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(asc)

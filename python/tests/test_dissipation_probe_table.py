@@ -1,5 +1,5 @@
-"""bench/dissipation_probe_table.py: shares and the power balance from foam-run folders with the
-dissipation probe's columns, on synthetic samples with known answers."""
+"""docs/science/fig14-friction/dissipation_probe_table.py: shares and the power balance from foam-
+run folders with the dissipation probe's columns, on synthetic samples with known answers."""
 import importlib.util
 import json
 from pathlib import Path
@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-_PATH = Path(__file__).resolve().parents[2] / "bench" / "dissipation_probe_table.py"
+_PATH = Path(__file__).resolve().parents[2] / "docs/science/fig14-friction/dissipation_probe_table.py"
 _spec = importlib.util.spec_from_file_location("dissipation_probe_table", _PATH)
 pt = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(pt)

@@ -1,12 +1,12 @@
-"""bench/dissipation_table.py: shares, MSRD crossings and the power balance on synthetic samples
-with known answers."""
+"""docs/science/fig14-friction/dissipation_table.py: shares, MSRD crossings and the power balance
+on synthetic samples with known answers."""
 import importlib.util
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-_PATH = Path(__file__).resolve().parents[2] / "bench" / "dissipation_table.py"
+_PATH = Path(__file__).resolve().parents[2] / "docs/science/fig14-friction/dissipation_table.py"
 _spec = importlib.util.spec_from_file_location("dissipation_table", _PATH)
 dt = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(dt)

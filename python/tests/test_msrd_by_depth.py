@@ -1,5 +1,5 @@
-"""bench/msrd_by_depth.py: the geometry it reads contact from, and the MSRD split by depth, on
-meshes and motions with known answers."""
+"""docs/science/fig9-depth/msrd_by_depth.py: the geometry it reads contact from, and the MSRD split
+by depth, on meshes and motions with known answers."""
 import importlib.util
 import itertools
 from pathlib import Path
@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-_PATH = Path(__file__).resolve().parents[2] / "bench" / "msrd_by_depth.py"
+_PATH = Path(__file__).resolve().parents[2] / "docs/science/fig9-depth/msrd_by_depth.py"
 _spec = importlib.util.spec_from_file_location("msrd_by_depth", _PATH)
 mbd = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(mbd)

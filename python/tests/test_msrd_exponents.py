@@ -1,4 +1,5 @@
-"""bench/msrd_exponents.py on synthetic MSRD curves with known exponents and values."""
+"""docs/science/jam-day/msrd_exponents.py on synthetic MSRD curves with known exponents and
+values."""
 import json
 import subprocess
 import sys
@@ -7,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-TOOL = Path(__file__).resolve().parents[2] / "bench" / "msrd_exponents.py"
+TOOL = Path(__file__).resolve().parents[2] / "docs/science/jam-day/msrd_exponents.py"
 R2 = 8.88 ** 2
 
 

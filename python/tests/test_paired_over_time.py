@@ -1,11 +1,11 @@
-"""bench/paired_over_time.py on synthetic seed pairs with known differences."""
+"""docs/science/tools/paired_over_time.py on synthetic seed pairs with known differences."""
 import subprocess
 import sys
 from pathlib import Path
 
 import pandas as pd
 
-TOOL = Path(__file__).resolve().parents[2] / "bench" / "paired_over_time.py"
+TOOL = Path(__file__).resolve().parents[2] / "docs" / "science" / "tools" / "paired_over_time.py"
 
 
 def data(tmp_path, offsets, failed=()):

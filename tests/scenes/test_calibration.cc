@@ -74,8 +74,8 @@ INSTANTIATE_TEST_SUITE_P(Alphas, PassiveDoublet,
 
 // Spheroids (the supplement's Fig. 7E): the surface contact angle between neighbouring surface
 // cells (`surfaceContactAngle`) of an aggregate of N = 20 cells. Measured (docs/validation.md,
-// bench/validation_spheroids.sh: N = 20 and 30, three seeds, the contact-implicit step at Δt
-// 0.5 s): passive aggregates settle within 0.6° of arccos α at α = 0.3 … 0.9 (the bound is 3°);
+// docs/validation/validation_spheroids.sh: N = 20 and 30, three seeds, the contact-implicit step at
+// Δt 0.5 s): passive aggregates settle within 0.6° of arccos α at α = 0.3 … 0.9 (the bound is 3°);
 // motile ones (the default p_a) sit 3.3–5.6° below it at every α — the protrusions keep the
 // junctions from their passive balance (−1.6° at half p_a, −11.5° at double), a property of the
 // active model rather than of the measure. α = 0.9 opens its junctions slowly (≈ 3000 s passive).

@@ -8,7 +8,7 @@ over, so every run is refitted here over the same first WINDOW hours (scipy's le
 the committed θ(t) samples; over a run's whole length it gives the engine's τ_f to the printed
 digit, which the table shows for step fitness's runs).
 
-    bench/tau_f_polarity.py [--data docs/science] [--window-h 4] [--step 1.0]
+    docs/science/fusion-2x20-24h-figure-step/tau_f_polarity.py [--data docs/science] [--window-h 4] [--step 1.0]
 
 Prints a markdown table per run, then for τ_f and θ at 0.5 h and 1 h the difference of medians
 (prepared − fresh) with its bootstrap 95 % interval (activefoam.trends) and the exact

@@ -4,7 +4,7 @@ each term dissipates (its samples' medians: a contact snapping now and then spik
 implicit part a hundredfold for one sample), the same at the cells' scale (their affine motion),
 the centroid speeds and the MSRD at a few lags with the time it first reaches r².
 
-    bench/dissipation_table.py OUT.csv [OUT2.csv …] [--radius-um 8.88] [--lags 600,1800,3600]
+    docs/science/fig14-friction/dissipation_table.py OUT.csv [OUT2.csv …] [--radius-um 8.88] [--lags 600,1800,3600]
 
 Prints Markdown. The power balance (the terms' sum against vᵀF, the forces' power) is checked
 per sample and its worst relative error printed: it says Γ was rebuilt as the step used it.

@@ -1,14 +1,14 @@
 #!/usr/bin/python3
 """The dissipation by term from foam-run output folders whose spec asks for the probe
 (`[observe] dissipation = true`, docs/scenes.md). Per run: the median share of the power each
-friction term dissipates (medians over the samples, as bench/dissipation_table.py takes them: a
+friction term dissipates (medians over the samples, as docs/science/fig14-friction/dissipation_table.py takes them: a
 contact snapping now and then spikes the springs' part for one sample); where the probe gives
 each cell's affine part, the contact friction's share of the dissipation at the cells' scale; the
 active forces' share of the forces' power; for a finished fusion, its MSRD at the end (the pairs
 in contact at t = 0) and its mixing time from summary.json; and, with `rigid_motion`, the
 aggregate's turn and drift at the end.
 
-    bench/dissipation_probe_table.py RUN_DIR [RUN_DIR …]
+    docs/science/fig14-friction/dissipation_probe_table.py RUN_DIR [RUN_DIR …]
 
 Prints Markdown, one row per folder (labelled by its name, with ξ from its spec.json). The power
 balance (the terms' sum against vᵀF) is checked per sample and its worst relative error printed.

@@ -2,8 +2,8 @@
 # The spheroid rows of docs/validation.md: relaxed aggregates of N cells (the `spheroid` scene,
 # packed cells relaxed with the full DCM), their surface contact angle every 100 s, at the
 # one-spring contact-implicit step (Δt 0.5 s, ε_CG 1e-2, the supplement's contact law; dt0.5).
-#   bench/validation_spheroids.sh OUT [JOBS]      (OUT: a folder of runs; JOBS parallel runs, 2)
-#   python3 bench/validation_spheroids.py OUT     (the tables and docs/validation/*.dat)
+#   docs/validation/validation_spheroids.sh OUT [JOBS]      (OUT: a folder of runs; JOBS parallel runs, 2)
+#   python3 docs/validation/validation_spheroids.py OUT     (the tables and docs/validation/*.dat)
 # Motile (the default p_a): N 20 and 30 × α 0.3/0.6/0.9 × seeds 1–3, 6000 s; passive (p_a 0):
 # N 20, seed 1, 4000 s; α 0.6 at p_a 0.0186 and 0.0744 kPa (half and double), 4000 s; α 0.75
 # motile and passive, 3000 s; α 0.6 passive at Δt 0.1 s, ε_CG 1e-3 (label dt0.1), 2000 s. ~45 min
@@ -11,7 +11,7 @@
 set -euo pipefail
 out=${1:?usage: $0 OUT [JOBS]}
 jobs=${2:-2}
-root=$(cd "$(dirname "$0")/.." && pwd)
+root=$(cd "$(dirname "$0")/../.." && pwd)
 runner=${FOAM_RUN:-$root/build/release/runner/foam-run}
 mkdir -p "$out"
 one() {  # N alpha seed step p_a duration

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """θ(t) of a fusion run with its Eq. 1 and Eq. 2 fits, as a PNG (gnuplot).
 
-    bench/plot_fusion.py RUN_DIR OUT.png [TITLE]
+    docs/science/tools/plot_fusion.py RUN_DIR OUT.png [TITLE]
 
 RUN_DIR is a foam-run output folder (samples.csv, summary.json). The fitted curves are drawn
 from the parameters in summary.json; a fit that failed is named in the legend with its reason.

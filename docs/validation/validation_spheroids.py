@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""Tables of docs/validation.md's spheroid section from bench/validation_spheroids.sh's runs.
+"""Tables of docs/validation.md's spheroid section from docs/validation/validation_spheroids.sh's runs.
 
-    python3 bench/validation_spheroids.py OUT [--dat docs/validation]
+    python3 docs/validation/validation_spheroids.py OUT [--dat docs/validation]
 
 Each run's surface contact angle is averaged over its last 2000 s, or the second half of a
 shorter run (the aggregates have settled by then: see the time courses printed with --series).
@@ -58,7 +58,7 @@ for a, v in sorted(motile.items()):
 if args.dat:
     with open(os.path.join(args.dat, "spheroids-passive.dat"), "w") as f:
         f.write("# Passive spheroids (p_a 0), N = 20, seed 1, Δt 0.5 s: surface contact angle over the\n"
-                "# last 2000 s of 4000 s (docs/validation.md; bench/validation_spheroids.py)\n# alpha theta_c\n")
+                "# last 2000 s of 4000 s (docs/validation.md; docs/validation/validation_spheroids.py)\n# alpha theta_c\n")
         for r in runs:
             if r["pa"] == 0 and r["step"] == "dt0.5" and r["n"] == 20:
                 f.write(f"{r['alpha']} {r['theta']:.2f}\n")

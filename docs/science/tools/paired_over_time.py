@@ -8,7 +8,7 @@ of the seed-to-seed spread. This prints, per sample time asked for, each seed's 
 reference difference of the sampled metrics (samples.csv.gz of the report's data folder) and
 their median, as markdown:
 
-    bench/paired_over_time.py docs/science/mesh-fitness/data \
+    docs/science/tools/paired_over_time.py docs/science/mesh-fitness/data \
         --key numerics.triangles_per_cell --reference 1280 --candidate 320 \
         [--metrics shape_index_mean,unique_contacts_norm,theta_deg] [--times 0,600,3600,7200]
 

@@ -16,7 +16,7 @@ resampled within each point. --no-baseline fits Y itself (Y₀ = 0: the mixing t
 falls with activity, so k < 0). A key that has one value across the runs is left out of the fit
 (its exponent reads "—").
 
-    bench/activity_scaling.py DATA_DIR [DATA_DIR…] [--metric unique_contacts_norm]
+    docs/science/fig9-scaling/activity_scaling.py DATA_DIR [DATA_DIR…] [--metric unique_contacts_norm]
         [--duration 21600] [--plot FILE.png] [--boot 2000] [--also mixing_time_s,…]
         [--no-baseline]
 

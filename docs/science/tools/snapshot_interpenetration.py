@@ -2,7 +2,7 @@
 """Are cells of a snapshot really inside each other? (docs/science/motion-convergence.md)
 
     foam export JOB -o DIR            # the job's snapshots as .vtp (ASCII)
-    /usr/bin/python3 bench/snapshot_interpenetration.py DIR/snap_NNNNNN.vtp [CELL_A CELL_B]
+    /usr/bin/python3 docs/science/tools/snapshot_interpenetration.py DIR/snap_NNNNNN.vtp [CELL_A CELL_B]
 
 Real interpenetration, over every pair of neighbouring cells: the vertices of one cell inside the
 other's closed surface (generalised winding number > 1/2; each cell's own centroid is checked to

@@ -4,7 +4,7 @@ neighbours (docs/model.md §8.6: pairs in contact at the origin, pooled over ori
 the pair's cells are at the origin — both buried (no free surface), both on the surface, or
 one of each — from a run's snapshots (foam-run with snapshot_every_s > 0).
 
-    bench/msrd_by_depth.py SNAPSHOT_DIR [--radius-um R] [--free-below F] [--touch-um D]
+    docs/science/fig9-depth/msrd_by_depth.py SNAPSHOT_DIR [--radius-um R] [--free-below F] [--touch-um D]
                            [--engine-summary summary.json] [--csv OUT.csv] [--layers]
                            [--less-rotation]
 

@@ -4,7 +4,7 @@ caged; β ≈ 1 diffusive; β > 1 persistent) over lag windows, per run, from a 
 data (runs.csv and msrd.csv.gz, written by `scripts/study.sh run … --report`). β is the
 least-squares slope of log MSRD against log lag over the window's lags.
 
-    bench/msrd_exponents.py DATA_DIR [DATA_DIR…] [--windows 360:3600,3600:14400] [--where K=V…]
+    docs/science/jam-day/msrd_exponents.py DATA_DIR [DATA_DIR…] [--windows 360:3600,3600:14400] [--where K=V…]
         [--at 600,3600]
 
 Prints one markdown row per succeeded run: its point (the study's swept keys), seed, β in each

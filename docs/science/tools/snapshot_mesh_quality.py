@@ -2,7 +2,7 @@
 """The meshes cells carry in a run's snapshots (docs/numerics.md, "Remeshing").
 
     foam export JOB -o DIR            # the job's snapshots as .vtp (ASCII)
-    /usr/bin/python3 bench/snapshot_mesh_quality.py DIR/snap_*.vtp
+    /usr/bin/python3 docs/science/tools/snapshot_mesh_quality.py DIR/snap_*.vtp
 
 Per snapshot: triangles per cell; the mean triangle area against A_ref = 4π r²/N (r from the
 cell's own volume, N = numerics.triangles_per_cell, default 320: the area the remesher's
