@@ -1603,3 +1603,89 @@ def test_retry_failed_takes_every_kind_or_the_named_ones_and_refuses_unknown_kin
     assert submission._needs_job(prep, {"preparation-failed"})
     assert not submission._needs_job(drift, {"preparation-failed"})
     assert submission._needs_job(lost, {"preparation-failed"}) and submission._needs_job(lost, False)
+
+
+def _probe_study(tmp: Path, extra: str):
+    (tmp / "base.toml").write_text('scene = "fusion"\n')
+    f = tmp / "alpha.toml"
+    f.write_text(textwrap.dedent("""\
+        [study]
+        name = "alpha"
+        base = "base.toml"
+        seeds = [1, 2]
+        diagnose = false
+        """) + extra + textwrap.dedent("""\
+        [spec]
+        duration_s = 240
+        "numerics.dt_s" = 1.0
+        [[grid]]
+        "cells.alpha" = [0.4375, 0.6]
+        """))
+    return st.load(f)
+
+
+class _ProbeResults:
+    """A run's results with the shape probe's column and the depth probe's curves."""
+    results = []
+    columns = ["theta_deg", "shape_index_mean", "shape_index_smoothed_mean"]
+
+    def __init__(self, jid):
+        k = float(jid.rsplit("-", 1)[1])   # the seed
+        S = type("S", (), {})
+        self.samples = []
+        for t in (0.0, 120.0, 240.0):
+            s = S()
+            s.t_s, s.values = t, [30.0 + t / 60, 5.0 + k, 4.9 + k + t / 1000]
+            self.samples.append(s)
+        self.curves = []
+        for name in ("msrd", "msrd_surface", "msrd_buried"):
+            c = S()
+            c.name, c.x, c.y = name, [60.0, 120.0], [k, 2 * k + len(name)]
+            self.curves.append(c)
+
+
+def test_a_studys_columns_and_curves_reach_its_data_folder(tmp_path):
+    study = _probe_study(tmp_path, 'columns = ["shape_index_smoothed_mean"]\n'
+                                   'curves = ["msrd_surface"]\n')
+    foamd = _FakeFoamd({"alpha": 0.4375})
+    _diagnosed_jobs(foamd)   # seed 1 failed at both α, seed 2 succeeded
+    foamd.job = lambda jid: type("J", (), {"results_message":
+                                          lambda self, _: _ProbeResults(jid)})()
+    out = st.collect(study, foamd, tmp_path / "data")
+    samples = pd.read_csv(out / "samples.csv.gz")
+    assert "shape_index_smoothed_mean" in samples and "shape_index_mean" in samples
+    one = samples[samples["job_id"] == "j-0.6-2"].sort_values("t_s")
+    assert list(one["shape_index_smoothed_mean"]) == pytest.approx([6.9, 7.02, 7.14])
+    curves = pd.read_csv(out / "curves.csv.gz")
+    assert set(curves["curve"]) == {"msrd_surface"}   # the MSRD keeps its own file
+    assert list(curves[curves["job_id"] == "j-0.6-2"]["y"]) == [2.0, 16.0]
+    assert len(pd.read_csv(out / "msrd.csv.gz")) == 8   # every run's, two lags each
+    data = st.load_data(study, out)
+    assert set(data.curves["job_id"]) == {"j-0.4375-1", "j-0.6-1", "j-0.4375-2", "j-0.6-2"}
+    # A study that names none writes what it always did.
+    (tmp_path / "plain").mkdir()
+    plain = st.collect(_probe_study(tmp_path / "plain", ""), foamd, tmp_path / "plain-data")
+    assert not (plain / "curves.csv.gz").exists()
+    assert "shape_index_smoothed_mean" not in pd.read_csv(plain / "samples.csv.gz")
+    assert st.load_data(study, plain).curves is None
+
+
+def test_a_column_or_curve_the_runs_lack_is_refused_naming_it(tmp_path):
+    foamd = _FakeFoamd({"alpha": 0.4375})
+    _diagnosed_jobs(foamd)
+    foamd.job = lambda jid: type("J", (), {"results_message":
+                                          lambda self, _: _ProbeResults(jid)})()
+    study = _probe_study(tmp_path, 'columns = ["elongation_mean"]\n')
+    with pytest.raises(st.StudyError, match=r"study.columns: .* no sample column "
+                                            r"elongation_mean: .*\[observe\]"):
+        st.collect(study, foamd, tmp_path / "data")
+    study = _probe_study(tmp_path, 'curves = ["msrd_layer0"]\n')
+    with pytest.raises(st.StudyError, match=r"study.curves: .*seed 2 .* no curve msrd_layer0"):
+        st.collect(study, foamd, tmp_path / "data2")
+    for bad, msg in (('columns = "x"', "a list of up to 100 column names"),
+                     ('columns = ["Theta"]', "a list of up to 100 column names"),
+                     ('columns = ["theta_deg"]', "theta_deg given twice"),
+                     ('curves = ["a", "a"]', "a given twice"),
+                     ('curves = ["msrd"]', "msrd given twice")):
+        with pytest.raises(st.StudyError, match=f"study.{bad.split()[0]}: {msg}"):
+            _probe_study(tmp_path, bad + "\n")

@@ -47,7 +47,7 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
     out = folder(out_dir, "data folder")
     found, source, stale = _run_jobs(study, client)
     diag = _diag_of_runs(study, client, source)
-    rows, samples, curves = [], [], []
+    rows, samples, curves, named = [], [], [], []
     n_carried = 0
     for i, run in enumerate(study.runs()):
         row: Dict[str, Any] = {"run": i, **run.point, "seed": run.seed,
@@ -66,6 +66,8 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
             jid = old["job_id"]
             samples += carried.samples[carried.samples["job_id"] == jid].to_dict("records")
             curves += carried.msrd[carried.msrd["job_id"] == jid].values.tolist()
+            if carried.curves is not None:
+                named += carried.curves[carried.curves["job_id"] == jid].values.tolist()
             rows.append(row)
             n_carried += 1
             continue
@@ -98,23 +100,37 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
             r = job.results_message(True)
             row.update({x.name: x.value for x in r.results})
             cols = list(r.columns)
-            keep = [c for c in SAMPLE_COLUMNS if c in cols]
+            lacking = [c for c in study.columns if c not in cols]
+            if lacking:
+                raise StudyError(_lacks(study, run, j.id, "sample column", lacking))
+            keep = [c for c in [*SAMPLE_COLUMNS, *study.columns] if c in cols]
             idx = [cols.index(c) for c in keep]
             for s in r.samples:
                 samples.append({"job_id": j.id, "t_s": s.t_s,
                                 **{c: s.values[k] for c, k in zip(keep, idx)}})
+            have_curves = set()
             for c in getattr(r, "curves", []):
+                have_curves.add(c.name)
                 if c.name == "msrd":
                     curves += [[j.id, x, y] for x, y in zip(c.x, c.y)]
+                elif c.name in study.curves:
+                    named += [[j.id, c.name, x, y] for x, y in zip(c.x, c.y)]
+            # A run ends with its curves; one that failed has none to lack.
+            lacking = [c for c in study.curves if c not in have_curves]
+            if lacking and row["state"] == "succeeded":
+                raise StudyError(_lacks(study, run, j.id, "curve", lacking))
         rows.append(row)
     to_csv(pd.DataFrame(rows), out / "runs.csv", index=False)
     # gzip without a timestamp: the same data gives the same bytes (a report regenerated from
     # the store changes nothing in git unless the runs changed).
     gz = {"method": "gzip", "mtime": 0}
-    to_csv(pd.DataFrame(samples, columns=["job_id", "t_s", *SAMPLE_COLUMNS]),
+    to_csv(pd.DataFrame(samples, columns=["job_id", "t_s", *SAMPLE_COLUMNS, *study.columns]),
            out / "samples.csv.gz", index=False, compression=gz)
     to_csv(pd.DataFrame(curves, columns=["job_id", "lag_s", "msrd_um2"]),
            out / "msrd.csv.gz", index=False, compression=gz)
+    if study.curves:
+        to_csv(pd.DataFrame(named, columns=["job_id", "curve", "x", "y"]),
+               out / "curves.csv.gz", index=False, compression=gz)
     meta = {"study": study.name, "file": str(study.path), "tag": study.tag,
             "collected_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
             "runs": len(rows), "stale_jobs": [j.id for j in stale],
@@ -124,11 +140,18 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
     return out
 
 
+def _lacks(study: Study, run: Any, job_id: str, what: str, names: Any) -> str:
+    return (f"study.{what.split()[-1]}s: run {run.point} seed {run.seed} ({job_id}) has no "
+            f"{what} {', '.join(names)}: its spec does not ask for the probe that writes it "
+            "(an [observe] key in [spec]; `foam-run --keys` lists them)")
+
+
 @dataclass
 class Data:
     runs: Any       # DataFrame, one row per run, with the derived metrics of METRICS
-    samples: Any    # DataFrame job_id, t_s, sample columns
+    samples: Any    # DataFrame job_id, t_s, sample columns (and the study's `columns`)
     msrd: Any       # DataFrame job_id, lag_s, msrd_um2
+    curves: Any = None  # DataFrame job_id, curve, x, y: the study's `curves`, where it names any
 
 
 def load_data(study: Study, data_dir: os.PathLike) -> Data:
@@ -140,8 +163,9 @@ def load_data(study: Study, data_dir: os.PathLike) -> Data:
     runs = pd.read_csv(d / "runs.csv")
     samples = pd.read_csv(d / "samples.csv.gz")
     msrd = pd.read_csv(d / "msrd.csv.gz")
+    curves = pd.read_csv(d / "curves.csv.gz") if (d / "curves.csv.gz").is_file() else None
     runs = derive_metrics(study, runs, samples, msrd)
-    return Data(runs, samples, msrd)
+    return Data(runs, samples, msrd, curves)
 
 
 def derive_metrics(study: Study, runs: Any, samples: Any, msrd: Any) -> Any:

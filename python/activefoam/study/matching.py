@@ -294,6 +294,7 @@ class Carried:
     rows: Dict[int, Dict[str, Any]]   # run index → its row of runs.csv
     samples: Any                      # DataFrame: those rows' samples
     msrd: Any                         # DataFrame: those rows' MSRD curves
+    curves: Any = None                # DataFrame: their other curves (curves.csv.gz), if any
 
 
 def _py(v: Any) -> Any:
@@ -368,7 +369,9 @@ def carried_runs(study: Study, data_dir: os.PathLike, client: Any = None) -> Car
     ids = {r["job_id"] for r in rows.values()}
     samples = pd.read_csv(d / "samples.csv.gz")
     msrd = pd.read_csv(d / "msrd.csv.gz")
-    return Carried(d, rows, samples[samples["job_id"].isin(ids)], msrd[msrd["job_id"].isin(ids)])
+    curves = pd.read_csv(d / "curves.csv.gz") if (d / "curves.csv.gz").is_file() else None
+    return Carried(d, rows, samples[samples["job_id"].isin(ids)], msrd[msrd["job_id"].isin(ids)],
+                   None if curves is None else curves[curves["job_id"].isin(ids)])
 
 
 def _same_run(study: Study, client: Any, run: Run, settings: Dict[str, Any]) -> bool:

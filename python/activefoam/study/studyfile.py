@@ -45,7 +45,7 @@ MAX_ATTEMPTS = 5
 
 
 STUDY_KEYS = {"name", "title", "base", "preset", "seeds", "x", "x_label", "x_log", "by",
-              "by_label", "priority", "scale", "diagnose"}
+              "by_label", "priority", "scale", "diagnose", "columns", "curves"}
 
 
 FITNESS_KEYS = {"key", "reference", "metrics"}
@@ -293,6 +293,10 @@ class Study:
     shares: List["Share"] = field(default_factory=list)
     diagnoses: List[Diagnosis] = field(default_factory=list)   # the file's [[diagnose]] tables
     diagnose: bool = True   # [study] diagnose = false: no diagnosis reruns
+    # More sample columns and end-of-run curves for the data folder, beside SAMPLE_COLUMNS and
+    # the MSRD: what the runs' probes ([observe] keys) write.
+    columns: List[str] = field(default_factory=list)
+    curves: List[str] = field(default_factory=list)
     _base_cache: Optional[Dict[str, Any]] = field(default=None, repr=False, compare=False)
 
     def listed_diagnoses(self) -> List[Diagnosis]:
@@ -458,6 +462,18 @@ def load(path: os.PathLike, _shares: bool = True,
     if not isinstance(prio, int) or isinstance(prio, bool) or not -1000 <= prio <= 1000:
         raise StudyError(f"study.priority: an integer in [-1000, 1000], got {prio!r}")
     study.priority = prio
+    for key, taken in (("columns", ["t_s", *SAMPLE_COLUMNS]), ("curves", ["msrd"])):
+        names = st.get(key, [])
+        if (not isinstance(names, list) or len(names) > 100 or
+                not all(isinstance(n, str) and re.fullmatch(r"[a-z][a-z0-9_]{0,63}", n)
+                        for n in names)):
+            raise StudyError(f"study.{key}: a list of up to 100 {key[:-1]} names (a-z 0-9 _), "
+                             f"got {names!r}")
+        repeated = sorted({n for n in names if names.count(n) > 1} | (set(names) & set(taken)))
+        if repeated:
+            raise StudyError(f"study.{key}: {', '.join(repeated)} given twice (or always kept: "
+                             f"{', '.join(taken)})")
+        setattr(study, key, list(names))
     if "base" in st:
         if not isinstance(st["base"], str):
             raise StudyError(f"study.base: the path of a spec file, got {st['base']!r}")
