@@ -25,6 +25,23 @@ double FitResult::error(std::string_view name) const {
                                                              : std_error[static_cast<size_t>(k)];
 }
 
+// Levenberg–Marquardt from q0 for a model with one time constant fitted as its logarithm (at
+// parameter log_tau, in units of tscale); fills res. False, res.why set, where the covariance is
+// singular or the iteration did not converge.
+static bool solveWithLogTau(const Residual& f, const Vec& q0, int n, int log_tau, double tscale,
+                            const Vec& data, FitResult& res) {
+  const LmResult lm = levenbergMarquardt(f, q0, n);
+  Reported rep;
+  rep.names = res.names;
+  logTimeConstant(rep, log_tau, tscale);
+  if (!finishFit(f, lm, data, rep, res)) return false;
+  if (!lm.converged) {
+    res.why = lm.why;
+    return false;
+  }
+  return true;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Eq. 1
 
@@ -59,15 +76,7 @@ FitResult fitEq1(const std::vector<double>& t, const std::vector<double>& theta)
   };
   Vec q0(3);
   q0 << scan.c1, scan.c2, std::log(scan.tau / tscale);
-  const LmResult lm = levenbergMarquardt(f, q0, n);
-  Reported rep;
-  rep.names = res.names;
-  logTimeConstant(rep, 2, tscale);
-  if (!finishFit(f, lm, data, rep, res)) return res;
-  if (!lm.converged) {
-    res.why = lm.why;
-    return res;
-  }
+  if (!solveWithLogTau(f, q0, n, 2, tscale, data, res)) return res;
   res.why = checkTau("tau_f_s", res.value[2], res.std_error[2], ts);
   res.ok = res.why.empty();
   return res;
@@ -272,15 +281,7 @@ FitResult fitS1(const std::vector<double>& t, const std::vector<double>& a, doub
   };
   Vec q0(3);
   q0 << scan.c1, std::log(scan.tau / tscale), scan.c2;
-  const LmResult lm = levenbergMarquardt(f, q0, n);
-  Reported rep;
-  rep.names = res.names;
-  logTimeConstant(rep, 1, tscale);
-  if (!finishFit(f, lm, data, rep, res)) return res;
-  if (!lm.converged) {
-    res.why = lm.why;
-    return res;
-  }
+  if (!solveWithLogTau(f, q0, n, 1, tscale, data, res)) return res;
   if (!(res.value[0] > 0)) {
     res.why = "L_e_um = " + fmt(res.value[0]) + " is not positive";
     return res;
