@@ -1,5 +1,5 @@
-"""docs/science/fig14-friction/dissipation_probe_table.py: shares and the power balance from foam-
-run folders with the dissipation probe's columns, on synthetic samples with known answers."""
+"""docs/science/tools/probe_table.py: shares, the power balance, MSRD at lags and the torque
+probe's columns from foam-run folders, on synthetic samples with known answers."""
 import importlib.util
 import json
 from pathlib import Path
@@ -8,8 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-_PATH = Path(__file__).resolve().parents[2] / "docs/science/fig14-friction/dissipation_probe_table.py"
-_spec = importlib.util.spec_from_file_location("dissipation_probe_table", _PATH)
+_PATH = Path(__file__).resolve().parents[2] / "docs/science/tools/probe_table.py"
+_spec = importlib.util.spec_from_file_location("probe_table", _PATH)
 pt = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(pt)
 
@@ -79,3 +79,41 @@ def test_friction_share_at_the_cells_scale_reads_the_affine_columns(tmp_path):
     header, _, row = text.splitlines()[:3]
     col = header.strip("| ").split(" | ").index("friction's share at the cells' scale %")
     assert row.strip("| ").split(" | ")[col] == "60"
+
+
+def test_msrd_at_lags_interpolates_the_pooled_curve_and_stops_at_its_end(tmp_path):
+    f = run_folder(tmp_path / "m", [0.2] * 5)
+    spec = json.loads((f / "spec.json").read_text())
+    spec["cells"]["radius_mean_um"] = 2.0
+    (f / "spec.json").write_text(json.dumps(spec))
+    (f / "summary.json").write_text(json.dumps({
+        "msrd": {"lag_s": [60.0, 120.0, 180.0], "msrd_um2": [4.0, 8.0, 20.0]},
+        "final_values": {"mixing_time_s": 150.0}}))
+    _, spec = pt.read_run(f)
+    assert pt.msrd_at(spec["_summary"], 90) == pytest.approx(6.0)
+    assert pt.msrd_at(spec["_summary"], 30) == pytest.approx(2.0)   # from 0 at lag 0
+    assert np.isnan(pt.msrd_at(spec["_summary"], 240))
+    text, _ = pt.table([("m", *pt.read_run(f))], lags=[120, 240])
+    header, _, row = text.splitlines()[:3]
+    cells = dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | ")))
+    assert cells["MSRD at the end / r²"] == "5"    # 20 µm² / (2 µm)²
+    assert cells["MSRD(120 s) / r²"] == "2"
+    assert cells["MSRD(240 s) / r²"] == "—"
+    assert cells["mixing (s)"] == "150"
+
+
+def test_the_torque_probes_columns_are_read_where_the_run_has_them(tmp_path):
+    f = run_folder(tmp_path / "t", [0.2] * 5)
+    d = pd.read_csv(f / "samples.csv")
+    d["rigid_spin_deg_h"] = [np.nan, 1.0, 2.0, 3.0, 4.0, 100.0]   # median of the steps' 3
+    d["net_torque_nnum"] = [np.nan, 1e-12, -4e-11, 2e-11, 0.0, 1e-12]
+    for c, v in zip(pt.TORQUE_SHARES, [0.84, 0.16, 0.0]):
+        d[c] = v
+    d.to_csv(f / "samples.csv", index=False)
+    text, _ = pt.table([("t", *pt.read_run(f))])
+    header, _, row = text.splitlines()[:3]
+    cells = dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | ")))
+    assert cells["spin (°/h)"] == "3"
+    assert cells["max |net torque| (nN·µm)"] == "4e-11"
+    assert [cells[f"medium's torque: {n} %"] for n in ("cortex", "friction", "springs")] == \
+        ["84", "16", "0"]
