@@ -510,6 +510,44 @@ TEST(Probes, MsrdByDepthSplitsTheRunsOwnMsrd) {
 // Through runScene: the columns count the cells at every sample, and the run ends with the six
 // curves and the classes' mixing times. No cell of so small an aggregate is buried: the surface
 // pairs are all the pairs, and layer 0 too.
+// observe.msrd_by_depth_after_s: the probe's curves count only the origins from that time on —
+// those of a tracker given only the samples from then — while its columns keep every sample.
+TEST(Probes, MsrdByDepthAfterCountsOnlyTheLaterOrigins) {
+  SceneSpec s = smallFusionSpec(5, 3, 4, 10, 1);
+  s.observe.msrd_by_depth = true;
+  s.observe.msrd_by_depth_after_s = 4;
+  Simulation sim(s, buildFusionCells(s, nullptr));
+  auto probes = makeProbes(s);
+  ASSERT_EQ(probes.size(), 1u);
+  MsrdTracker later;
+  int samples = 0;
+  auto sample = [&] {
+    std::vector<double> out;
+    probes[0]->sample(sim, out);
+    ASSERT_EQ(out.size(), 2u);
+    ++samples;
+    if (sim.time() >= 4 - 1e-9)
+      later.addSample(sim.time(), sim.geometry().cell_centroid,
+                      contactingCellPairs(sim.cells(), sim.contacts()));
+  };
+  sample();
+  for (int k = 0; k < 16; ++k) {  // 8 s at Δt 0.5 s, a sample a second
+    ASSERT_TRUE(sim.step().ok());
+    if (k % 2 == 1) sample();
+  }
+  ASSERT_EQ(samples, 9);
+  ASSERT_EQ(later.numSamples(), 5);
+  RunSummary sum;
+  probes[0]->finish(sum);
+  const RunSummary::Curve& surface = sum.curves[0];
+  ASSERT_EQ(surface.name, "msrd_surface");
+  ASSERT_EQ(surface.x.size(), 4u);  // lags 1–4 s of the five later samples
+  for (int lag = 1; lag <= 4; ++lag) {
+    EXPECT_DOUBLE_EQ(surface.x[lag - 1], later.lagTime(lag));
+    EXPECT_NEAR(surface.y[lag - 1], later.msrd(lag), 1e-12 * later.msrd(lag));
+  }
+}
+
 TEST(Probes, MsrdByDepthEndsAFusionWithItsCurves) {
   SceneSpec s = smallFusionSpec(5, 3, 4, 10, 1);
   s.observe.msrd_by_depth = true;

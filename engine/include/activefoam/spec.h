@@ -164,6 +164,8 @@ struct ObserveParams {
   bool msrd_by_depth = false;  // the MSRD split by the cells' depth in the aggregate (fusion)
   bool shape = false;          // the cells' smoothed shape index, elongation and contact fraction
   bool torque = false;         // the aggregate as a body: net torque, rigid spin, torques (fusion)
+  // msrd_by_depth's origins: the samples from this time on, s
+  double msrd_by_depth_after_s = 0;
 
   friend bool operator==(const ObserveParams&, const ObserveParams&) = default;
 };

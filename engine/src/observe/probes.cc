@@ -149,14 +149,16 @@ class TorqueProbe : public Probe {
 // class that never had a pair.
 class MsrdByDepthProbe : public Probe {
  public:
-  explicit MsrdByDepthProbe(double r_um) : r_um_(r_um) {}
+  MsrdByDepthProbe(double r_um, double after_s) : r_um_(r_um), after_s_(after_s) {}
   std::vector<std::string> columns() const override { return {"cells_surface", "cells_buried"}; }
   void sample(const Simulation& sim, std::vector<double>& out) override {
     const std::vector<double> free = freeFractions(sim.geometry(), sim.contacts());
     const auto buried =
         std::count_if(free.begin(), free.end(), [](double f) { return f < kBuriedBelow; });
-    split_.addSample(sim.time(), sim.geometry().cell_centroid,
-                     contactingCellPairs(sim.cells(), sim.contacts()), free);
+    // Samples fall on multiples of sample_every_s up to the schedule's rounding.
+    if (sim.time() >= after_s_ - 1e-9)
+      split_.addSample(sim.time(), sim.geometry().cell_centroid,
+                       contactingCellPairs(sim.cells(), sim.contacts()), free);
     out.push_back(static_cast<double>(free.size()) - static_cast<double>(buried));
     out.push_back(static_cast<double>(buried));
   }
@@ -210,7 +212,8 @@ class MsrdByDepthProbe : public Probe {
   }
 
  private:
-  double r_um_;  // the cells' mean radius: mixing at MSRD = r²
+  double r_um_;     // the cells' mean radius: mixing at MSRD = r²
+  double after_s_;  // the first origin's time
   MsrdByDepth split_;
 };
 
@@ -283,7 +286,8 @@ std::vector<std::unique_ptr<Probe>> makeProbes(const SceneSpec& spec) {
   if (asked(spec, "observe.dissipation", spec.observe.dissipation))
     probes.push_back(std::make_unique<DissipationProbe>());
   if (asked(spec, "observe.msrd_by_depth", spec.observe.msrd_by_depth))
-    probes.push_back(std::make_unique<MsrdByDepthProbe>(spec.cells.radius_mean_um));
+    probes.push_back(std::make_unique<MsrdByDepthProbe>(spec.cells.radius_mean_um,
+                                                        spec.observe.msrd_by_depth_after_s));
   if (asked(spec, "observe.shape", spec.observe.shape))
     probes.push_back(std::make_unique<ShapeProbe>());
   if (asked(spec, "observe.torque", spec.observe.torque))

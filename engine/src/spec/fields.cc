@@ -437,6 +437,16 @@ const std::vector<Entry>& entries() {
     readBy(t, kFusionOnly);  // the MSRD is a fusion's
     since(t, false);
     prepAt(t, false);
+    t.push_back({real("observe.msrd_by_depth_after_s", kClosed, 0, 1e7, kClosed, "s",
+                      "observe.msrd_by_depth counts only origins at or after this time: the "
+                      "split of a fused doublet's MSRD without the fusion's own flow"),
+                 [](SceneSpec& s) -> Slot { return &s.observe.msrd_by_depth_after_s; }});
+    readBy(t, kFusionOnly);
+    readIf(
+        t, [](const SceneSpec& s) { return s.observe.msrd_by_depth; },
+        "read only with observe.msrd_by_depth = true, which this spec leaves off");
+    since(t, 0.0);
+    prepAt(t, 0.0);
     t.push_back({boolean("observe.shape",
                          "probe: sample columns of the cells' shape: the shape index of each "
                          "cell's mesh after Taubin smoothing (shape_index_smoothed_mean), the "
