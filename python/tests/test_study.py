@@ -1288,7 +1288,9 @@ def test_found_80_scales_the_pairs_sd_and_is_left_out_when_the_test_did_not_pair
 
 # ---- diagnoses: a failed run rerun with some keys changed -------------------------------------
 
-def _diagnosed_study(tmp: Path):
+def _alpha_study_1s(tmp: Path, study_keys: str = "", tables: str = ""):
+    """Study "alpha": α 0.4375 and 0.6, seeds 1 and 2, 240 s at Δt 1 s; more [study] keys and
+    more tables after its grid."""
     (tmp / "base.toml").write_text('scene = "fusion"\n')
     f = tmp / "alpha.toml"
     f.write_text(textwrap.dedent("""\
@@ -1296,11 +1298,18 @@ def _diagnosed_study(tmp: Path):
         name = "alpha"
         base = "base.toml"
         seeds = [1, 2]
+        """) + study_keys + textwrap.dedent("""\
         [spec]
         duration_s = 240
         "numerics.dt_s" = 1.0
         [[grid]]
         "cells.alpha" = [0.4375, 0.6]
+        """) + textwrap.dedent(tables))
+    return st.load(f)
+
+
+def _diagnosed_study(tmp: Path):
+    return _alpha_study_1s(tmp, tables="""\
         [[diagnose]]
         name = "keep-out"
         spec = { "numerics.remesh_keep_out_um" = 0.75 }
@@ -1308,8 +1317,7 @@ def _diagnosed_study(tmp: Path):
         [[diagnose]]
         name = "reference-step"
         spec = { "numerics.dt_s" = 0.25 }
-        """))
-    return st.load(f)
+        """)
 
 
 def _diagnosed_jobs(foamd, **settings):
@@ -1606,22 +1614,7 @@ def test_retry_failed_takes_every_kind_or_the_named_ones_and_refuses_unknown_kin
 
 
 def _probe_study(tmp: Path, extra: str):
-    (tmp / "base.toml").write_text('scene = "fusion"\n')
-    f = tmp / "alpha.toml"
-    f.write_text(textwrap.dedent("""\
-        [study]
-        name = "alpha"
-        base = "base.toml"
-        seeds = [1, 2]
-        diagnose = false
-        """) + extra + textwrap.dedent("""\
-        [spec]
-        duration_s = 240
-        "numerics.dt_s" = 1.0
-        [[grid]]
-        "cells.alpha" = [0.4375, 0.6]
-        """))
-    return st.load(f)
+    return _alpha_study_1s(tmp, "diagnose = false\n" + extra)
 
 
 class _ProbeResults:
