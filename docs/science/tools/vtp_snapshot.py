@@ -1,5 +1,5 @@
 """Reads a snapshot written by foam export / foam-run (.vtp, ASCII): its time, every vertex's
-position and cell, and the triangles (bench/snapshot_*.py)."""
+position and cell, and the triangles (the snapshot_*.py beside it)."""
 import re
 
 import numpy as np
