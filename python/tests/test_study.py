@@ -1675,6 +1675,12 @@ def test_a_column_or_curve_the_runs_lack_is_refused_naming_it(tmp_path):
     study = _probe_study(tmp_path, 'curves = ["msrd_layer0"]\n')
     with pytest.raises(st.StudyError, match=r"study.curves: .*seed 2 .* no curve msrd_layer0"):
         st.collect(study, foamd, tmp_path / "data2")
+    # A run that failed before its first step has no columns to lack.
+    study = _probe_study(tmp_path, 'columns = ["shape_index_smoothed_mean"]\n')
+    foamd.job = lambda jid: type("J", (), {"results_message": lambda self, _: (
+        _NoResults() if jid.endswith("-1") else _ProbeResults(jid))})()
+    samples = pd.read_csv(st.collect(study, foamd, tmp_path / "data3") / "samples.csv.gz")
+    assert set(samples["job_id"]) == {"j-0.4375-2", "j-0.6-2"}
     for bad, msg in (('columns = "x"', "a list of up to 100 column names"),
                      ('columns = ["Theta"]', "a list of up to 100 column names"),
                      ('columns = ["theta_deg"]', "theta_deg given twice"),

@@ -100,8 +100,9 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
             r = job.results_message(True)
             row.update({x.name: x.value for x in r.results})
             cols = list(r.columns)
+            # A run that failed before its first step (its preparation) has no columns at all.
             lacking = [c for c in study.columns if c not in cols]
-            if lacking:
+            if lacking and cols:
                 raise StudyError(_lacks(study, run, j.id, "sample column", lacking))
             keep = [c for c in [*SAMPLE_COLUMNS, *study.columns] if c in cols]
             idx = [cols.index(c) for c in keep]
