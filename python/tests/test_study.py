@@ -1376,6 +1376,53 @@ def test_a_run_that_failed_in_the_simulation_is_rerun_once_per_diagnosis_naming_
     assert st.submit_diagnoses(st.load(off), fresh) == 0 and not fresh.submitted
 
 
+def test_a_carried_failures_diagnosis_that_did_not_end_in_its_store_is_rerun_here(tmp_path):
+    # The earlier store's data: seed 1 failed in the simulation at both α; at α 0.4375 its
+    # keep-out rerun was still queued when the data was collected (that store is gone), at α 0.6
+    # its reference-step rerun had ended.
+    study = _diagnosed_study(tmp_path)
+    d = tmp_path / "earlier"
+    d.mkdir()
+    rows = []
+    for seed, a, kind, diagnoses in (
+            (1, 0.4375, "interpenetration",
+             "keep-out: queued (0 %) (j-gone-1); reference-step: ran to the end (j-gone-2)"),
+            (1, 0.6, "volume-drift", "reference-step: failed too: volume-drift at 100 s (j-g3)"),
+            (2, 0.4375, "", ""), (2, 0.6, "", "")):
+        run = st.Run({"cells.alpha": a}, seed)
+        rows.append({"run": len(rows), "cells.alpha": a, "seed": seed,
+                     "settings": json.dumps(study.settings(run), sort_keys=True),
+                     "job_id": f"j-old-{a}-{seed}", "state": "failed" if kind else "succeeded",
+                     "failure_kind": kind, "t_end_s": 100.0 if kind else 240.0,
+                     "diagnoses": diagnoses, "diag_ran_past": "ran to" in diagnoses})
+    _write_data(d, rows, [], [])
+    carried = st.carried_runs(study, d)
+    assert len(carried.rows) == 4
+    foamd = _FakeFoamd({"alpha": 0.4375})
+    out = io.StringIO()
+    # Only the keep-out of α 0.4375: the reruns that ended there stand.
+    assert st.submit_diagnoses(study, foamd, out=out, carried=carried) == 1
+    (got,) = foamd.submitted
+    assert (got["cells.alpha"], got["seed"], got["numerics.remesh_keep_out_um"]) == \
+        ("0.4375", "1", "0.75")
+    assert "diagnosis 'keep-out' submitted" in out.getvalue()
+    assert st.submit_diagnoses(study, foamd, carried=carried) == 0
+    # Without the carried rows nothing is submitted (the store holds no run of the study).
+    assert st.submit_diagnoses(study, _FakeFoamd({"alpha": 0.4375})) == 0
+    # The report lists this store's rerun in place of the stale entry, the other as it was.
+    (rerun,) = foamd.jobs["diag:alpha"]
+    from activefoam.v1 import job_pb2
+    rerun.state, rerun.t_s = job_pb2.JobState.Value("JOB_STATE_SUCCEEDED"), 240.0
+    runs = pd.read_csv(st.collect(study, foamd, tmp_path / "data", carried) / "runs.csv")
+    row = runs[(runs["seed"] == 1) & (runs["cells.alpha"] == 0.4375)].iloc[0]
+    assert row["diagnoses"] == ("keep-out: ran to the end (j-0000); "
+                                "reference-step: ran to the end (j-gone-2)")
+    assert bool(row["diag_ran_past"])
+    row = runs[(runs["seed"] == 1) & (runs["cells.alpha"] == 0.6)].iloc[0]
+    assert row["diagnoses"] == "reference-step: failed too: volume-drift at 100 s (j-g3)"
+    assert not bool(row["diag_ran_past"])
+
+
 def _without_tables(text: str) -> str:
     return text[:text.index("[[diagnose]]")]
 

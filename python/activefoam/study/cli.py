@@ -91,7 +91,8 @@ def _main(argv: List[str]) -> int:
     p_run.add_argument("--poll", type=float, default=2.0, help=argparse.SUPPRESS)
     with_data_help = ("a report's data folder from an earlier store (e.g. the committed "
                       "docs/science/NAME/data): the runs it holds as ended count as done, are "
-                      "not submitted again, and are reported with the store's")
+                      "not submitted again, and are reported with the store's; a diagnosis "
+                      "rerun it lists as queued or running is submitted here")
     p_run.add_argument("--with-data", default=None, metavar="DIR", help=with_data_help)
     p_rep = sub.add_parser("report", help="tables and figures from the store (or --from-data)")
     p_rep.add_argument("study")
@@ -217,7 +218,7 @@ def _main(argv: List[str]) -> int:
             print(f"study {study.name}: {n_new} runs submitted, {n_held} already in the "
                   f"store{' or the data' if carried else ''} (tag {study.tag})",
                   file=sys.stderr)
-            submit_diagnoses(study, c)
+            submit_diagnoses(study, c, carried=carried)
             if args.no_wait:
                 return 0
             counts = wait(study, c, poll_s=args.poll, carried=carried)

@@ -20,12 +20,15 @@ from activefoam.study.outputs import folder, to_csv, write_text
 from activefoam.study.studyfile import SAMPLE_COLUMNS, SIMULATION_FAILURES, Study, StudyError
 
 
+RAN_PAST = "ran to the end"
+
+
 def _diag_outcome(job: Any, failed_at_s: float) -> Tuple[str, bool]:
     """A diagnosis rerun's outcome in words, and whether it ran past the failure."""
     state = state_name(job.state)
     t = float(getattr(job, "t_s", 0.0) or 0.0)
     if state == "succeeded":
-        return "ran to the end", True
+        return RAN_PAST, True
     if state == "failed" and job.failure_kind in SIMULATION_FAILURES:
         when = "later" if t > failed_at_s + 1e-9 else "too"
         return f"failed {when}: {job.failure_kind} at {t:.0f} s", False
@@ -34,6 +37,22 @@ def _diag_outcome(job: Any, failed_at_s: float) -> Tuple[str, bool]:
     if state in ("queued", "running"):
         return f"{state} ({100 * float(job.progress):.0f} %)", False
     return state, False
+
+
+def _diag_texts(jobs_by_name: Dict[str, Any], failed_at_s: float,
+                carried_text: Any = "") -> Tuple[list, bool]:
+    """A failed run's diagnoses as the report lists them, "NAME: outcome (job)" each, and whether
+    one ran past the failure: each diagnosis's last rerun in this store, else what a carried row
+    said of it (an earlier store's, where a rerun may not have ended)."""
+    texts: Dict[str, str] = {}
+    if isinstance(carried_text, str):
+        for entry in filter(None, carried_text.split("; ")):
+            texts[entry.partition(": ")[0]] = entry
+    for name, js in jobs_by_name.items():
+        text, _ = _diag_outcome(js[-1], failed_at_s)
+        texts[name] = f"{name}: {text} ({js[-1].id})"
+    past = any(t.partition(": ")[2].startswith(RAN_PAST) for t in texts.values())
+    return list(texts.values()), past
 
 
 def collect(study: Study, client: Any, out_dir: os.PathLike,
@@ -63,6 +82,11 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
             if isinstance(old.get("settings"), str) and old["settings"]:
                 row["settings"] = old["settings"]
             row["carried_from"] = str(carried.source)
+            # A diagnosis rerun of a carried failure in this store says how it went.
+            if old.get("state") == "failed" and diag.get(i):
+                texts, past = _diag_texts(diag[i], float(old.get("t_end_s") or 0.0),
+                                          old.get("diagnoses"))
+                row.update(diagnoses="; ".join(texts), diag_ran_past=past)
             jid = old["job_id"]
             samples += carried.samples[carried.samples["job_id"] == jid].to_dict("records")
             curves += carried.msrd[carried.msrd["job_id"] == jid].values.tolist()
@@ -88,11 +112,7 @@ def collect(study: Study, client: Any, out_dir: os.PathLike,
         if row["state"] == "failed" and (diag.get(i) or noop):
             # Each diagnosis's last rerun: "NAME: outcome (job)"; the failure is the point's
             # unless one ran past it.
-            texts, past = [], False
-            for name, js in diag.get(i, {}).items():
-                text, ran_past = _diag_outcome(js[-1], float(j.t_s or 0.0))
-                texts.append(f"{name}: {text} ({js[-1].id})")
-                past = past or ran_past
+            texts, past = _diag_texts(diag.get(i, {}), float(j.t_s or 0.0))
             texts += [f"{name}: {NOOP_TEXT}" for name in noop]
             row.update(diagnoses="; ".join(texts), diag_ran_past=past)
         if row["state"] in ("succeeded", "failed"):

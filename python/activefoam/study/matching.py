@@ -297,6 +297,15 @@ class Carried:
     curves: Any = None                # DataFrame: their other curves (curves.csv.gz), if any
 
 
+def unended_diagnoses(carried_text: Any) -> List[str]:
+    """The diagnoses a carried row lists as queued or running: their reruns were in an earlier
+    store and did not end there."""
+    if not isinstance(carried_text, str):
+        return []
+    return [name for name, _, text in (e.partition(": ") for e in carried_text.split("; "))
+            if text.startswith(("queued (", "running ("))]
+
+
 def _py(v: Any) -> Any:
     """A CSV cell as the study file would write it (numpy scalars to Python, "True" to True)."""
     if hasattr(v, "item"):

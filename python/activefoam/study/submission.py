@@ -12,7 +12,7 @@ from typing import Any, Collection, Dict, List, Optional, Tuple, Union
 from activefoam.client import state_name
 from activefoam.study.matching import (NOOP_TEXT, Carried, _base, _diag_is_noop, _diag_jobs,
                                        _jobs_by_run, _owner_of_shared_run, _run_jobs,
-                                       _takes_carried, run_diagnoses)
+                                       _takes_carried, run_diagnoses, unended_diagnoses)
 from activefoam.study.studyfile import MAX_ATTEMPTS, SIMULATION_FAILURES, Study, StudyError
 
 
@@ -60,9 +60,12 @@ def _diag_needed(jobs: List[Any]) -> bool:
     return state_name(last.state) == "failed" and last.failure_kind not in SIMULATION_FAILURES
 
 
-def submit_diagnoses(study: Study, client: Any, out=sys.stderr) -> int:
+def submit_diagnoses(study: Study, client: Any, out=sys.stderr,
+                     carried: Optional[Carried] = None) -> int:
     """Submits the diagnosis reruns of the study's own runs that failed in the simulation with a
-    kind one of their diagnoses names (run_diagnoses) and have no rerun yet; returns how many."""
+    kind one of their diagnoses names (run_diagnoses) and have no rerun yet; returns how many.
+    A carried failure (an earlier store's, `carried`) gets the reruns its row lists as queued or
+    running there: they did not end, and that store is not this one."""
     if not study.diagnose:
         return 0
     found, source, _ = _run_jobs(study, client)
@@ -71,19 +74,30 @@ def submit_diagnoses(study: Study, client: Any, out=sys.stderr) -> int:
     n = 0
     for i, run in enumerate(runs):
         have = found.get(i, [])
-        if i in source or not have:
+        if i in source:
             continue  # a shared run is diagnosed by the study that owns it
-        last = have[-1]
-        if state_name(last.state) != "failed" or last.failure_kind not in SIMULATION_FAILURES:
+        last, unended = None, None
+        if _takes_carried(have, carried, i):
+            row = carried.rows[i]
+            if isinstance(row.get("shared_from"), str) and row["shared_from"]:
+                continue
+            kind, state = row.get("failure_kind"), row.get("state")
+            unended = unended_diagnoses(row.get("diagnoses"))
+        elif have:
+            last = have[-1]
+            kind, state = last.failure_kind, state_name(last.state)
+        else:
+            continue
+        if state != "failed" or kind not in SIMULATION_FAILURES:
             continue
         for d in run_diagnoses(study, client, run):
-            if last.failure_kind not in d.kinds:
-                continue
+            if kind not in d.kinds or (unended is not None and d.name not in unended):
+                continue  # of a carried failure, a rerun that ended there (or none) stands
             jobs = diag.get(i, {}).get(d.name, [])
             if not _diag_needed(jobs):
                 continue
-            if _diag_is_noop(study, client, run, d, last):
-                print(f"study {study.name}: {run.label()} failed ({last.failure_kind}): "
+            if last is not None and _diag_is_noop(study, client, run, d, last):
+                print(f"study {study.name}: {run.label()} failed ({kind}): "
                       f"diagnosis {d.name!r} {NOOP_TEXT} ({', '.join(d.spec)}): "
                       + ("the study file's [[diagnose]] needs other values" if study.diagnoses
                          else "a [[diagnose]] table of the study file can name others"),
@@ -99,7 +113,7 @@ def submit_diagnoses(study: Study, client: Any, out=sys.stderr) -> int:
                                  ) from None
             if job.created:
                 n += 1
-                print(f"study {study.name}: {run.label()} failed ({last.failure_kind}): "
+                print(f"study {study.name}: {run.label()} failed ({kind}): "
                       f"diagnosis {d.name!r} submitted", file=out)
     return n
 
