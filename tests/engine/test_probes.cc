@@ -95,6 +95,22 @@ TEST(Probes, BestRotationRecoversAKnownTurnAboutAnyAxis) {
   EXPECT_THROW(rigidMotion({}, {}), std::invalid_argument);
 }
 
+// Two cells (a 2 × 1 doublet): no two points show a turn about their own line, so the answer is
+// the smallest rotation that turns the line as it turned — its angle, not 180° about the line.
+TEST(Probes, BestRotationOfTwoPointsIsTheLinesOwnTurn) {
+  const std::vector<Vec3> p = {Vec3(1, 2, 3), Vec3(9, -1, 4)};
+  const Vec3 across = (p[1] - p[0]).cross(Vec3(0.2, 0.9, -0.4)).normalized();
+  for (double deg : {0.0, 0.3, 1.2, 37.0, 150.0}) {
+    const Eigen::Matrix3d turn = Eigen::AngleAxisd(deg * M_PI / 180, across).toRotationMatrix();
+    std::vector<Vec3> q;
+    for (const Vec3& x : p) q.push_back(turn * (x - mean(p)) + Vec3(0.5, 0, -2));
+    const Eigen::Matrix3d r = bestRotation(p, q);
+    EXPECT_LT((r - turn).norm(), 1e-9) << deg;
+    EXPECT_NEAR(rigidMotion(p, q).turn_deg, deg, 1e-6) << deg;
+  }
+  EXPECT_LT((bestRotation(p, p) - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+}
+
 // The probe on a spheroid's cells, turned and moved as a body after its first sample: the angle
 // and the distance of the cells' volume centroids; its reference survives a checkpoint.
 TEST(Probes, RigidMotionOfASpheroidTurnedAndMovedAsABody) {

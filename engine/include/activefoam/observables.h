@@ -78,9 +78,10 @@ std::vector<std::pair<int, int>> contactingCellPairs(const CellSet& cells,
                                                      const ContactList& contacts);
 
 // The rotation R (det +1) that best carries the points p onto q about their centroids (their
-// unweighted means), in the least-squares sense (Kabsch): q_i − q̄ ≈ R (p_i − p̄). With fewer
-// than three points not on one line the turn about their line is undetermined. Throws
-// std::invalid_argument unless p and q are equal in number and not empty.
+// unweighted means), in the least-squares sense (Kabsch): q_i − q̄ ≈ R (p_i − p̄). Points on one
+// line (two cells) leave the turn about it undetermined: R is then the smallest rotation that
+// carries the line onto its new direction. Throws std::invalid_argument unless p and q are
+// equal in number and not empty.
 Eigen::Matrix3d bestRotation(const std::vector<Vec3>& p, const std::vector<Vec3>& q);
 // The angle of a rotation matrix, radians in [0, π].
 double rotationAngle(const Eigen::Matrix3d& r);

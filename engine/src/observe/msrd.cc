@@ -89,6 +89,13 @@ Eigen::Matrix3d bestRotation(const std::vector<Vec3>& p, const std::vector<Vec3>
   for (int i = 0; i < n; ++i) h += (p[i] - pm) * (q[i] - qm).transpose();
   const Eigen::JacobiSVD<Eigen::Matrix3d> svd(h, Eigen::ComputeFullU | Eigen::ComputeFullV);
   const Eigen::Matrix3d v = svd.matrixV(), u = svd.matrixU();
+  const Vec3 s = svd.singularValues();
+  if (s[0] == 0) return Eigen::Matrix3d::Identity();
+  // Points on one line (two cells): every turn about the line fits as well, and the SVD's other
+  // vectors are arbitrary (the 2 × 1 doublet read 180° every other sample). The smallest such
+  // rotation carries the line's direction onto its new one.
+  if (s[1] <= 1e-9 * s[0])
+    return Eigen::Quaterniond::FromTwoVectors(u.col(0), v.col(0)).toRotationMatrix();
   Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
   if ((v * u.transpose()).determinant() < 0) d(2, 2) = -1;
   return v * d * u.transpose();
