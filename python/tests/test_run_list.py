@@ -43,3 +43,21 @@ def test_only_the_named_groups_run_and_an_unknown_group_is_an_error(tmp_path):
     (tmp_path / "x").mkdir()
     r, _ = _run(tmp_path / "x", "nosuch")
     assert r.returncode == 2 and "no line of" in r.stderr and "nosuch" in r.stderr
+
+
+def test_a_failed_run_does_not_stop_the_list_and_the_exit_status_names_it(tmp_path):
+    # The stand-in fails the run of L0.25-seed2 (as foam-run does when the simulation fails).
+    fake = tmp_path / "foam-run"
+    fake.write_text('#!/bin/sh\necho "$@" >> "$(dirname "$0")/calls"\n'
+                    'case "$*" in *L0.25-seed2*) exit 1 ;; esac\n')
+    fake.chmod(0o755)
+    (tmp_path / "page").mkdir()
+    lst = tmp_path / "page" / "runs.txt"
+    lst.write_text("a L2 1 s.toml\na L0.25 2 s.toml\na L0.25 1 s.toml\n")
+    r = subprocess.run([str(TOOL), str(lst), str(tmp_path / "out")],
+                       env=dict(os.environ, FOAM_RUN=str(fake)), capture_output=True, text=True)
+    calls = (tmp_path / "calls").read_text().splitlines()
+    assert [c.split()[2] for c in calls] == [
+        f"{tmp_path}/out/L2-seed1", f"{tmp_path}/out/L0.25-seed2", f"{tmp_path}/out/L0.25-seed1"]
+    assert r.returncode == 1
+    assert f"failed: {tmp_path}/out/L0.25-seed2" in r.stderr

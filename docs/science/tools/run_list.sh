@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Runs a page's list of runs, one foam-run each, into OUT/NAME-seedS/: a finished run is left
 # alone, an interrupted one resumes from its checkpoint, so the command can be stopped and
-# given again.
+# given again. A run that fails (a result too: its folder says why) does not stop the list; the
+# exit status is then 1, after the last run, naming the failed ones.
 #
 #   docs/science/tools/run_list.sh LIST OUT [GROUP...]
 #
@@ -17,7 +18,7 @@ root=$(cd "$(dirname "$0")/../../.." && pwd)
 run=${FOAM_RUN:-$root/build/release/runner/foam-run}
 [ -x "$run" ] || { echo "run_list.sh: no foam-run at $run (build it, or set FOAM_RUN)" >&2; exit 2; }
 want=" $* "
-n=0
+n=0 failed=()
 while read -r group name seed spec settings; do
   case $group in ''|'#'*) continue ;; esac
   [ $# -eq 0 ] || [[ $want == *" $group "* ]] || continue
@@ -25,7 +26,9 @@ while read -r group name seed spec settings; do
   for s in $settings; do sets+=(--set "$s"); done
   dir="$out/$name-seed$seed"
   echo "run_list.sh: $dir" >&2
-  OMP_NUM_THREADS=1 "$run" "$here/$spec" --out "$dir" --resume --quiet "${sets[@]}" < /dev/null
+  OMP_NUM_THREADS=1 "$run" "$here/$spec" --out "$dir" --resume --quiet "${sets[@]}" < /dev/null ||
+    failed+=("$dir")
   n=$((n + 1))
 done < "$list"
 [ $n -gt 0 ] || { echo "run_list.sh: no line of $list in the groups:$want" >&2; exit 2; }
+[ ${#failed[@]} -eq 0 ] || { echo "run_list.sh: failed: ${failed[*]}" >&2; exit 1; }
