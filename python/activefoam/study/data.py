@@ -15,7 +15,8 @@ from typing import Any, Dict, Optional, Tuple
 
 from activefoam.client import state_name
 from activefoam.study.matching import (NOOP_TEXT, Carried, _base_sha, _diag_is_noop,
-                                       _diag_of_runs, _run_jobs, _takes_carried, run_diagnoses)
+                                       _diag_of_runs, _run_jobs, _takes_carried, diagnosis_entries,
+                                       run_diagnoses)
 from activefoam.study.outputs import folder, to_csv, write_text
 from activefoam.study.studyfile import SAMPLE_COLUMNS, SIMULATION_FAILURES, Study, StudyError
 
@@ -44,15 +45,12 @@ def _diag_texts(jobs_by_name: Dict[str, Any], failed_at_s: float,
     """A failed run's diagnoses as the report lists them, "NAME: outcome (job)" each, and whether
     one ran past the failure: each diagnosis's last rerun in this store, else what a carried row
     said of it (an earlier store's, where a rerun may not have ended)."""
-    texts: Dict[str, str] = {}
-    if isinstance(carried_text, str):
-        for entry in filter(None, carried_text.split("; ")):
-            texts[entry.partition(": ")[0]] = entry
+    outcomes = diagnosis_entries(carried_text)
     for name, js in jobs_by_name.items():
         text, _ = _diag_outcome(js[-1], failed_at_s)
-        texts[name] = f"{name}: {text} ({js[-1].id})"
-    past = any(t.partition(": ")[2].startswith(RAN_PAST) for t in texts.values())
-    return list(texts.values()), past
+        outcomes[name] = f"{text} ({js[-1].id})"
+    past = any(o.startswith(RAN_PAST) for o in outcomes.values())
+    return [f"{name}: {o}" for name, o in outcomes.items()], past
 
 
 def collect(study: Study, client: Any, out_dir: os.PathLike,

@@ -297,13 +297,20 @@ class Carried:
     curves: Any = None                # DataFrame: their other curves (curves.csv.gz), if any
 
 
+def diagnosis_entries(text: Any) -> Dict[str, str]:
+    """A runs.csv row's `diagnoses` ("NAME: outcome (job); …") as name → outcome; {} for an
+    empty cell."""
+    if not isinstance(text, str):
+        return {}
+    return {name: outcome for name, _, outcome in
+            (e.partition(": ") for e in text.split("; ") if e)}
+
+
 def unended_diagnoses(carried_text: Any) -> List[str]:
     """The diagnoses a carried row lists as queued or running: their reruns were in an earlier
     store and did not end there."""
-    if not isinstance(carried_text, str):
-        return []
-    return [name for name, _, text in (e.partition(": ") for e in carried_text.split("; "))
-            if text.startswith(("queued (", "running ("))]
+    return [name for name, outcome in diagnosis_entries(carried_text).items()
+            if outcome.startswith(("queued (", "running ("))]
 
 
 def _py(v: Any) -> Any:
