@@ -246,22 +246,27 @@ TEST(Probes, DissipationSplitsTheSolversOwnGamma) {
   }
 }
 
-// A motile fusion at a tight tolerance: at every sample the terms sum to the forces' power.
+// A motile fusion at a tight tolerance: at every sample the terms sum to the forces' power,
+// with the tension's stiffness in Γ too (numerics.tension_implicit: counted with the springs').
 TEST(Probes, SmallFusionTermsSumToThePowerOfTheForces) {
-  SceneSpec s = smallFusionSpec(5, 3, 4, 3, 1);
-  s.numerics.cg_tol = 1e-10;
-  s.observe.dissipation = true;
-  const Column c = runProbed(s);
-  ASSERT_EQ(c.rows.size(), 4u);
-  for (std::size_t k = 1; k < c.rows.size(); ++k) {
-    double sum = 0;
-    for (const char* t : {"diss_medium_nw", "diss_cortex_nw", "diss_friction_t_nw",
-                          "diss_friction_n_nw", "diss_springs_nw"}) {
-      EXPECT_GT(c.at(k, t), 0) << t;
-      sum += c.at(k, t);
+  for (bool tension_implicit : {false, true}) {
+    SCOPED_TRACE(tension_implicit ? "tension implicit" : "tension explicit");
+    SceneSpec s = smallFusionSpec(5, 3, 4, 3, 1);
+    s.numerics.cg_tol = 1e-10;
+    s.numerics.tension_implicit = tension_implicit;
+    s.observe.dissipation = true;
+    const Column c = runProbed(s);
+    ASSERT_EQ(c.rows.size(), 4u);
+    for (std::size_t k = 1; k < c.rows.size(); ++k) {
+      double sum = 0;
+      for (const char* t : {"diss_medium_nw", "diss_cortex_nw", "diss_friction_t_nw",
+                            "diss_friction_n_nw", "diss_springs_nw"}) {
+        EXPECT_GT(c.at(k, t), 0) << t;
+        sum += c.at(k, t);
+      }
+      EXPECT_NEAR(sum, c.at(k, "power_forces_nw"), 1e-6 * sum) << k;
+      EXPECT_NE(c.at(k, "power_active_nw"), 0);
     }
-    EXPECT_NEAR(sum, c.at(k, "power_forces_nw"), 1e-6 * sum) << k;
-    EXPECT_NE(c.at(k, "power_active_nw"), 0);
   }
 }
 

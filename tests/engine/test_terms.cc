@@ -1,5 +1,6 @@
 // Force terms against finite-difference gradients of their energies, and conservation laws.
 #include <cmath>
+#include <iostream>
 
 #include <gtest/gtest.h>
 
@@ -74,6 +75,57 @@ TEST(SurfaceTension, ForceIsMinusGradientOfTensionTimesArea) {
     EXPECT_LT(err, 1e-6) << "seed " << seed;
     // The energy is γ·area.
     EXPECT_NEAR(fx.energy(term), cellSpec().cells.gamma * fx.geo.cell_area[0], 1e-9);
+  }
+}
+
+// numerics.tension_implicit: the stiffness the tension adds to Γ (per unit Δt) is the Hessian
+// of γ·area for displacements along the surface's normal. On a round cell and a vertex-scale
+// normal ripple u = φ_i n̂_i (φ_i = ±1: the mode that oscillated at Δt 2 s), uᵀKu against the
+// energy's second difference (E(x + εu) + E(x − εu) − 2E(x)) / ε²: the two differ by the
+// sphere's 2φ²/R² term (≈ (h/R)² of the ripple's |∇φ|²) and the bisector's tilt against the
+// vertex normals. It adds nothing without the factor, and nothing for a translation.
+TEST(SurfaceTension, ImplicitStiffnessIsTheAreasHessianAlongTheNormal) {
+  for (int triangles : {320, 1280}) {
+    Fixture fx(buildScene(cellSpec(1.0, triangles)));
+    const CellParams p = cellSpec().cells;
+    SurfaceTension term(p);
+    FrictionOperator none;
+    none.reset(fx.cells.numVertices(), fx.cells.topology_version);
+    term.addFriction(fx.ctx(), none);
+    EXPECT_EQ(none.assembled().norm(), 0.0);
+
+    StepContext ctx = fx.ctx();
+    ctx.tension_stiffness_dt = 2.0;
+    FrictionOperator op;
+    op.reset(fx.cells.numVertices(), fx.cells.topology_version);
+    term.addFriction(ctx, op);
+    const int n = fx.cells.numVertices();
+    Rng rng(5, 1);
+    Eigen::VectorXd u(3 * n), y(3 * n);
+    for (int i = 0; i < n; ++i)
+      u.segment<3>(3 * i) = (rng.uniform() < 0.5 ? -1.0 : 1.0) * fx.geo.vertex_normal[i];
+    op.apply(u.data(), y.data());
+    const double form = u.dot(y) / ctx.tension_stiffness_dt;
+    EXPECT_NEAR(u.dot(op.assembled() * u) / ctx.tension_stiffness_dt, form, 1e-12 * form);
+
+    const Eigen::Matrix3Xd x0 = fx.cells.x;
+    const double eps = 1e-3;  // µm
+    const double e0 = fx.energy(term);
+    fx.cells.x = x0 + eps * Eigen::Map<const Eigen::Matrix3Xd>(u.data(), 3, n);
+    const double ep = fx.energy(term);
+    fx.cells.x = x0 - eps * Eigen::Map<const Eigen::Matrix3Xd>(u.data(), 3, n);
+    const double em = fx.energy(term);
+    fx.cells.x = x0;
+    computeGeometry(fx.cells, fx.geo);
+    const double hessian = (ep + em - 2 * e0) / (eps * eps);
+    std::cout << "[ tension  ] " << triangles << " triangles: uᵀKu " << form << ", uᵀHu " << hessian
+              << "\n";
+    EXPECT_NEAR(form / hessian, 1.0, 0.02) << triangles << " triangles";  // 0.8 %, 0.2 %
+
+    // A translation moves no vertex relative to another: no force.
+    for (int i = 0; i < n; ++i) u.segment<3>(3 * i) = Vec3(0.3, -1.0, 2.0);
+    op.apply(u.data(), y.data());
+    EXPECT_LT(y.norm(), 1e-12 * op.assembled().norm() * u.norm());
   }
 }
 

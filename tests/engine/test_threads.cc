@@ -341,6 +341,14 @@ TEST(Threads, StudiesStepMotileDoubletRunIsBitIdenticalForAnyThreadCount) {
   expectSameRuns(studiesStep(motileDoublet()), kFine);
 }
 
+// The tension's stiffness in Γ (numerics.tension_implicit): its edge coupling, cell by cell.
+TEST(Threads, ImplicitTensionMotileDoubletRunIsBitIdenticalForAnyThreadCount) {
+  SceneSpec s = studiesStep(motileDoublet());
+  s.numerics.tension_implicit = true;
+  s.numerics.dt_s = 2;
+  expectSameRuns(s, kFine);
+}
+
 // The adaptive time step at work (rejected tries, rollback, halved and regrown steps): the
 // semi-implicit doublet at Δt = 0.1 s oscillates from t ≈ 28 s and is retried at 0.05 s.
 TEST(Threads, AdaptiveRunWithRejectedStepsIsBitIdenticalForAnyThreadCount) {

@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "activefoam/run.h"
 #include "activefoam/terms.h"
 #include "activefoam/time_scheme.h"
 #include "test_support.h"
@@ -120,6 +121,33 @@ TEST(TimeScheme, EachIntegratorOfTheSpecHasItsScheme) {
     EXPECT_EQ(scheme->consistentStiffness(),
               kind == IntegratorKind::Ros2 || kind == IntegratorKind::ContactImplicitConsistent);
   }
+}
+
+// The consistent step at Δt 2 s oscillates (docs/study/stability-map.md: every k_AB and
+// motility of the doublet's map) because the tension is explicit: a vertex-scale ripple along
+// the normal, damped only by the cortex's out-of-plane viscosity ε_n η, has a time scale near
+// 1 s, and forward Euler reverses it every step beyond twice that. With the tension's normal
+// stiffness in Γ (numerics.tension_implicit) the same doublet holds 2 s without a step redone.
+TEST(TimeScheme, TheImplicitTensionHoldsTheConsistentStepAtTwoSeconds) {
+  SceneSpec s;  // examples/doublet.toml: two equal passive cells 50 nm apart
+  s.scene = SceneKind::Doublet;
+  s.seed = 1;
+  s.cells.radius_gamma_k = 0;
+  s.cells.p_a = 0;
+  s.numerics.dt_s = 2;
+  s.numerics.adaptive = false;
+  s.duration_s = 240;
+  s.sample_every_s = 240;
+  s.snapshot_every_s = 0;
+  ASSERT_TRUE(validate(s).empty());
+  s = resolve(s);
+  const RunSummary explicit_tension = runScene(s, RunObserver{});
+  EXPECT_EQ(explicit_tension.failure, FailureKind::ContactOscillation)
+      << explicit_tension.steps << " steps: " << explicit_tension.reason;
+  s.numerics.tension_implicit = true;
+  const RunSummary implicit_tension = runScene(s, RunObserver{});
+  EXPECT_TRUE(implicit_tension.ok()) << implicit_tension.reason;
+  EXPECT_EQ(implicit_tension.steps, 120);
 }
 
 }  // namespace activefoam

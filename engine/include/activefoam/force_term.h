@@ -30,6 +30,9 @@ struct StepContext {
   // (w_ik = λ_i^A(c) λ_k^B(c), the friction's weights); true, the consistent stiffness of the
   // spring field, k ∫ λλ dS (ros2: its accuracy at large Δt depends on K_c being the Jacobian).
   bool consistent_stiffness = false;
+  // Factor of the surface tension's out-of-plane stiffness in Γ (numerics.tension_implicit):
+  // contact_stiffness_dt where the key is on, else 0 (explicit).
+  double tension_stiffness_dt = 0;
   // s, time at the end of the step as the stepper counts it (exactly the next step's t); 0: t + dt.
   double t_end = 0;
   double endTime() const { return t_end > 0 ? t_end : t + dt; }
@@ -49,6 +52,7 @@ inline StepContext atGeometry(const StepContext& c, const Geometry& geo, const G
           c.contacts,
           c.contact_stiffness_dt,
           c.consistent_stiffness,
+          c.tension_stiffness_dt,
           c.t_end,
           geo_end};
 }

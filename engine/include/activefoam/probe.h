@@ -70,9 +70,9 @@ struct Dissipation {
   double cortex = 0;      // CortexViscosity
   double friction_t = 0;  // ContactFriction across the contact plane (ξ∥)
   double friction_n = 0;  // ContactFriction along the normal (ξ⊥)
-  // The contact springs' stiffness that Γ carries (Δt vᵀK_c v, γΔt for ros2; 0 for the
-  // semi-implicit integrator): no dissipation of the model, the springs' force taken at the end
-  // of the step.
+  // The stiffness that Γ carries (the contact springs' Δt vᵀK_c v, γΔt for ros2, 0 for the
+  // semi-implicit integrator; with numerics.tension_implicit the tension's Δt vᵀK_γ v too): no
+  // dissipation of the model, the elastic forces taken at the end of the step.
   double springs = 0;
   double forces = 0;  // vᵀF
   double active = 0;  // vᵀF_active, ActiveMigration's forces alone
@@ -116,10 +116,10 @@ struct RigidPart {
 RigidPart rigidPart(const CellSet& cells, const Geometry& geo, const Eigen::VectorXd& v);
 // The forces F's net force and torque about x̄ (the terms are balanced: both vanish but for the
 // active forces), the rigid part's speed and spin, the torque τ_m = Σ (x_i − x̄) × (Γ_m v)_i of
-// medium drag on v, and the cortex's, contact friction's (∥ + ⊥) and contact springs' implicit
-// part's as shares along it, −τ_term · τ̂_m / |τ_m| (> 0: the term drives the turn the medium
-// resists). Γ v = F, so the shares sum to 1 less F's torque along τ̂_m / |τ_m|, up to the
-// solve's residual; NaN where τ_m = 0.
+// medium drag on v, and the cortex's, contact friction's (∥ + ⊥) and the implicit stiffnesses'
+// (contact springs', and the tension's with numerics.tension_implicit) as shares along it, −τ_term
+// · τ̂_m / |τ_m| (> 0: the term drives the turn the medium resists). Γ v = F, so the shares sum to 1
+// less F's torque along τ̂_m / |τ_m|, up to the solve's residual; NaN where τ_m = 0.
 struct BodyTorques {
   double net_force_nn = 0, net_torque_nnum = 0, rigid_speed_um_h = 0, rigid_spin_deg_h = 0;
   double torque_medium_nnum = 0, share_cortex = 0, share_friction = 0, share_springs = 0;

@@ -162,6 +162,7 @@ class Simulation {
             with_contacts_ ? &contacts_ : nullptr,
             scheme_->contactStiffnessDt(dt),
             scheme_->consistentStiffness(),
+            spec_.numerics.tension_implicit ? scheme_->contactStiffnessDt(dt) : 0.0,
             stepper_.timeAt(stepper_.ticks() + stepper_.stepTicks())};
   }
   // One try of a step of length stepper_.dt(); the schedule is advanced by the caller.

@@ -100,6 +100,11 @@ struct NumericsParams {
   // whose planes cross beside them; the overlap within prisms removes it (docs/numerics.md).
   // Not applied in the spheroids' preparation.
   ContactLawKind contact_law = ContactLawKind::PrismsOverlap;
+  // The surface tension's out-of-plane stiffness in Γ, as the contact springs' is (Δt γ_s times
+  // the cotangent Laplacian along each edge's bisector): the one-stage implicit integrators then
+  // hold Δt 2 s and more, where the explicit tension's vertex-scale ripple, damped only by the
+  // cortex's out-of-plane viscosity ε_n η, reverses every step (docs/numerics.md).
+  bool tension_implicit = false;
   // Consecutive steps in which contacting vertices mostly reverse their velocity (the period-2
   // signature of an explicit scheme beyond its stability limit) before the run fails.
   std::int64_t max_oscillating_steps = 10;

@@ -13,11 +13,17 @@ namespace activefoam {
 // S2–S4: F_i += (γ_s/2)(x_k − x_j) × n̂_A = −γ_s ∂S_A/∂x_i. Energy Σ γ_s S_A.
 // γ_s = γ − w f_A with f_A the contacting fraction of the triangle this step (ctx.contacts) and
 // w = (1 − α) γ, so that a fully contacting triangle has γ_s = αγ (docs/model.md §3.1).
+// With ctx.tension_stiffness_dt > 0 it adds to Γ that factor times the forces' out-of-plane
+// stiffness: per edge ij, k_ij b̂b̂ᵀ with k_ij = ½ Σ γ_s cot θ over the two triangles' angles
+// opposite the edge (the cotangent Laplacian, the Hessian of the area for displacements along
+// the surface's normal; ≥ 0) and b̂ the edge's bisector, as a coupling (+ on the diagonal blocks
+// of i and j, − across).
 class SurfaceTension : public ForceTerm {
  public:
   explicit SurfaceTension(const CellParams& p) : gamma_(p.gamma), w_(adhesionW(p)) {}
   std::string_view name() const override { return "surface_tension"; }
   double addForces(const StepContext& ctx, Eigen::Matrix3Xd& f) const override;
+  void addFriction(const StepContext& ctx, FrictionOperator& op) const override;
 
  private:
   double gamma_, w_;
@@ -60,8 +66,6 @@ class CortexViscosity : public ForceTerm {
   void addFriction(const StepContext& ctx, FrictionOperator& op) const override;
 
  private:
-  // b̂ of edge e, or zero for a fully folded edge (no defined bisector: isotropic coupling).
-  static Vec3 bisector(const StepContext& ctx, const Edge& e);
   double eps_n_, g_;
 };
 

@@ -191,6 +191,8 @@ BodyTorques bodyTorques(const StartSolve& s) {
                   frictionTorque(cf->part(Part::Normal), ctx, s.v, rigid.centroid);
       if (ctx.contact_stiffness_dt > 0)
         springs += frictionTorque(cf->part(Part::Springs), ctx, s.v, rigid.centroid);
+    } else if (dynamic_cast<const SurfaceTension*>(&t) && ctx.tension_stiffness_dt > 0) {
+      springs += frictionTorque(t, ctx, s.v, rigid.centroid);
     }
   }
   b.torque_medium_nnum = medium.norm();

@@ -270,6 +270,8 @@ Dissipation dissipation(const StartSolve& s) {
       d.friction_t += frictionPower(cf->part(Part::Tangential), ctx, v);
       d.friction_n += frictionPower(cf->part(Part::Normal), ctx, v);
       if (ctx.contact_stiffness_dt > 0) d.springs += frictionPower(cf->part(Part::Springs), ctx, v);
+    } else if (dynamic_cast<const SurfaceTension*>(&t) && ctx.tension_stiffness_dt > 0) {
+      d.springs += frictionPower(t, ctx, v);
     } else if (dynamic_cast<const ActiveMigration*>(&t)) {
       Eigen::Matrix3Xd fa = Eigen::Matrix3Xd::Zero(3, ctx.cells.numVertices());
       t.addForces(ctx, fa);

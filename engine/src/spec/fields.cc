@@ -88,6 +88,13 @@ void readIf(std::vector<Entry>& t, bool (*when)(const SceneSpec&), const char* t
 bool remeshing(const SceneSpec& s) {
   return remeshEveryS(s) > 0;
 }
+bool oneStageImplicit(const SceneSpec& s) {
+  return s.numerics.integrator == IntegratorKind::ContactImplicit ||
+         s.numerics.integrator == IntegratorKind::ContactImplicitConsistent;
+}
+constexpr const char* kOneStageImplicit =
+    "read only by the contact-implicit integrators (numerics.integrator = contact-implicit or "
+    "contact-implicit-consistent)";
 constexpr const char* kRemeshing =
     "read only while remeshing is on (numerics.remesh_every_s > 0), which this spec turns off "
     "(numerics.remesh_every_s = 0)";
@@ -298,6 +305,16 @@ const std::vector<Entry>& entries() {
     readBy(t, kContacts);
     since(t, std::string("supplement"));
     prepAt(t, std::string("supplement"));
+    t.push_back(
+        {boolean(
+             "numerics.tension_implicit",
+             "the surface tension's out-of-plane stiffness implicit, as the contact "
+             "springs' (contact-implicit integrators): holds Δt 2 s, where the explicit tension "
+             "oscillates"),
+         [](SceneSpec& s) -> Slot { return &s.numerics.tension_implicit; }});
+    readIf(t, oneStageImplicit, kOneStageImplicit);
+    since(t, false);
+    prepAt(t, false);
     t.push_back({integer("numerics.max_oscillating_steps", 1, 1e6,
                          "consecutive steps of reversing contact velocities (explicit-scheme "
                          "instability) that fail a step"),

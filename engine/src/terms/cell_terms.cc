@@ -85,17 +85,19 @@ void MediumDrag::addFriction(const StepContext& ctx, FrictionOperator& op) const
   }
 }
 
-Vec3 CortexViscosity::bisector(const StepContext& ctx, const Edge& e) {
+namespace {
+
+// b̂ of edge e, the mean of its two triangles' normals made orthogonal to the edge; zero for a
+// fully folded edge, which has none (the cortex's coupling is then isotropic, still SPD; the
+// tension's stiffness adds nothing there).
+Vec3 bisector(const StepContext& ctx, const Edge& e) {
   const Vec3 n = (ctx.cells.x.col(e.j) - ctx.cells.x.col(e.i)).normalized();
   Vec3 b = ctx.geo.tri_normal[e.ta] + ctx.geo.tri_normal[e.tb];
   b -= b.dot(n) * n;  // exactly orthogonal to the edge (both normals are, up to roundoff)
   const double bn = b.norm();
-  // A fully folded edge has no defined bisector: isotropic coupling (b = 0 below), still SPD.
   if (bn < 1e-12) return Vec3::Zero();
   return b / bn;
 }
-
-namespace {
 
 // The mesh edges' couplings of one step: −G_ij across each edge ij.
 class EdgeCoupling : public Coupling {
@@ -138,7 +140,84 @@ class EdgeCoupling : public Coupling {
   std::vector<std::size_t> cell_edges;  // cell c's edges: edges[cell_edges[c] .. [c + 1])
 };
 
+// The surface tension's out-of-plane stiffness of one step: −k b̂b̂ᵀ across each edge.
+class NormalEdgeCoupling : public Coupling {
+ public:
+  struct EdgeOp {
+    int i, j;
+    double k;  // nN·s/µm: the step's factor times the edge's stiffness
+    double b[3];
+  };
+  void addProduct(const double* v, double* y) const override {
+    const int nc = static_cast<int>(cell_edges.size()) - 1;
+#pragma omp parallel for schedule(static) if (static_cast <int>(edges.size()) > grain().min_items)
+    for (int cell = 0; cell < nc; ++cell)
+      for (std::size_t n = cell_edges[cell]; n < cell_edges[cell + 1]; ++n) {
+        const EdgeOp& e = edges[n];
+        const double* vi = v + 3 * static_cast<std::int64_t>(e.i);
+        const double* vj = v + 3 * static_cast<std::int64_t>(e.j);
+        double* yi = y + 3 * static_cast<std::int64_t>(e.i);
+        double* yj = y + 3 * static_cast<std::int64_t>(e.j);
+        const double bi = e.k * (e.b[0] * vi[0] + e.b[1] * vi[1] + e.b[2] * vi[2]);
+        const double bj = e.k * (e.b[0] * vj[0] + e.b[1] * vj[1] + e.b[2] * vj[2]);
+        for (int d = 0; d < 3; ++d) {
+          yi[d] -= bj * e.b[d];
+          yj[d] -= bi * e.b[d];
+        }
+      }
+  }
+  static Eigen::Matrix3d edgeMatrix(const EdgeOp& e) {
+    const Vec3 bv(e.b[0], e.b[1], e.b[2]);
+    return e.k * bv * bv.transpose();
+  }
+  void forEachBlock(const BlockSink& sink) const override {
+    for (const EdgeOp& e : edges) sink(e.i, e.j, -edgeMatrix(e));
+  }
+  std::vector<EdgeOp> edges;
+  std::vector<std::size_t> cell_edges;
+};
+
+// ½ cot of the angle of triangle t opposite its edge ij.
+double halfCotOpposite(const CellSet& cells, int t, int i, int j) {
+  const Tri& tr = cells.tri[t];
+  int o = tr[0];
+  for (int q = 1; q < 3; ++q)
+    if (o == i || o == j) o = tr[q];
+  const Vec3 u = cells.x.col(i) - cells.x.col(o), w = cells.x.col(j) - cells.x.col(o);
+  const double s = u.cross(w).norm();
+  return s > 0 ? 0.5 * u.dot(w) / s : 0.0;
+}
+
 }  // namespace
+
+void SurfaceTension::addFriction(const StepContext& ctx, FrictionOperator& op) const {
+  if (ctx.tension_stiffness_dt <= 0) return;
+  const auto& edges = ctx.topo.edges;
+  const std::vector<double>* frac = ctx.contacts ? &ctx.contacts->tri_contact_fraction : nullptr;
+  auto& coupling = op.coupling<NormalEdgeCoupling>(this);
+  coupling.cell_edges = ctx.topo.cell_edge_begin;
+  coupling.edges.resize(edges.size());
+  BlockMatrix& gamma = op.diagonal();
+  const int nc = ctx.cells.numCells();
+  // Threads own whole cells and add their edges in list order (the same bits for any count).
+#pragma omp parallel for schedule(static) if (static_cast <int>(edges.size()) > grain().min_items)
+  for (int c = 0; c < nc; ++c)
+    for (std::size_t n = coupling.cell_edges[c]; n < coupling.cell_edges[c + 1]; ++n) {
+      const Edge& e = edges[n];
+      double k = 0;
+      for (int t : {e.ta, e.tb})
+        k += (frac ? gamma_ - w_ * (*frac)[t] : gamma_) * halfCotOpposite(ctx.cells, t, e.i, e.j);
+      // An obtuse pair of angles makes the cotangent weight negative: dropped, so that Γ stays
+      // positive definite (the stiffness is then a little less than the tension's).
+      k = std::max(0.0, ctx.tension_stiffness_dt * k);
+      const Vec3 b = bisector(ctx, e);
+      NormalEdgeCoupling::EdgeOp& out = coupling.edges[n];
+      out = {e.i, e.j, k, {b.x(), b.y(), b.z()}};
+      const Eigen::Matrix3d m = NormalEdgeCoupling::edgeMatrix(out);
+      gamma.addDiagonal(e.i, m);
+      gamma.addDiagonal(e.j, m);
+    }
+}
 
 void CortexViscosity::addFriction(const StepContext& ctx, FrictionOperator& op) const {
   const auto& edges = ctx.topo.edges;
