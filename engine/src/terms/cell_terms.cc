@@ -99,6 +99,19 @@ Vec3 bisector(const StepContext& ctx, const Edge& e) {
   return b / bn;
 }
 
+// f(k) for every edge k, cell by cell (cell c's edges are cell_edges[c] .. [c + 1]), each
+// cell's in list order: threads own whole cells, and a cell's edges touch only its vertices, so
+// every sum f makes into a vertex has the same order whatever the thread count.
+template <class F>
+void forEachEdgeByCell(const std::vector<std::size_t>& cell_edges, F&& f) {
+  if (cell_edges.empty()) return;
+  const int nc = static_cast<int>(cell_edges.size()) - 1;
+  const int ne = static_cast<int>(cell_edges.back());
+#pragma omp parallel for schedule(static) if (ne > grain().min_items)
+  for (int c = 0; c < nc; ++c)
+    for (std::size_t k = cell_edges[c]; k < cell_edges[c + 1]; ++k) f(k);
+}
+
 // The mesh edges' couplings of one step: −G_ij across each edge ij.
 class EdgeCoupling : public Coupling {
  public:
@@ -114,23 +127,20 @@ class EdgeCoupling : public Coupling {
   // −G v_j into y_i and −G v_i into y_j, with G v = g (v − (1 − ε) b̂ (b̂·v)): edgeMatrix applied
   // without forming it.
   void addProduct(const double* v, double* y) const override {
-    const int nc = static_cast<int>(cell_edges.size()) - 1;
     const double c = 1 - eps_n;
-#pragma omp parallel for schedule(static) if (static_cast <int>(edges.size()) > grain().min_items)
-    for (int cell = 0; cell < nc; ++cell)
-      for (std::size_t k = cell_edges[cell]; k < cell_edges[cell + 1]; ++k) {
-        const EdgeOp& e = edges[k];
-        const double* vi = v + 3 * static_cast<std::int64_t>(e.i);
-        const double* vj = v + 3 * static_cast<std::int64_t>(e.j);
-        double* yi = y + 3 * static_cast<std::int64_t>(e.i);
-        double* yj = y + 3 * static_cast<std::int64_t>(e.j);
-        const double bi = c * (e.b[0] * vi[0] + e.b[1] * vi[1] + e.b[2] * vi[2]);
-        const double bj = c * (e.b[0] * vj[0] + e.b[1] * vj[1] + e.b[2] * vj[2]);
-        for (int d = 0; d < 3; ++d) {
-          yi[d] -= g * (vj[d] - bj * e.b[d]);
-          yj[d] -= g * (vi[d] - bi * e.b[d]);
-        }
+    forEachEdgeByCell(cell_edges, [&](std::size_t k) {
+      const EdgeOp& e = edges[k];
+      const double* vi = v + 3 * static_cast<std::int64_t>(e.i);
+      const double* vj = v + 3 * static_cast<std::int64_t>(e.j);
+      double* yi = y + 3 * static_cast<std::int64_t>(e.i);
+      double* yj = y + 3 * static_cast<std::int64_t>(e.j);
+      const double bi = c * (e.b[0] * vi[0] + e.b[1] * vi[1] + e.b[2] * vi[2]);
+      const double bj = c * (e.b[0] * vj[0] + e.b[1] * vj[1] + e.b[2] * vj[2]);
+      for (int d = 0; d < 3; ++d) {
+        yi[d] -= g * (vj[d] - bj * e.b[d]);
+        yj[d] -= g * (vi[d] - bi * e.b[d]);
       }
+    });
   }
   void forEachBlock(const BlockSink& sink) const override {
     for (const EdgeOp& e : edges) sink(e.i, e.j, -edgeMatrix(e.b));
@@ -149,22 +159,19 @@ class NormalEdgeCoupling : public Coupling {
     double b[3];
   };
   void addProduct(const double* v, double* y) const override {
-    const int nc = static_cast<int>(cell_edges.size()) - 1;
-#pragma omp parallel for schedule(static) if (static_cast <int>(edges.size()) > grain().min_items)
-    for (int cell = 0; cell < nc; ++cell)
-      for (std::size_t n = cell_edges[cell]; n < cell_edges[cell + 1]; ++n) {
-        const EdgeOp& e = edges[n];
-        const double* vi = v + 3 * static_cast<std::int64_t>(e.i);
-        const double* vj = v + 3 * static_cast<std::int64_t>(e.j);
-        double* yi = y + 3 * static_cast<std::int64_t>(e.i);
-        double* yj = y + 3 * static_cast<std::int64_t>(e.j);
-        const double bi = e.k * (e.b[0] * vi[0] + e.b[1] * vi[1] + e.b[2] * vi[2]);
-        const double bj = e.k * (e.b[0] * vj[0] + e.b[1] * vj[1] + e.b[2] * vj[2]);
-        for (int d = 0; d < 3; ++d) {
-          yi[d] -= bj * e.b[d];
-          yj[d] -= bi * e.b[d];
-        }
+    forEachEdgeByCell(cell_edges, [&](std::size_t n) {
+      const EdgeOp& e = edges[n];
+      const double* vi = v + 3 * static_cast<std::int64_t>(e.i);
+      const double* vj = v + 3 * static_cast<std::int64_t>(e.j);
+      double* yi = y + 3 * static_cast<std::int64_t>(e.i);
+      double* yj = y + 3 * static_cast<std::int64_t>(e.j);
+      const double bi = e.k * (e.b[0] * vi[0] + e.b[1] * vi[1] + e.b[2] * vi[2]);
+      const double bj = e.k * (e.b[0] * vj[0] + e.b[1] * vj[1] + e.b[2] * vj[2]);
+      for (int d = 0; d < 3; ++d) {
+        yi[d] -= bj * e.b[d];
+        yj[d] -= bi * e.b[d];
       }
+    });
   }
   static Eigen::Matrix3d edgeMatrix(const EdgeOp& e) {
     const Vec3 bv(e.b[0], e.b[1], e.b[2]);
@@ -198,25 +205,21 @@ void SurfaceTension::addFriction(const StepContext& ctx, FrictionOperator& op) c
   coupling.cell_edges = ctx.topo.cell_edge_begin;
   coupling.edges.resize(edges.size());
   BlockMatrix& gamma = op.diagonal();
-  const int nc = ctx.cells.numCells();
-  // Threads own whole cells and add their edges in list order (the same bits for any count).
-#pragma omp parallel for schedule(static) if (static_cast <int>(edges.size()) > grain().min_items)
-  for (int c = 0; c < nc; ++c)
-    for (std::size_t n = coupling.cell_edges[c]; n < coupling.cell_edges[c + 1]; ++n) {
-      const Edge& e = edges[n];
-      double k = 0;
-      for (int t : {e.ta, e.tb})
-        k += (frac ? gamma_ - w_ * (*frac)[t] : gamma_) * halfCotOpposite(ctx.cells, t, e.i, e.j);
-      // An obtuse pair of angles makes the cotangent weight negative: dropped, so that Γ stays
-      // positive definite (the stiffness is then a little less than the tension's).
-      k = std::max(0.0, ctx.tension_stiffness_dt * k);
-      const Vec3 b = bisector(ctx, e);
-      NormalEdgeCoupling::EdgeOp& out = coupling.edges[n];
-      out = {e.i, e.j, k, {b.x(), b.y(), b.z()}};
-      const Eigen::Matrix3d m = NormalEdgeCoupling::edgeMatrix(out);
-      gamma.addDiagonal(e.i, m);
-      gamma.addDiagonal(e.j, m);
-    }
+  forEachEdgeByCell(coupling.cell_edges, [&](std::size_t n) {
+    const Edge& e = edges[n];
+    double k = 0;
+    for (int t : {e.ta, e.tb})
+      k += (frac ? gamma_ - w_ * (*frac)[t] : gamma_) * halfCotOpposite(ctx.cells, t, e.i, e.j);
+    // An obtuse pair of angles makes the cotangent weight negative: dropped, so that Γ stays
+    // positive definite (the stiffness is then a little less than the tension's).
+    k = std::max(0.0, ctx.tension_stiffness_dt * k);
+    const Vec3 b = bisector(ctx, e);
+    NormalEdgeCoupling::EdgeOp& out = coupling.edges[n];
+    out = {e.i, e.j, k, {b.x(), b.y(), b.z()}};
+    const Eigen::Matrix3d m = NormalEdgeCoupling::edgeMatrix(out);
+    gamma.addDiagonal(e.i, m);
+    gamma.addDiagonal(e.j, m);
+  });
 }
 
 void CortexViscosity::addFriction(const StepContext& ctx, FrictionOperator& op) const {
@@ -228,20 +231,15 @@ void CortexViscosity::addFriction(const StepContext& ctx, FrictionOperator& op) 
   coupling.cell_edges = ctx.topo.cell_edge_begin;
   coupling.edges.resize(edges.size());
   BlockMatrix& gamma = op.diagonal();
-  const int nc = ctx.cells.numCells();
-  // Threads own whole cells and add their edges in list order: each diagonal block gets its
-  // edges' G in the same order whatever the thread count.
-#pragma omp parallel for schedule(static) if (static_cast <int>(edges.size()) > grain().min_items)
-  for (int c = 0; c < nc; ++c)
-    for (std::size_t k = coupling.cell_edges[c]; k < coupling.cell_edges[c + 1]; ++k) {
-      const Edge& e = edges[k];
-      const Vec3 b = bisector(ctx, e);
-      EdgeCoupling::EdgeOp& out = coupling.edges[k];
-      out = {e.i, e.j, {b.x(), b.y(), b.z()}};
-      const Eigen::Matrix3d m = coupling.edgeMatrix(out.b);
-      gamma.addDiagonal(e.i, m);
-      gamma.addDiagonal(e.j, m);
-    }
+  forEachEdgeByCell(coupling.cell_edges, [&](std::size_t k) {
+    const Edge& e = edges[k];
+    const Vec3 b = bisector(ctx, e);
+    EdgeCoupling::EdgeOp& out = coupling.edges[k];
+    out = {e.i, e.j, {b.x(), b.y(), b.z()}};
+    const Eigen::Matrix3d m = coupling.edgeMatrix(out.b);
+    gamma.addDiagonal(e.i, m);
+    gamma.addDiagonal(e.j, m);
+  });
 }
 
 }  // namespace activefoam
