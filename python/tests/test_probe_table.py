@@ -81,6 +81,23 @@ def test_friction_share_at_the_cells_scale_reads_the_affine_columns(tmp_path):
     assert row.strip("| ").split(" | ")[col] == "60"
 
 
+def test_the_cells_scale_split_and_the_cortex_ripples_are_medians_of_each_sample(tmp_path):
+    f = run_folder(tmp_path / "split", [0.2] * 5)
+    d = pd.read_csv(f / "samples.csv")
+    # cortex 2 nW (0.2 of 10) at every sample; its ripples 1.5 nW, then one sample at 0.5: the
+    # median share is 75 %. At the cells' scale 3 / 1 / 4 / 2 nW, one sample's all doubled.
+    d[pt.JITTER] = [np.nan, 1.5, 1.5, 0.5, 1.5, 1.5]
+    for c, v in zip(pt.AFFINE, [3.0, 1.0, 4.0, 2.0]):
+        d[c] = v
+    d.loc[2, pt.AFFINE] *= 2
+    d.to_csv(f / "samples.csv", index=False)
+    text, _ = pt.table([("split", *pt.read_run(f))])
+    header, _, row = text.splitlines()[:3]
+    cells = dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | ")))
+    assert cells["cells' scale: medium / cortex / friction ∥ / ⊥ %"] == "30 / 10 / 40 / 20"
+    assert cells["cortex's ripples %"] == "75"
+
+
 def test_msrd_at_lags_interpolates_the_pooled_curve_and_stops_at_its_end(tmp_path):
     f = run_folder(tmp_path / "m", [0.2] * 5)
     spec = json.loads((f / "spec.json").read_text())

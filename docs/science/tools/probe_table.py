@@ -2,9 +2,10 @@
 """The probes' tables from foam-run output folders whose spec asks for the dissipation probe
 (`[observe] dissipation = true`, docs/scenes.md). Per run: the median share of the power each
 friction term dissipates (medians over the samples: a contact snapping now and then spikes the
-springs' part for one sample); where the probe gives each cell's affine part, the contact
-friction's share of the dissipation at the cells' scale; the active forces' share of the forces'
-power; for a finished fusion, its MSRD at the end and at each --lags lag (the pooled curve of
+springs' part for one sample); the active forces' share of the forces' power; where the probe
+gives each cell's affine part, the contact friction's share of the dissipation at the cells'
+scale, that dissipation's split by term and the share of the cortex's dissipation in
+vertex-scale ripples (`diss_cortex_jitter_nw`); for a finished fusion, its MSRD at the end and at each --lags lag (the pooled curve of
 summary.json, over r²) and its mixing time; with `rigid_motion`, the aggregate's turn and drift
 at the end; with `torque`, the median rigid spin of the solved velocities, the largest net
 torque of the forces and the medium's torque's median split into cortex, friction and springs.
@@ -28,6 +29,8 @@ LABELS = ["medium", "cortex", "friction ∥", "friction ⊥", "springs (implicit
 # Each cell's affine part of v (motion at the cells' scale), where the probe has them.
 AFFINE = ["diss_medium_affine_nw", "diss_cortex_affine_nw", "diss_friction_t_affine_nw",
           "diss_friction_n_affine_nw"]
+# The cortex's dissipation in vertex-scale ripples that move no cell (its part off the affine).
+JITTER = "diss_cortex_jitter_nw"
 
 
 def read_run(folder):
@@ -77,6 +80,12 @@ def table(runs, lags=()):
             aff = d[AFFINE]
             fric = (aff[AFFINE[2]] + aff[AFFINE[3]]).div(aff.sum(axis=1)).median()
             row["friction's share at the cells' scale %"] = f"{100 * fric:.0f}"
+            split = aff.div(aff.sum(axis=1), axis=0).median()
+            row["cells' scale: medium / cortex / friction ∥ / ⊥ %"] = " / ".join(
+                f"{100 * split[c]:.0f}" for c in AFFINE)
+        if JITTER in d.columns and len(d):
+            ripple = (d[JITTER] / d["diss_cortex_nw"]).median()
+            row["cortex's ripples %"] = f"{100 * ripple:.0f}"
         summ = spec.get("_summary", {})
         if summ.get("msrd", {}).get("msrd_um2"):
             r = spec["cells"]["radius_mean_um"]
