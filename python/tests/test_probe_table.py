@@ -37,6 +37,12 @@ def run_folder(path, shares, n=6, spike_at=None, rigid=False, broken_at=None):
     return path
 
 
+def first_row(text):
+    """The table's first row as {column: cell}."""
+    header, _, row = text.splitlines()[:3]
+    return dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | ")))
+
+
 def test_shares_are_medians_the_first_row_has_no_step_and_the_turn_is_the_last(tmp_path):
     f = run_folder(tmp_path / "base", [0.1, 0.6, 0.2, 0.05, 0.05], spike_at=3, rigid=True)
     samples, spec = pt.read_run(f)
@@ -92,8 +98,7 @@ def test_the_cells_scale_split_and_the_cortex_ripples_are_medians_of_each_sample
     d.loc[2, pt.AFFINE] *= 2
     d.to_csv(f / "samples.csv", index=False)
     text, _ = pt.table([("split", *pt.read_run(f))])
-    header, _, row = text.splitlines()[:3]
-    cells = dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | ")))
+    cells = first_row(text)
     assert cells["cells' scale: medium / cortex / friction ∥ / ⊥ %"] == "30 / 10 / 40 / 20"
     assert cells["cortex's ripples %"] == "75"
 
@@ -111,8 +116,7 @@ def test_msrd_at_lags_interpolates_the_pooled_curve_and_stops_at_its_end(tmp_pat
     assert pt.msrd_at(spec["_summary"], 30) == pytest.approx(2.0)   # from 0 at lag 0
     assert np.isnan(pt.msrd_at(spec["_summary"], 240))
     text, _ = pt.table([("m", *pt.read_run(f))], lags=[120, 240])
-    header, _, row = text.splitlines()[:3]
-    cells = dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | ")))
+    cells = first_row(text)
     assert cells["MSRD at the end / r²"] == "5"    # 20 µm² / (2 µm)²
     assert cells["MSRD(120 s) / r²"] == "2"
     assert cells["MSRD(240 s) / r²"] == "—"
@@ -128,8 +132,7 @@ def test_the_torque_probes_columns_are_read_where_the_run_has_them(tmp_path):
         d[c] = v
     d.to_csv(f / "samples.csv", index=False)
     text, _ = pt.table([("t", *pt.read_run(f))])
-    header, _, row = text.splitlines()[:3]
-    cells = dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | ")))
+    cells = first_row(text)
     assert cells["spin (°/h)"] == "3"
     assert cells["max |net torque| (nN·µm)"] == "4e-11"
     assert [cells[f"medium's torque: {n} %"] for n in ("cortex", "friction", "springs")] == \
