@@ -18,6 +18,7 @@ pkgs=(build-essential cmake ninja-build pkg-config git
       python3-yaml python3-jsonschema  # CITATION.cff against its schema (tests/repo)
       python3-venv  # its install test: pip install ./python into a fresh virtual environment
       python3-matplotlib  # study reports (python3 -m activefoam.study report)
+      python3-scipy  # the science pages' fits and rotations (docs/science/*/*.py)
       python3-tqdm  # progress bars of Job.wait / Sweep.wait (a plain line without it)
       clang libomp-dev  # the tsan preset: clang + LLVM's libomp, whose Archer tool TSan understands
       ccache)  # the compiler launcher (CMakeLists.txt): builds reuse earlier builds' objects
