@@ -379,8 +379,7 @@ TEST(Probes, KeysLeaveThePreparationAloneAndSeparateCheckpoints) {
 // Depth in the contact graph: a surface cell 0, then buried cells by their fewest contacts to it
 // (cell 3 through 7 rather than along the chain 1–2), a buried island with no way to the surface
 // (the deepest found + 1), an isolated surface cell; 0.05 itself is on the surface; with no
-// surface cell at all every cell is at 0 (docs/science/fig9-depth/msrd_by_depth.py's `depths`
-// throughout).
+// surface cell at all every cell is at 0.
 TEST(Probes, ContactDepthsCountContactsFromTheSurface) {
   const std::vector<double> free = {0.3, 0.01, 0, 0.049, 0, 0.02, 1, 0};
   const std::vector<std::pair<int, int>> pairs = {{0, 1}, {1, 2}, {2, 3}, {4, 5}, {0, 7}, {3, 7}};
