@@ -112,6 +112,19 @@ void forEachEdgeByCell(const std::vector<std::size_t>& cell_edges, F&& f) {
     for (std::size_t k = cell_edges[c]; k < cell_edges[c + 1]; ++k) f(k);
 }
 
+// An edge coupling's product y −= C v, edge by edge in forEachEdgeByCell's order: f(e, v_i, v_j,
+// y_i, y_j) for each edge e = ij.
+template <class Edge, class F>
+void forEachEdgeProduct(const std::vector<std::size_t>& cell_edges, const std::vector<Edge>& edges,
+                        const double* v, double* y, F&& f) {
+  forEachEdgeByCell(cell_edges, [&](std::size_t k) {
+    const Edge& e = edges[k];
+    const std::int64_t i = 3 * static_cast<std::int64_t>(e.i);
+    const std::int64_t j = 3 * static_cast<std::int64_t>(e.j);
+    f(e, v + i, v + j, y + i, y + j);
+  });
+}
+
 // The mesh edges' couplings of one step: −G_ij across each edge ij.
 class EdgeCoupling : public Coupling {
  public:
@@ -128,19 +141,16 @@ class EdgeCoupling : public Coupling {
   // without forming it.
   void addProduct(const double* v, double* y) const override {
     const double c = 1 - eps_n;
-    forEachEdgeByCell(cell_edges, [&](std::size_t k) {
-      const EdgeOp& e = edges[k];
-      const double* vi = v + 3 * static_cast<std::int64_t>(e.i);
-      const double* vj = v + 3 * static_cast<std::int64_t>(e.j);
-      double* yi = y + 3 * static_cast<std::int64_t>(e.i);
-      double* yj = y + 3 * static_cast<std::int64_t>(e.j);
-      const double bi = c * (e.b[0] * vi[0] + e.b[1] * vi[1] + e.b[2] * vi[2]);
-      const double bj = c * (e.b[0] * vj[0] + e.b[1] * vj[1] + e.b[2] * vj[2]);
-      for (int d = 0; d < 3; ++d) {
-        yi[d] -= g * (vj[d] - bj * e.b[d]);
-        yj[d] -= g * (vi[d] - bi * e.b[d]);
-      }
-    });
+    forEachEdgeProduct(
+        cell_edges, edges, v, y,
+        [&](const EdgeOp& e, const double* vi, const double* vj, double* yi, double* yj) {
+          const double bi = c * (e.b[0] * vi[0] + e.b[1] * vi[1] + e.b[2] * vi[2]);
+          const double bj = c * (e.b[0] * vj[0] + e.b[1] * vj[1] + e.b[2] * vj[2]);
+          for (int d = 0; d < 3; ++d) {
+            yi[d] -= g * (vj[d] - bj * e.b[d]);
+            yj[d] -= g * (vi[d] - bi * e.b[d]);
+          }
+        });
   }
   void forEachBlock(const BlockSink& sink) const override {
     for (const EdgeOp& e : edges) sink(e.i, e.j, -edgeMatrix(e.b));
@@ -159,19 +169,16 @@ class NormalEdgeCoupling : public Coupling {
     double b[3];
   };
   void addProduct(const double* v, double* y) const override {
-    forEachEdgeByCell(cell_edges, [&](std::size_t n) {
-      const EdgeOp& e = edges[n];
-      const double* vi = v + 3 * static_cast<std::int64_t>(e.i);
-      const double* vj = v + 3 * static_cast<std::int64_t>(e.j);
-      double* yi = y + 3 * static_cast<std::int64_t>(e.i);
-      double* yj = y + 3 * static_cast<std::int64_t>(e.j);
-      const double bi = e.k * (e.b[0] * vi[0] + e.b[1] * vi[1] + e.b[2] * vi[2]);
-      const double bj = e.k * (e.b[0] * vj[0] + e.b[1] * vj[1] + e.b[2] * vj[2]);
-      for (int d = 0; d < 3; ++d) {
-        yi[d] -= bj * e.b[d];
-        yj[d] -= bi * e.b[d];
-      }
-    });
+    forEachEdgeProduct(
+        cell_edges, edges, v, y,
+        [](const EdgeOp& e, const double* vi, const double* vj, double* yi, double* yj) {
+          const double bi = e.k * (e.b[0] * vi[0] + e.b[1] * vi[1] + e.b[2] * vi[2]);
+          const double bj = e.k * (e.b[0] * vj[0] + e.b[1] * vj[1] + e.b[2] * vj[2]);
+          for (int d = 0; d < 3; ++d) {
+            yi[d] -= bj * e.b[d];
+            yj[d] -= bi * e.b[d];
+          }
+        });
   }
   static Eigen::Matrix3d edgeMatrix(const EdgeOp& e) {
     const Vec3 bv(e.b[0], e.b[1], e.b[2]);
